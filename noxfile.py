@@ -1,0 +1,19 @@
+"""Sessions run in the environment the README's set-up commands prepared (no per-session venv):
+the pinned simulators are large, and installing them once is the set-up step."""
+
+import nox
+
+nox.options.default_venv_backend = "none"
+nox.options.sessions = ["tests"]
+
+
+@nox.session
+def tests(session: nox.Session) -> None:
+    """The project's test suite (what CI runs)."""
+    session.run("python", "-m", "pytest", *session.posargs)
+
+
+@nox.session
+def lint(session: nox.Session) -> None:
+    """Static checks."""
+    session.run("python", "-m", "ruff", "check", "loader", "conformance", "tests", "noxfile.py")
