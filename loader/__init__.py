@@ -1,0 +1,14 @@
+"""Load MuJoCo MJCF models into SAPIEN, with MuJoCo's own compiler as the front end."""
+
+from .camera import CameraConfig, SiteConfig
+from .errors import MissingAssetError, MJCFError, Unsupported, UnsupportedFeatureWarning
+from .mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .mjcf_loader import LoadResult, MJCFLoader
+from .texture import MJCFTexture
+from .visual import NoRenderDeviceWarning, has_render_device
+
+__all__ = [
+    "BodyLink", "CameraConfig", "GeomShape", "JointDofs", "LoadResult", "MJCFError", "MJCFLoader", "MJCFTexture",
+    "Mapping", "MissingAssetError", "NoRenderDeviceWarning", "SiteConfig", "Unsupported",
+    "UnsupportedFeatureWarning", "has_render_device",
+]

@@ -1,0 +1,64 @@
+"""Cameras and sites: where they are, in the frame of the body that carries them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import sapien
+
+from .frames import pose, quat_mul, mat_to_quat
+from .tree import body_name
+
+# SAPIEN cameras look along +X with +Z up; MuJoCo's look along -Z with +Y up.
+# Columns: SAPIEN's x, y, z axes written in MuJoCo camera axes.
+_SAPIEN_FROM_MUJOCO_CAMERA = mat_to_quat(np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]]))
+
+
+@dataclass
+class CameraConfig:
+    name: str
+    body: str  # name of the body carrying the camera ("world" for fixed cameras)
+    pose: sapien.Pose  # SAPIEN camera frame (x forward, z up) in the body frame
+    fovy: float  # radians
+    width: int
+    height: int
+    near: float = 0.01
+    far: float = 100.0
+
+
+@dataclass
+class SiteConfig:
+    name: str
+    body: str
+    pose: sapien.Pose  # in the body frame
+
+
+def cameras(model: mujoco.MjModel) -> list[CameraConfig]:
+    result = []
+    for c in range(model.ncam):
+        q = quat_mul(model.cam_quat[c], _SAPIEN_FROM_MUJOCO_CAMERA)
+        width, height = (int(x) for x in model.cam_resolution[c])
+        result.append(
+            CameraConfig(
+                name=model.camera(c).name or f"camera{c}",
+                body=body_name(model, int(model.cam_bodyid[c])),
+                pose=pose(model.cam_pos[c], q),
+                fovy=float(np.deg2rad(model.cam_fovy[c])),
+                width=width,
+                height=height,
+                near=float(model.vis.map.znear * model.stat.extent),
+                far=float(model.vis.map.zfar * model.stat.extent),
+            )
+        )
+    return result
+
+
+def sites(model: mujoco.MjModel) -> dict[str, SiteConfig]:
+    result = {}
+    for s in range(model.nsite):
+        name = model.site(s).name or f"site{s}"
+        result[name] = SiteConfig(name, body_name(model, int(model.site_bodyid[s])),
+                                  pose(model.site_pos[s], model.site_quat[s]))
+    return result

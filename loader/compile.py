@@ -1,0 +1,56 @@
+"""MuJoCo is the front end: parse with MjSpec, compile with MuJoCo, and turn its rejections into typed errors."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+
+from .errors import MissingAssetError, MJCFError
+
+_MISSING_FILE_SIGNS = ("error opening file", "resource not found", "could not open", "file not found")
+
+
+@dataclass
+class CompiledModel:
+    """The authored structure (`spec`) beside the compiled numbers (`model`) of one MJCF document."""
+
+    path: Path
+    spec: mujoco.MjSpec
+    model: mujoco.MjModel
+
+
+def _raise_for(path: Path, error: Exception) -> None:
+    message = str(error)
+    if any(sign in message.lower() for sign in _MISSING_FILE_SIGNS):
+        raise MissingAssetError(
+            path, message, hint="check the asset's file name against the compiler's meshdir/texturedir"
+        ) from None
+    raise MJCFError(path, message, hint="correct the element MuJoCo names; the loader accepts what MuJoCo compiles") from None
+
+
+def compile_mjcf(mjcf_file: str | os.PathLike, package_dir: str | os.PathLike | None = None) -> CompiledModel:
+    """Parse and compile `mjcf_file` with MuJoCo.
+
+    `package_dir`, when given, is where relative mesh and texture directories are looked up instead of the
+    document's own folder.
+    """
+    path = Path(mjcf_file)
+    if not path.is_file():
+        raise MJCFError(path, f"no such file: {path}", hint="pass the path of an MJCF .xml file")
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as error:
+        _raise_for(path, error)
+    if package_dir is not None:
+        for attribute in ("meshdir", "texturedir"):
+            current = getattr(spec, attribute) or ""
+            if not os.path.isabs(current):
+                setattr(spec, attribute, os.path.join(os.fspath(package_dir), current))
+    try:
+        model = spec.compile()
+    except ValueError as error:
+        _raise_for(path, error)
+    return CompiledModel(path=path, spec=spec, model=model)

@@ -1,0 +1,129 @@
+"""Which pairs of bodies may touch: MuJoCo's contype/conaffinity bits and its pair filters, as PhysX groups.
+
+A SAPIEN shape carries four 32-bit words [g0, g1, g2, g3]. Two shapes collide iff (g0a & g1b) or (g1a & g0b),
+unless (g2a & g2b) != 0 and the low 16 bits of g3 agree. So g0 = contype and g1 = conaffinity reproduce
+MuJoCo's bit rule exactly, and g2/g3 express the body pairs MuJoCo filters (same weld, weld parent, <exclude>)
+that PhysX does not filter by itself (PhysX only skips a link and its direct parent): each set bit of g2 stands
+for a group of bodies that must never touch each other, and g3 numbers the connected groups, so the 32 bits are
+reused for every independent cluster and the number of bodies is unlimited.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import mujoco
+import numpy as np
+
+from .errors import Notes
+from .tree import TreePlan, body_name
+
+GROUP_BITS = 32
+
+
+@dataclass
+class CollisionFilter:
+    """Per MuJoCo body: the (g2, g3) words its shapes carry."""
+
+    body_words: dict[int, tuple[int, int]] = field(default_factory=dict)
+
+    def groups(self, model: mujoco.MjModel, geom: int) -> list[int]:
+        g2, g3 = self.body_words.get(int(model.geom_bodyid[geom]), (0, 0))
+        return [int(model.geom_contype[geom]), int(model.geom_conaffinity[geom]), g2, g3]
+
+
+def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]]) -> bool:
+    """True when MuJoCo never generates a contact between bodies b1 and b2."""
+    weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
+    if weld1 == weld2:
+        return True
+    parent1 = int(model.body_weldid[model.body_parentid[weld1]])
+    parent2 = int(model.body_weldid[model.body_parentid[weld2]])
+    filter_parent = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    if filter_parent and weld1 != 0 and weld2 != 0 and (weld1 == parent2 or weld2 == parent1):
+        return True
+    return (min(b1, b2), max(b1, b2)) in excluded
+
+
+def _physx_parent_body(tree: TreePlan, b: int) -> int | None:
+    """The body carried by the direct PhysX parent of body b's link (PhysX never lets those two collide)."""
+    if b not in tree.body_link:
+        return None
+    a, link = tree.body_link[b]
+    parent = tree.articulations[a].links[link].parent
+    return None if parent is None else tree.articulations[a].links[parent].body
+
+
+def plan_collision_filter(
+    model: mujoco.MjModel, tree: TreePlan, shape_bodies: set[int], static_bodies: set[int], notes: Notes
+) -> CollisionFilter:
+    """Assign g2/g3 words so that PhysX filters exactly the body pairs MuJoCo filters."""
+    result = CollisionFilter()
+    contype = np.zeros(model.nbody, dtype=np.int64)
+    conaffinity = np.zeros(model.nbody, dtype=np.int64)
+    for g in range(model.ngeom):
+        b = int(model.geom_bodyid[g])
+        if b in shape_bodies:
+            contype[b] |= int(model.geom_contype[g])
+            conaffinity[b] |= int(model.geom_conaffinity[g])
+    excluded = {(s >> 16, s & 0xFFFF) for s in (int(x) for x in model.exclude_signature)}
+    must_exclude: list[tuple[int, int]] = []
+    must_collide: set[tuple[int, int]] = set()
+    for b1, b2 in combinations(sorted(shape_bodies), 2):
+        if not ((contype[b1] & conaffinity[b2]) or (contype[b2] & conaffinity[b1])):
+            continue  # their bits never meet: nothing to decide
+        if b1 in static_bodies and b2 in static_bodies:
+            continue  # PhysX never makes contacts between two bodies that cannot move
+        physx_skips = _physx_parent_body(tree, b2) == b1 or _physx_parent_body(tree, b1) == b2
+        if mujoco_filters(model, b1, b2, excluded):
+            if not physx_skips:
+                must_exclude.append((b1, b2))
+        elif physx_skips:
+            notes.approximate("contact", f"{body_name(model, b1)}/{body_name(model, b2)}",
+                              "PhysX never lets a link touch its direct parent; MuJoCo would let these bodies touch")
+        else:
+            must_collide.add((b1, b2))
+    _assign_bits(model, must_exclude, must_collide, result, notes)
+    return result
+
+
+def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, notes: Notes) -> None:
+    parent = {}
+
+    def find(x):
+        while parent.setdefault(x, x) != x:
+            x = parent[x]
+        return x
+
+    for a, b in must_exclude:
+        parent[find(a)] = find(b)
+    clusters: dict[int, list[tuple[int, int]]] = {}
+    for a, b in must_exclude:
+        clusters.setdefault(find(a), []).append((a, b))
+
+    def may_share(m: int, x: int) -> bool:
+        return m == x or (min(m, x), max(m, x)) not in must_collide
+
+    g2: dict[int, int] = {}
+    g3: dict[int, int] = {}
+    for cluster_index, edges in enumerate(clusters.values(), start=1):
+        bit_members: list[set[int]] = []
+        for a, b in edges:
+            g3[a] = g3[b] = cluster_index
+            if any(a in s and b in s for s in bit_members):
+                continue
+            for members in bit_members:
+                if all(may_share(m, a) and may_share(m, b) for m in members):
+                    members.update((a, b))
+                    break
+            else:
+                if len(bit_members) == GROUP_BITS:
+                    notes.drop("contact", f"{body_name(model, a)}/{body_name(model, b)}",
+                               "filtered by MuJoCo but not expressible in PhysX's 32 group bits: may collide")
+                    continue
+                bit_members.append({a, b})
+        for bit, members in enumerate(bit_members):
+            for m in members:
+                g2[m] = g2.get(m, 0) | (1 << bit)
+    result.body_words = {b: (g2.get(b, 0), g3.get(b, 0)) for b in set(g2) | set(g3)}

@@ -1,0 +1,62 @@
+"""Typed errors and report entries of the loader."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+
+class MJCFError(Exception):
+    """MuJoCo rejected the document (or a part the loader needs is missing).
+
+    `file` and `line` name where, when MuJoCo said so; `mujoco_message` is MuJoCo's own text.
+    """
+
+    def __init__(self, file: str, mujoco_message: str, hint: str = ""):
+        self.file = str(file)
+        self.mujoco_message = mujoco_message.strip()
+        match = re.search(r"line (\d+)", self.mujoco_message, re.IGNORECASE) or re.search(
+            r"Line number=(\d+)", self.mujoco_message
+        )
+        self.line: int | None = int(match.group(1)) if match else None
+        element = re.search(r"Element (?:name )?'([^']*)'", self.mujoco_message)
+        self.element: str | None = element.group(1) if element else None
+        where = f"{self.file}" + (f", line {self.line}" if self.line is not None else "")
+        text = f"{where}: MuJoCo rejected the model: {self.mujoco_message}"
+        if hint:
+            text += f"\n  fix: {hint}"
+        super().__init__(text)
+
+
+class MissingAssetError(MJCFError):
+    """A mesh, height field or texture file named by the model cannot be read."""
+
+
+@dataclass(frozen=True)
+class Unsupported:
+    """A model feature the loader could not map exactly: `kind` is the MJCF concept, `name` the element."""
+
+    kind: str
+    name: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"{self.kind} '{self.name}': {self.reason}"
+
+
+class UnsupportedFeatureWarning(UserWarning):
+    """A model feature was dropped or approximated; the load result lists each one."""
+
+
+@dataclass
+class Notes:
+    """What a load could not map exactly: `unsupported` is dropped, `approximations` is mapped inexactly."""
+
+    unsupported: list[Unsupported] = field(default_factory=list)
+    approximations: list[Unsupported] = field(default_factory=list)
+
+    def drop(self, kind: str, name: str, reason: str) -> None:
+        self.unsupported.append(Unsupported(kind, name, reason))
+
+    def approximate(self, kind: str, name: str, reason: str) -> None:
+        self.approximations.append(Unsupported(kind, name, reason))

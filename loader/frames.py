@@ -1,0 +1,89 @@
+"""Rigid-frame helpers. Quaternions are (w, x, y, z) as in MuJoCo and SAPIEN."""
+
+from __future__ import annotations
+
+import numpy as np
+import sapien
+
+_S = np.sqrt(0.5)
+# SAPIEN capsules, cylinders and planes run along (or face) local +X; MuJoCo's along +Z.
+# This rotation (-90 degrees about Y) carries +X onto +Z.
+X_TO_Z = np.array([_S, 0.0, -_S, 0.0])
+
+
+def pose(p, q=(1.0, 0.0, 0.0, 0.0)) -> sapien.Pose:
+    return sapien.Pose(np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64))
+
+
+def quat_mul(a, b) -> np.ndarray:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ])
+
+
+def quat_conj(q) -> np.ndarray:
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def quat_to_mat(q) -> np.ndarray:
+    w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def mat_to_quat(r) -> np.ndarray:
+    import mujoco
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(r, dtype=np.float64).reshape(9))
+    return q
+
+
+def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
+    axis = np.asarray(axis, dtype=np.float64)
+    axis = axis / np.linalg.norm(axis)
+    return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
+
+
+def quat_x_to(axis) -> np.ndarray:
+    """The shortest rotation that carries +X onto `axis` (a joint frame for SAPIEN, whose joints act along +X)."""
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    if a[0] < -1.0 + 1e-12:
+        return np.array([0.0, 0.0, 0.0, 1.0])  # half turn about Z
+    q = np.array([1.0 + a[0], 0.0, -a[2], a[1]])
+    return q / np.linalg.norm(q)
+
+
+def euler_xyz_from_quat(q) -> np.ndarray:
+    """Angles (a, b, c) with R(q) = Rx(a) Ry(b) Rz(c): the three revolutes that stand in for a ball joint."""
+    r = quat_to_mat(q)
+    b = np.arcsin(np.clip(r[0, 2], -1.0, 1.0))
+    a = np.arctan2(-r[1, 2], r[2, 2])
+    c = np.arctan2(-r[0, 1], r[0, 0])
+    return np.array([a, b, c])
+
+
+def quat_from_euler_xyz(angles) -> np.ndarray:
+    a, b, c = angles
+    q = quat_mul(quat_from_axis_angle((1, 0, 0), a), quat_from_axis_angle((0, 1, 0), b))
+    return quat_mul(q, quat_from_axis_angle((0, 0, 1), c))
+
+
+def euler_xyz_rate_matrix(angles) -> np.ndarray:
+    """E with omega_child_frame = E @ (a', b', c') for R = Rx(a) Ry(b) Rz(c)."""
+    _, b, c = angles
+    ry = quat_to_mat(quat_from_axis_angle((0, 1, 0), b))
+    rz = quat_to_mat(quat_from_axis_angle((0, 0, 1), c))
+    col_a = rz.T @ ry.T @ np.array([1.0, 0.0, 0.0])
+    col_b = rz.T @ np.array([0.0, 1.0, 0.0])
+    col_c = np.array([0.0, 0.0, 1.0])
+    return np.stack([col_a, col_b, col_c], axis=1)

@@ -1,0 +1,137 @@
+"""MuJoCo geoms onto PhysX collision shapes.
+
+Sizes and poses come from the compiled model. Mesh geoms use the compiled (re-centred) vertices with the
+compiled geom pose, so the hull PhysX builds sits where MuJoCo's does. Geoms with contype = conaffinity = 0
+never collide in MuJoCo and get no shape.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import mujoco
+import numpy as np
+import sapien
+
+from .errors import Notes
+from .frames import X_TO_Z, pose
+
+G = mujoco.mjtGeom
+PLANE, HFIELD, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = (
+    int(G.mjGEOM_PLANE), int(G.mjGEOM_HFIELD), int(G.mjGEOM_SPHERE), int(G.mjGEOM_CAPSULE),
+    int(G.mjGEOM_ELLIPSOID), int(G.mjGEOM_CYLINDER), int(G.mjGEOM_BOX), int(G.mjGEOM_MESH),
+)
+GEOM_TYPE_NAMES = {int(v): k.removeprefix("mjGEOM_").lower() for k, v in G.__members__.items() if int(v) < int(G.mjNGEOMTYPES)}
+# PhysX cooks convex hulls with at most this many vertices (it simplifies larger ones)
+PHYSX_HULL_VERTEX_LIMIT = 255
+
+
+@dataclass
+class ShapePlan:
+    """One collision shape: `kind` is the PhysX shape, `pose` is in the body's frame."""
+
+    geom: int
+    kind: str  # "sphere", "box", "capsule", "cylinder", "plane", "convex", "triangles"
+    pose: sapien.Pose
+    size: np.ndarray = field(default_factory=lambda: np.zeros(3))  # sphere r; box half sizes; capsule/cylinder r, half length
+    vertices: np.ndarray | None = None
+    triangles: np.ndarray | None = None
+    scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    friction: float = 1.0
+    groups: list[int] = field(default_factory=lambda: [0, 0, 0, 0])
+
+
+def geom_name(model: mujoco.MjModel, g: int) -> str:
+    return model.geom(g).name or f"geom{g}"
+
+
+def collides(model: mujoco.MjModel, g: int) -> bool:
+    return bool(model.geom_contype[g] or model.geom_conaffinity[g])
+
+
+@lru_cache(maxsize=4)
+def unit_sphere_points(n: int = 7) -> np.ndarray:
+    """4 n^2 + 2 points on the unit sphere (an octahedron cut n times per edge) for ellipsoid hulls."""
+    points = []
+    for i in range(n + 1):
+        for j in range(n + 1 - i):
+            k = n - i - j
+            v = np.array([i, j, k], dtype=np.float64)
+            for signs in np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).T.reshape(-1, 3):
+                points.append(v * signs)
+    points = np.unique(np.array(points), axis=0)
+    return (points / np.linalg.norm(points, axis=1, keepdims=True)).astype(np.float32)
+
+
+def mesh_vertices(model: mujoco.MjModel, mesh: int) -> np.ndarray:
+    start = model.mesh_vertadr[mesh]
+    return model.mesh_vert[start : start + model.mesh_vertnum[mesh]].astype(np.float32)
+
+
+def mesh_faces(model: mujoco.MjModel, mesh: int) -> np.ndarray:
+    start = model.mesh_faceadr[mesh]
+    return model.mesh_face[start : start + model.mesh_facenum[mesh]].astype(np.uint32)
+
+
+def hfield_triangles(model: mujoco.MjModel, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """The top surface of a height field as a triangle mesh in the geom's frame."""
+    nrow, ncol = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
+    rx, ry, top, _base = model.hfield_size[h]
+    start = model.hfield_adr[h]
+    heights = model.hfield_data[start : start + nrow * ncol].reshape(nrow, ncol)
+    x = np.linspace(-rx, rx, ncol)
+    y = np.linspace(-ry, ry, nrow)
+    xx, yy = np.meshgrid(x, y)
+    vertices = np.stack([xx, yy, heights * top], axis=-1).reshape(-1, 3).astype(np.float32)
+    index = np.arange(nrow * ncol).reshape(nrow, ncol)
+    a, b, c, d = index[:-1, :-1], index[:-1, 1:], index[1:, :-1], index[1:, 1:]
+    triangles = np.concatenate(
+        [np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)]
+    ).astype(np.uint32)
+    return vertices, triangles
+
+
+def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes) -> ShapePlan | None:
+    """The collision shape of geom `g` (None when it gets none); `static` says the body never moves."""
+    gtype = int(model.geom_type[g])
+    size = model.geom_size[g]
+    geom_pose = pose(model.geom_pos[g], model.geom_quat[g])
+    friction = float(model.geom_friction[g][0])
+    name = geom_name(model, g)
+    if gtype == SPHERE:
+        return ShapePlan(g, "sphere", geom_pose, np.array([size[0], 0, 0]), friction=friction)
+    if gtype == BOX:
+        return ShapePlan(g, "box", geom_pose, size.copy(), friction=friction)
+    if gtype in (CAPSULE, CYLINDER):
+        kind = "capsule" if gtype == CAPSULE else "cylinder"
+        if gtype == CYLINDER:
+            notes.approximate("geom", name, "cylinder is a convex approximation in PhysX (volume 0.64 % low)")
+        return ShapePlan(g, kind, geom_pose * pose((0, 0, 0), X_TO_Z), np.array([size[0], size[1], 0]),
+                         friction=friction)
+    if gtype == PLANE:
+        if not static:
+            notes.drop("geom", name, "plane on a moving body: PhysX planes are static only")
+            return None
+        return ShapePlan(g, "plane", geom_pose * pose((0, 0, 0), X_TO_Z), friction=friction)
+    if gtype == ELLIPSOID:
+        notes.approximate("geom", name, "ellipsoid approximated by the convex hull of 198 surface points")
+        return ShapePlan(g, "convex", geom_pose, size.copy(), vertices=unit_sphere_points(), scale=size.copy(),
+                         friction=friction)
+    if gtype == MESH:
+        mesh = int(model.geom_dataid[g])
+        vertices = mesh_vertices(model, mesh)
+        if len(vertices) > PHYSX_HULL_VERTEX_LIMIT:
+            hull = model.mesh_graph[model.mesh_graphadr[mesh]] if model.mesh_graphadr[mesh] >= 0 else 0
+            if hull > PHYSX_HULL_VERTEX_LIMIT:
+                notes.approximate("geom", name, f"convex hull of {hull} vertices simplified by PhysX to "
+                                  f"{PHYSX_HULL_VERTEX_LIMIT}")
+        return ShapePlan(g, "convex", geom_pose, vertices=vertices, friction=friction)
+    if gtype == HFIELD:
+        if not static:
+            notes.drop("geom", name, "height field on a moving body is not supported")
+            return None
+        vertices, triangles = hfield_triangles(model, int(model.geom_dataid[g]))
+        return ShapePlan(g, "triangles", geom_pose, vertices=vertices, triangles=triangles, friction=friction)
+    notes.drop("geom", name, f"geom type '{GEOM_TYPE_NAMES.get(gtype, gtype)}' has no PhysX shape")
+    return None

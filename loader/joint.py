@@ -1,0 +1,96 @@
+"""MuJoCo joints onto PhysX articulation joints.
+
+SAPIEN joints act along +X of the joint frame. A hinge or slide becomes one revolute or prismatic joint whose
+frame has +X on the MuJoCo axis; `ref` is folded into the parent-side frame so that SAPIEN's q equals MuJoCo's q.
+A ball becomes three revolute joints about the body's x, y and z axes (intrinsic XYZ angles). A free joint is a
+floating root and gets no joint here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import sapien
+
+from .errors import Notes
+from .frames import pose, quat_from_axis_angle, quat_x_to
+
+HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
+BALL = int(mujoco.mjtJoint.mjJNT_BALL)
+FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+KIND = {HINGE: "hinge", SLIDE: "slide", BALL: "ball", FREE: "free"}
+
+
+@dataclass
+class JointPlan:
+    """The incoming joint of one SAPIEN link."""
+
+    type: str  # "fixed", "revolute", "revolute_unwrapped", "prismatic" or "undefined" (floating root)
+    name: str = ""
+    limits: tuple[float, float] = (-np.inf, np.inf)
+    # joint frame as seen from the child link; the parent-side frame is completed by the tree planner
+    frame_in_child: sapien.Pose = field(default_factory=sapien.Pose)
+    # rotation/translation that maps the reference configuration to SAPIEN's q = 0
+    ref_offset: sapien.Pose = field(default_factory=sapien.Pose)
+    damping: float = 0.0
+    armature: float = 0.0
+    stiffness: float = 0.0
+    spring_target: float = 0.0
+    mj_joint: int | None = None
+    ball_axis: int | None = None  # 0, 1, 2 for the three revolutes of a ball joint
+
+
+def joint_name(model: mujoco.MjModel, j: int) -> str:
+    return model.joint(j).name or f"joint{j}"
+
+
+def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
+    """One MuJoCo joint as the chain of SAPIEN joints that reproduces it (empty for a free joint)."""
+    jtype = int(model.jnt_type[j])
+    name = joint_name(model, j)
+    anchor = model.jnt_pos[j].copy()
+    dof = model.jnt_dofadr[j]
+    damping = float(model.dof_damping[dof])
+    armature = float(model.dof_armature[dof])
+    stiffness = float(model.jnt_stiffness[j])
+    if model.dof_frictionloss[dof] > 0:
+        notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
+                   "scales with the joint reaction force, MuJoCo's is a constant torque")
+    if jtype == FREE:
+        return []
+    if jtype in (HINGE, SLIDE):
+        limited = bool(model.jnt_limited[j])
+        limits = tuple(float(x) for x in model.jnt_range[j]) if limited else (-np.inf, np.inf)
+        ref = float(model.qpos0[model.jnt_qposadr[j]])
+        axis = model.jnt_axis[j]
+        if jtype == HINGE:
+            kind = "revolute" if limited else "revolute_unwrapped"
+            ref_offset = pose((0, 0, 0), quat_from_axis_angle((1, 0, 0), -ref))
+        else:
+            kind = "prismatic"
+            ref_offset = pose((-ref, 0, 0))
+        spring_target = float(model.qpos_spring[model.jnt_qposadr[j]])
+        if stiffness > 0:
+            notes.approximate("joint", name, "stiffness mapped to a PhysX drive (implicit spring; MuJoCo "
+                              "integrates springs explicitly): agreement is O(timestep)")
+        return [
+            JointPlan(kind, name, limits, pose(anchor, quat_x_to(axis)), ref_offset, damping, armature,
+                      stiffness, spring_target, j)
+        ]
+    # ball: three revolutes about x, y, z of the body frame at the anchor
+    if model.jnt_limited[j]:
+        notes.drop("joint", name, "ball joint cone limit not mapped: three revolutes cannot express a cone")
+    if stiffness > 0:
+        notes.drop("joint", name, "ball joint stiffness not mapped")
+    if damping > 0 or armature > 0:
+        notes.approximate("joint", name, "ball joint damping/armature applied per Euler angle: MuJoCo applies "
+                          "them to the body-frame angular velocity, which differs away from the zero rotation")
+    return [
+        JointPlan("revolute_unwrapped", f"{name}_{'xyz'[i]}", (-np.inf, np.inf), pose(anchor, quat_x_to(axis)),
+                  sapien.Pose(), float(model.dof_damping[dof + i]), float(model.dof_armature[dof + i]),
+                  0.0, 0.0, j, i)
+        for i, axis in enumerate(np.eye(3))
+    ]

@@ -1,0 +1,163 @@
+"""Where every MuJoCo body, joint, DoF and geom went in SAPIEN, and state conversion both ways.
+
+MuJoCo's free joint stores the body-origin velocity (world axes) and the angular velocity in the body frame;
+SAPIEN's floating root takes the centre-of-mass velocity and the angular velocity in world axes.
+A ball joint's quaternion becomes three angles (a, b, c) with R = Rx(a) Ry(b) Rz(c), and its body-frame angular
+velocity omega becomes angle rates through omega = E(a, b, c) @ rates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import sapien
+
+from .frames import euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
+from .joint import BALL, FREE, KIND
+
+
+@dataclass(frozen=True)
+class BodyLink:
+    """A MuJoCo body in SAPIEN: a link of an articulation, or a static actor (`articulation` None)."""
+
+    articulation: int | None
+    link: int | None
+    actor: int | None = None
+
+
+@dataclass(frozen=True)
+class JointDofs:
+    """A MuJoCo joint in SAPIEN: indices into `art.get_qpos()` (3 for a ball, none for a free joint)."""
+
+    articulation: int
+    kind: str
+    dofs: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class GeomShape:
+    """A MuJoCo geom's collision shape: index into the link's (or the actor's) `collision_shapes`."""
+
+    articulation: int | None
+    link: int | None
+    actor: int | None
+    shape: int
+
+
+@dataclass
+class Mapping:
+    bodies: list[BodyLink]
+    joints: list[JointDofs]
+    geoms: list[GeomShape | None]
+    articulation_dofs: list[int]
+    # constants copied from the compiled model for the conversions
+    jnt_type: np.ndarray = field(repr=False, default=None)
+    jnt_qposadr: np.ndarray = field(repr=False, default=None)
+    jnt_dofadr: np.ndarray = field(repr=False, default=None)
+    jnt_bodyid: np.ndarray = field(repr=False, default=None)
+    body_ipos: np.ndarray = field(repr=False, default=None)
+    nq: int = 0
+    nv: int = 0
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel, bodies, joints, geoms, articulation_dofs) -> Mapping:
+        return cls(bodies, joints, geoms, articulation_dofs, model.jnt_type.copy(), model.jnt_qposadr.copy(),
+                   model.jnt_dofadr.copy(), model.jnt_bodyid.copy(), model.body_ipos.copy(), model.nq, model.nv)
+
+    @property
+    def dofs(self) -> list[tuple[int, int | None]]:
+        """Per MuJoCo DoF: (articulation, SAPIEN DoF index), the index None for a floating root's six DoFs."""
+        result: list[tuple[int, int | None]] = [(-1, None)] * self.nv
+        for j, target in enumerate(self.joints):
+            adr = int(self.jnt_dofadr[j])
+            if target.kind == "free":
+                for k in range(6):
+                    result[adr + k] = (target.articulation, None)
+            for k, dof in enumerate(target.dofs):
+                result[adr + k] = (target.articulation, dof)
+        return result
+
+    def set_state(self, articulations, qpos, qvel=None) -> None:
+        """Put MuJoCo's (qpos, qvel) into the SAPIEN articulations."""
+        qpos = np.asarray(qpos, dtype=np.float64)
+        qvel = np.zeros(self.nv) if qvel is None else np.asarray(qvel, dtype=np.float64)
+        q = [np.zeros(n) for n in self.articulation_dofs]
+        v = [np.zeros(n) for n in self.articulation_dofs]
+        for j, target in enumerate(self.joints):
+            a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
+            jtype = int(self.jnt_type[j])
+            if jtype == FREE:
+                self._set_root(articulations[a], int(self.jnt_bodyid[j]), qpos[adr : adr + 7], qvel[dof : dof + 6])
+            elif jtype == BALL:
+                angles = euler_xyz_from_quat(qpos[adr : adr + 4])
+                q[a][list(target.dofs)] = angles
+                v[a][list(target.dofs)] = np.linalg.solve(euler_xyz_rate_matrix(angles), qvel[dof : dof + 3])
+            else:
+                q[a][target.dofs[0]] = qpos[adr]
+                v[a][target.dofs[0]] = qvel[dof]
+        for art, qa, va in zip(articulations, q, v):
+            if art.dof:
+                art.set_qpos(qa.astype(np.float32))
+                art.set_qvel(va.astype(np.float32))
+
+    def _set_root(self, art, body: int, qpos7, qvel6) -> None:
+        rotation = quat_to_mat(qpos7[3:])
+        omega_world = rotation @ qvel6[3:]
+        v_com = qvel6[:3] + np.cross(omega_world, rotation @ self.body_ipos[body])
+        art.set_root_pose(sapien.Pose(qpos7[:3], qpos7[3:] / np.linalg.norm(qpos7[3:])))
+        art.set_root_linear_velocity(v_com.astype(np.float32))
+        art.set_root_angular_velocity(omega_world.astype(np.float32))
+
+    def get_state(self, articulations) -> tuple[np.ndarray, np.ndarray]:
+        """Read SAPIEN's state back in MuJoCo's layout (qpos of size nq, qvel of size nv)."""
+        qpos = np.zeros(self.nq)
+        qvel = np.zeros(self.nv)
+        q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
+        v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        for j, target in enumerate(self.joints):
+            a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
+            jtype = int(self.jnt_type[j])
+            if jtype == FREE:
+                art = articulations[a]
+                root = art.get_root_pose()
+                rotation = quat_to_mat(root.q)
+                omega_world = np.asarray(art.get_root_angular_velocity(), np.float64)
+                v_com = np.asarray(art.get_root_linear_velocity(), np.float64)
+                qpos[adr : adr + 3] = root.p
+                qpos[adr + 3 : adr + 7] = root.q
+                qvel[dof : dof + 3] = v_com - np.cross(omega_world, rotation @ self.body_ipos[int(self.jnt_bodyid[j])])
+                qvel[dof + 3 : dof + 6] = rotation.T @ omega_world
+            elif jtype == BALL:
+                angles = q[a][list(target.dofs)]
+                qpos[adr : adr + 4] = quat_from_euler_xyz(angles)
+                qvel[dof : dof + 3] = euler_xyz_rate_matrix(angles) @ v[a][list(target.dofs)]
+            else:
+                qpos[adr] = q[a][target.dofs[0]]
+                qvel[dof] = v[a][target.dofs[0]]
+        return qpos, qvel
+
+    def qfrc_to_sapien(self, qfrc, articulations=None) -> list[np.ndarray]:
+        """A MuJoCo generalized force (nv) as per-articulation arrays for `art.set_qf` (root forces dropped).
+
+        Ball joints need the current angles (from `articulations`): power is invariant, tau . omega =
+        tau . E rates, so the angle-rate force is E^T tau.
+        """
+        qfrc = np.asarray(qfrc, dtype=np.float64)
+        out = [np.zeros(n) for n in self.articulation_dofs]
+        for j, target in enumerate(self.joints):
+            a, dof = target.articulation, int(self.jnt_dofadr[j])
+            jtype = int(self.jnt_type[j])
+            if jtype == BALL:
+                if articulations is None:
+                    raise ValueError("a ball joint's force conversion needs the articulations' current angles")
+                angles = np.asarray(articulations[a].get_qpos(), np.float64)[list(target.dofs)]
+                out[a][list(target.dofs)] = euler_xyz_rate_matrix(angles).T @ qfrc[dof : dof + 3]
+            elif jtype != FREE:
+                out[a][target.dofs[0]] = qfrc[dof]
+        return out
+
+
+def joint_kind(model: mujoco.MjModel, j: int) -> str:
+    return KIND[int(model.jnt_type[j])]

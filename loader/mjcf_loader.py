@@ -1,0 +1,217 @@
+"""MJCFLoader: the pipeline from an MJCF file to SAPIEN articulations and static actors.
+
+compile (MuJoCo) -> plan the kinematic tree -> plan shapes and their collision filter -> builders -> build
+-> mapping. Each stage lives in the module named after its MJCF concept.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import sapien
+
+from . import physx
+from .builders import MJCFActorBuilder, MJCFArticulationBuilder
+from .camera import CameraConfig, SiteConfig, cameras, sites
+from .compile import CompiledModel, compile_mjcf
+from .contact import plan_collision_filter
+from .errors import Notes, Unsupported, UnsupportedFeatureWarning
+from .features import find_unmapped
+from .geom import collides, plan_shape
+from .joint import FREE, KIND
+from .mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .texture import MJCFTexture, textures
+from .tree import TreePlan, plan_tree
+from .visual import add_visual, visuals_available
+
+
+@dataclass
+class LoadResult:
+    """Everything `MJCFLoader.load` built, with the compiled MuJoCo model it came from."""
+
+    path: str
+    spec: mujoco.MjSpec
+    model: mujoco.MjModel
+    scene: sapien.Scene
+    articulations: list[sapien.physx.PhysxArticulation]
+    actors: list[sapien.Entity]
+    cameras: list[CameraConfig]
+    sites: dict[str, SiteConfig]
+    textures: list[MJCFTexture]
+    mapping: Mapping
+    unsupported: list[Unsupported] = field(default_factory=list)
+    approximations: list[Unsupported] = field(default_factory=list)
+
+    @property
+    def articulation(self) -> sapien.physx.PhysxArticulation | None:
+        """The first articulation (what ManiSkill's loader returns)."""
+        return self.articulations[0] if self.articulations else None
+
+    def state(self, key: int | str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo (qpos, qvel) of keyframe `key` (index or name), or of qpos0 when `key` is None."""
+        if key is None:
+            return self.model.qpos0.copy(), np.zeros(self.model.nv)
+        keyframe = self.model.keyframe(key)
+        return keyframe.qpos.copy(), keyframe.qvel.copy()
+
+    def reset(self, key: int | str | None = None) -> None:
+        """Put the SAPIEN scene into the state of keyframe `key` (or qpos0)."""
+        self.mapping.set_state(self.articulations, *self.state(key))
+
+
+@dataclass
+class _Parsed:
+    compiled: CompiledModel
+    tree: TreePlan
+    articulation_builders: list[MJCFArticulationBuilder]
+    actor_builders: list[MJCFActorBuilder]
+    cameras: list[CameraConfig]
+    notes: Notes
+
+
+class MJCFLoader:
+    """Load MJCF files into SAPIEN; the surface matches ManiSkill's MJCF loader.
+
+    `ignore_classes`: geoms whose default class is listed are skipped entirely.
+    `visual_groups`: geom groups that become visual shapes (where a render device exists).
+    `fix_root_link`: trees whose root has no free joint are fixed to the world (a free joint always floats).
+    """
+
+    def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
+        self.ignore_classes = list(ignore_classes or [])
+        self.visual_groups = list(visual_groups if visual_groups is not None else [0, 1, 2])
+        self.scene: sapien.Scene | None = None
+        self.fix_root_link = True
+
+    def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
+        self.scene = scene
+        return self
+
+    def parse(self, mjcf_file: str | os.PathLike, package_dir: str | os.PathLike | None = None):
+        """Builders for `mjcf_file`: (articulation_builders, actor_builders, cameras).
+
+        Each builder builds on its own with `.build()`. Without a scene, one matched to the model is created.
+        """
+        parsed = self._parse(mjcf_file, package_dir)
+        return parsed.articulation_builders, parsed.actor_builders, parsed.cameras
+
+    def load(self, mjcf_file: str | os.PathLike, package_dir: str | os.PathLike | None = None) -> LoadResult:
+        """Build everything into `scene` and return it with the mapping and the unsupported features."""
+        parsed = self._parse(mjcf_file, package_dir)
+        model = parsed.compiled.model
+        articulations = [builder.build() for builder in parsed.articulation_builders]
+        actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
+        mapping = _mapping(model, parsed, articulations)
+        for entry in parsed.notes.unsupported:
+            warnings.warn(f"{parsed.compiled.path}: unsupported {entry}", UnsupportedFeatureWarning, stacklevel=2)
+        for entry in parsed.notes.approximations:
+            warnings.warn(f"{parsed.compiled.path}: approximated {entry}", UnsupportedFeatureWarning, stacklevel=2)
+        result = LoadResult(
+            path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=self.scene,
+            articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
+            textures=textures(parsed.compiled.spec, model), mapping=mapping,
+            unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
+        )
+        result.reset()
+        return result
+
+    def _parse(self, mjcf_file, package_dir) -> _Parsed:
+        compiled = compile_mjcf(mjcf_file, package_dir)
+        model = compiled.model
+        if self.scene is None:
+            self.scene = physx.create_scene(model)
+        tree = plan_tree(model, self.fix_root_link)
+        notes = tree.notes
+        find_unmapped(model, notes)
+        geom_class = {g.id: g.classname.name for g in compiled.spec.geoms}
+        kept = [g for g in range(model.ngeom) if geom_class.get(g) not in self.ignore_classes]
+        static = {0} | ({b for b in range(model.nbody) if model.body_weldid[b] == 0} if self.fix_root_link else set())
+        contact_off = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes)
+                  for g in kept if collides(model, g)}
+        shapes = {g: s for g, s in shapes.items() if s is not None}
+        contact_filter = plan_collision_filter(
+            model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
+        for g, shape in shapes.items():
+            shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)
+        show = visuals_available() and bool(self.visual_groups)
+        visual = {g for g in kept if show and int(model.geom_group[g]) in self.visual_groups}
+
+        def dress(builder, body: int) -> None:
+            for g in range(model.body_geomadr[body], model.body_geomadr[body] + model.body_geomnum[body]):
+                if g in shapes:
+                    builder.shape_plans.append(shapes[g])
+                if g in visual:
+                    add_visual(builder, model, g)
+
+        articulation_builders = []
+        for art in tree.articulations:
+            builder = MJCFArticulationBuilder()
+            builder.set_scene(self.scene)
+            builder.set_initial_pose(art.root_pose)
+            builder.floating = art.floating
+            link_builders = []
+            for link in art.links:
+                lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)
+                lb.plan = link
+                lb.set_name(link.name)
+                lb.set_joint_name(link.joint.name)
+                if link.parent is None:
+                    lb.joint_record.joint_type = link.joint.type
+                else:
+                    lb.set_joint_properties(link.joint.type, [list(link.joint.limits)], link.pose_in_parent,
+                                            link.joint.frame_in_child, 0.0, link.joint.damping)
+                lb.set_mass_and_inertia(link.mass, link.cmass, np.asarray(link.inertia, np.float32))
+                if link.body is not None:
+                    dress(lb, link.body)
+                link_builders.append(lb)
+            articulation_builders.append(builder)
+        actor_builders = []
+        if model.body_geomnum[0]:
+            world = MJCFActorBuilder()
+            world.set_scene(self.scene)
+            world.set_name("world")
+            world.set_physx_body_type("static")
+            dress(world, 0)
+            actor_builders.append(world)
+        return _Parsed(compiled, tree, articulation_builders, actor_builders, cameras(model), notes)
+
+
+def _mapping(model: mujoco.MjModel, parsed: _Parsed, articulations) -> Mapping:
+    tree = parsed.tree
+    link_index = []  # per articulation: link name -> index in art.links
+    dof_index = []  # per articulation: child link name -> index in art.active_joints
+    for art in articulations:
+        link_index.append({link.name: i for i, link in enumerate(art.links)})
+        dof_index.append({joint.child_link.name: i for i, joint in enumerate(art.active_joints)})
+    bodies = [BodyLink(None, None, 0 if parsed.actor_builders else None)]
+    for b in range(1, model.nbody):
+        a, link = tree.body_link[b]
+        bodies.append(BodyLink(a, link_index[a][tree.articulations[a].links[link].name]))
+    joint_links: dict[int, list[tuple[int, int]]] = {}
+    for a, art in enumerate(tree.articulations):
+        for link in art.links:
+            if link.joint.mj_joint is not None:
+                joint_links.setdefault(link.joint.mj_joint, []).append((a, dof_index[a][link.name]))
+    joints = []
+    for j in range(model.njnt):
+        kind = KIND[int(model.jnt_type[j])]
+        if int(model.jnt_type[j]) == FREE:
+            joints.append(JointDofs(tree.body_link[int(model.jnt_bodyid[j])][0], kind, ()))
+            continue
+        targets = joint_links[j]
+        joints.append(JointDofs(targets[0][0], kind, tuple(dof for _, dof in targets)))
+    geoms: list[GeomShape | None] = [None] * model.ngeom
+    for builders, owner in ((parsed.articulation_builders, "articulation"), (parsed.actor_builders, "actor")):
+        for a, builder in enumerate(builders):
+            for lb in builder.link_builders if owner == "articulation" else [builder]:
+                for s, shape in enumerate(lb.shape_plans):
+                    if owner == "articulation":
+                        geoms[shape.geom] = GeomShape(a, link_index[a][lb.name], None, s)
+                    else:
+                        geoms[shape.geom] = GeomShape(None, None, a, s)
+    return Mapping.from_model(model, bodies, joints, geoms, [art.dof for art in articulations])

@@ -1,0 +1,68 @@
+"""PhysX settings that differ from MuJoCo's behaviour, set so that SAPIEN simulates what MuJoCo does.
+
+Measured (FACTS.md): PhysX damps links (0.05), adds joint friction (0.05), caps link speeds (10 m/s, 50 rad/s)
+and joint speeds (100), puts slow bodies to sleep (0.005) and pushes penetrating bodies apart without limit.
+MuJoCo does none of these.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import sapien
+
+MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
+MAX_LINK_ANGULAR_VELOCITY = 1e4  # rad/s
+MAX_JOINT_VELOCITY = 1e4
+MAX_DEPENETRATION_VELOCITY = 1.0  # m/s; MuJoCo's soft contacts never push harder than that at rest
+
+
+def configure(model: mujoco.MjModel) -> None:
+    """Process-global PhysX configuration matched to `model`; call before creating a PhysX system.
+
+    PGS (not TGS): TGS adds an O(timestep) gap to MuJoCo's semi-implicit Euler (FACTS.md).
+    """
+    gravity = np.zeros(3) if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else model.opt.gravity
+    sapien.physx.set_scene_config(gravity=np.asarray(gravity, np.float32), enable_tgs=False)
+    sapien.physx.set_body_config(sleep_threshold=0.0)
+
+
+def create_scene(model: mujoco.MjModel) -> sapien.Scene:
+    """A CPU PhysX scene with gravity, solver and timestep matched to `model`."""
+    configure(model)
+    scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    scene.timestep = float(model.opt.timestep)
+    return scene
+
+
+def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, plans) -> None:
+    """Joint armature, damping and springs from the plans, and the PhysX overrides, on a built articulation."""
+    articulation.set_sleep_threshold(0.0)
+    by_name = {plan.name: plan for plan in plans}
+    for link in articulation.links:
+        link.linear_damping = 0.0
+        link.angular_damping = 0.0
+        link.max_linear_velocity = MAX_LINK_LINEAR_VELOCITY
+        link.max_angular_velocity = MAX_LINK_ANGULAR_VELOCITY
+        link.max_depenetration_velocity = MAX_DEPENETRATION_VELOCITY
+        joint = link.joint
+        plan = by_name[link.name].joint
+        if joint.dof == 0:
+            continue
+        joint.set_friction(0.0)
+        joint.set_max_velocity(MAX_JOINT_VELOCITY)
+        joint.set_armature(np.array([plan.armature], np.float32))
+        # a drive with stiffness 0 is exact viscous damping; with stiffness it is MuJoCo's joint spring
+        joint.set_drive_properties(plan.stiffness, plan.damping, np.inf, "force")
+        joint.set_drive_target(plan.spring_target)
+        joint.set_drive_velocity_target(0.0)
+
+
+def disable_contacts(result) -> None:
+    """Turn every collision shape of a load result off (contact-free comparisons)."""
+    components = [link for art in result.articulations for link in art.links]
+    for entity in result.actors:
+        components.extend(c for c in entity.components if isinstance(c, sapien.physx.PhysxRigidBaseComponent))
+    for component in components:
+        for shape in component.collision_shapes:
+            shape.set_collision_groups([0, 0, 0, 0])

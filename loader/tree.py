@@ -1,0 +1,123 @@
+"""The kinematic tree: MuJoCo bodies onto SAPIEN articulations and links.
+
+Every child of the world body, and every body with a free joint, starts an articulation. A body gets one link,
+plus one massless helper link for each extra joint DoF it carries (several joints in one body, or the three
+revolutes of a ball joint), so that every SAPIEN link carries at most one joint, in MuJoCo's joint order.
+A root body with joints hangs from a fixed anchor link at its parent's frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import sapien
+
+from .errors import Notes
+from .frames import pose
+from .joint import FREE, JointPlan, plan_joint
+
+# Helper links must have a positive mass for PhysX; this is far below any body MuJoCo would accept.
+HELPER_MASS = 1e-8
+HELPER_INERTIA = 1e-12
+
+
+@dataclass
+class LinkPlan:
+    name: str
+    parent: int | None  # index of the parent link in the same articulation
+    body: int | None  # the MuJoCo body this link carries; None for helper and anchor links
+    joint: JointPlan
+    pose_in_parent: sapien.Pose = field(default_factory=sapien.Pose)
+    mass: float = HELPER_MASS
+    cmass: sapien.Pose = field(default_factory=sapien.Pose)
+    inertia: np.ndarray = field(default_factory=lambda: np.full(3, HELPER_INERTIA))
+
+
+@dataclass
+class ArticulationPlan:
+    name: str
+    root_body: int
+    floating: bool
+    root_pose: sapien.Pose
+    links: list[LinkPlan] = field(default_factory=list)
+
+
+@dataclass
+class TreePlan:
+    articulations: list[ArticulationPlan]
+    body_link: dict[int, tuple[int, int]]  # MuJoCo body id -> (articulation index, link index)
+    notes: Notes
+
+
+def body_name(model: mujoco.MjModel, b: int) -> str:
+    return model.body(b).name or f"body{b}"
+
+
+def world_poses_at_qpos0(model: mujoco.MjModel) -> mujoco.MjData:
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_kinematics(model, data)
+    return data
+
+
+def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan) -> None:
+    mass = float(model.body_mass[b])
+    if mass > 0:
+        link.mass = mass
+        link.inertia = np.maximum(model.body_inertia[b].copy(), HELPER_INERTIA)
+    link.cmass = pose(model.body_ipos[b], model.body_iquat[b])
+
+
+def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
+    data = world_poses_at_qpos0(model)
+    notes = Notes()
+    articulations: list[ArticulationPlan] = []
+    body_link: dict[int, tuple[int, int]] = {}
+    for b in range(1, model.nbody):
+        parent = int(model.body_parentid[b])
+        joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+        has_free = any(model.jnt_type[j] == FREE for j in joints)
+        name = body_name(model, b)
+        subs = [sub for j in joints for sub in plan_joint(model, j, notes)]
+        if has_free or parent not in body_link:
+            world = pose(data.xpos[b], data.xquat[b])
+            root_type = "fixed" if fix_root_link else "undefined"
+            a = len(articulations)
+            if has_free or not subs:
+                art = ArticulationPlan(name, b, floating=has_free or not fix_root_link, root_pose=world)
+                art.links.append(LinkPlan(name, None, b, JointPlan("undefined" if has_free else root_type)))
+                _body_inertial(model, b, art.links[-1])
+                articulations.append(art)
+                body_link[b] = (a, 0)
+                continue
+            anchor_pose = pose(data.xpos[parent], data.xquat[parent])
+            art = ArticulationPlan(name, b, floating=not fix_root_link, root_pose=anchor_pose)
+            art.links.append(LinkPlan(f"{name}:anchor", None, None, JointPlan(root_type)))
+            articulations.append(art)
+            parent_index = 0
+        else:
+            a, parent_index = body_link[parent]
+            art = articulations[a]
+        relative = pose(model.body_pos[b], model.body_quat[b])
+        if not subs:
+            link = LinkPlan(name, parent_index, b, JointPlan("fixed"), pose_in_parent=relative)
+            _body_inertial(model, b, link)
+            art.links.append(link)
+        for k, sub in enumerate(subs):
+            last = k == len(subs) - 1
+            base = relative if k == 0 else sapien.Pose()
+            link = LinkPlan(
+                name if last else f"{name}:{sub.name}",
+                parent_index,
+                b if last else None,
+                sub,
+                pose_in_parent=base * sub.frame_in_child * sub.ref_offset,
+            )
+            if last:
+                _body_inertial(model, b, link)
+            art.links.append(link)
+            parent_index = len(art.links) - 1
+        body_link[b] = (a, len(art.links) - 1)
+    return TreePlan(articulations, body_link, notes)
