@@ -1,0 +1,89 @@
+"""`python -m conformance run|bench`: the command line of the harness."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import manifest as manifest_mod
+from .manifest import TIER_NAMES
+
+DEFAULT_MANIFEST = Path("corpus") / "manifest.toml"
+
+
+def _tiers(text: str) -> tuple[str, ...]:
+    tiers = tuple(t.strip() for t in text.split(",") if t.strip())
+    bad = [t for t in tiers if t not in TIER_NAMES]
+    if bad:
+        raise argparse.ArgumentTypeError(f"unknown tiers {bad}; choose from {','.join(TIER_NAMES)}")
+    return tiers
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m conformance",
+                                description="MuJoCo vs SAPIEN conformance harness")
+    sub = p.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run the tiers over the manifest or over MJCF files")
+    run.add_argument("paths", nargs="*", help="MJCF files to check instead of the manifest")
+    run.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
+    run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
+    run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)}")
+    run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
+    run.add_argument("--out", default="reports", help="folder that receives reports/<run>/")
+    run.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
+    run.add_argument("--timeout-scale", type=float, default=1.0, help="multiply every model's timeout")
+    run.add_argument("--tolerances", default=None, help="tolerance file (default: the packaged one)")
+    run.add_argument("--no-record", action="store_true", help="skip the .rrd recordings")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    bench = sub.add_parser("bench", help="loader time vs MuJoCo compile time, harness steps per second")
+    bench.add_argument("paths", nargs="*")
+    bench.add_argument("--manifest", default=str(DEFAULT_MANIFEST))
+    bench.add_argument("--model", action="append", default=[])
+    bench.add_argument("--out", default=str(Path("reports") / "bench.json"))
+    bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
+    return p
+
+
+def _entries(args) -> list:
+    if args.paths:
+        return list(manifest_mod.from_paths(args.paths).models)
+    return manifest_mod.load(args.manifest).select(args.model)
+
+
+def cmd_run(args) -> int:
+    from .runner import RunOptions, run
+
+    entries = _entries(args)
+    options = RunOptions(out=Path(args.out), seed=args.seed, jobs=args.jobs, tiers=args.tiers,
+                         tolerance_file=args.tolerances, timeout_scale=args.timeout_scale,
+                         progress=not args.quiet, record=not args.no_record,
+                         extra={"manifest": args.manifest if not args.paths else None})
+    try:
+        run_dir, doc = run(entries, options)
+    except KeyboardInterrupt:
+        print("interrupted: partial summary written", file=sys.stderr)
+        return 130
+    print((run_dir / "summary.md").read_text())
+    print(f"report: {run_dir}")
+    if not doc["ok"]:
+        print(f"{len(doc['worse_than_expected'])} outcome(s) worse than the manifest expects", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import bench
+
+    doc = bench(_entries(args), Path(args.out), steps=args.steps)
+    print(f"bench: {args.out} ({len(doc['models'])} models)")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        return {"run": cmd_run, "bench": cmd_bench}[args.command](args)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2

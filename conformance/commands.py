@@ -1,0 +1,100 @@
+"""Joint commands generated deterministically from the seed, identical for both simulators.
+
+Every command is a generalized force (nv); dofs of free joints (floating roots) get none, since SAPIEN
+cannot be commanded there through `set_qf`."""
+
+from __future__ import annotations
+
+import zlib
+
+import mujoco
+import numpy as np
+
+_HINGE_SLIDE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+def rng(seed: int, *tags: str) -> np.random.Generator:
+    """A generator keyed by the seed and a purpose, so adding a command never reshuffles another."""
+    return np.random.default_rng([seed] + [zlib.crc32(t.encode()) for t in tags])
+
+
+def actuated_dofs(model: mujoco.MjModel) -> np.ndarray:
+    """Boolean mask over dofs that take a command: hinge and slide joints."""
+    mask = np.zeros(model.nv, dtype=bool)
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) in _HINGE_SLIDE:
+            mask[model.jnt_dofadr[j]] = True
+    return mask
+
+
+def dof_inertia(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """Diagonal of the joint-space inertia at qpos (scales torques so every dof moves comparably)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    return np.diag(full).copy()
+
+
+def smooth_signal(gen: np.random.Generator, steps: int, dt: float, channels: int,
+                  freq_hz: tuple[float, float] = (0.5, 3.0), components: int = 3) -> np.ndarray:
+    """(steps, channels) sums of random sinusoids, each channel of unit peak bound, zero mean-ish."""
+    t = np.arange(steps)[:, None] * dt
+    out = np.zeros((steps, channels))
+    for _ in range(components):
+        f = gen.uniform(*freq_hz, size=channels)
+        phase = gen.uniform(0, 2 * np.pi, size=channels)
+        out += np.sin(2 * np.pi * f * t + phase) / components
+    return out
+
+
+def zero_torque(model: mujoco.MjModel, steps: int) -> np.ndarray:
+    return np.zeros((steps, model.nv))
+
+
+def random_torque(model: mujoco.MjModel, qpos0: np.ndarray, steps: int, seed: int,
+                  accel: float) -> np.ndarray:
+    """Smooth random torques sized to give about `accel` (rad/s^2 or m/s^2) on each dof."""
+    scale = dof_inertia(model, qpos0) * accel * actuated_dofs(model)
+    return smooth_signal(rng(seed, "torque"), steps, model.opt.timestep, model.nv) * scale
+
+
+class PDTracking:
+    """PD tracking of a smooth seeded target around qpos0; gains per dof from the joint-space inertia.
+
+    The torque is computed from the state passed in (the MuJoCo reference run); the sequence it
+    produced is then replayed on SAPIEN, so both sides receive exactly the same command."""
+
+    def __init__(self, model: mujoco.MjModel, qpos0: np.ndarray, steps: int, seed: int,
+                 amplitude: float, freq_hz: float, damping_ratio: float = 1.0):
+        self.mask = actuated_dofs(model)
+        inertia = dof_inertia(model, qpos0)
+        omega = 2 * np.pi * freq_hz
+        self.kp = inertia * omega**2 * self.mask
+        self.kd = inertia * 2 * damping_ratio * omega * self.mask
+        self.qadr = np.array([_dof_qposadr(model, d) for d in range(model.nv)])
+        lo, hi = _dof_range(model, qpos0)
+        center = np.clip(qpos0[self.qadr], lo, hi)
+        half = np.minimum(amplitude, 0.5 * (hi - lo))
+        wave = smooth_signal(rng(seed, "pd-target"), steps + 1, model.opt.timestep, model.nv, (0.2, 1.0))
+        self.target = np.clip(center + half * wave, lo, hi)
+
+    def __call__(self, step: int, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        q = qpos[self.qadr]
+        return np.where(self.mask, self.kp * (self.target[step] - q) - self.kd * qvel, 0.0)
+
+
+def _dof_qposadr(model: mujoco.MjModel, dof: int) -> int:
+    j = model.dof_jntid[dof]
+    return model.jnt_qposadr[j] + (dof - model.jnt_dofadr[j])
+
+
+def _dof_range(model: mujoco.MjModel, qpos0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.full(model.nv, -np.inf)
+    hi = np.full(model.nv, np.inf)
+    for j in range(model.njnt):
+        if model.jnt_limited[j] and int(model.jnt_type[j]) in _HINGE_SLIDE:
+            d = model.jnt_dofadr[j]
+            lo[d], hi[d] = model.jnt_range[j]
+    return lo, hi

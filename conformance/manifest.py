@@ -1,0 +1,118 @@
+"""The corpus manifest (TOML): which models run, which tiers, per-model overrides and expected outcomes."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "dynamics")
+# Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
+OUTCOME_RANK = {"pass": 0, "chaotic": 1, "skipped": 2, "fail": 3}
+FAULTS = ("crash", "hang")
+
+
+@dataclass(frozen=True)
+class Expectation:
+    """The outcome a tier is known to reach on a model (a known gap), and why."""
+
+    tier: str
+    outcome: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class ModelEntry:
+    """One corpus model."""
+
+    id: str
+    source: str  # "dm_control:<file>", "menagerie:<path>", "fixture:<path relative to the manifest>" or a path
+    tiers: tuple[str, ...] = TIER_NAMES
+    timeout_s: float = 300.0
+    tolerances: dict[str, float] = field(default_factory=dict)
+    settings: dict[str, dict] = field(default_factory=dict)
+    override_reason: str = ""
+    expect: dict[str, Expectation] = field(default_factory=dict)
+    fault: str | None = None  # harness self-test only: make the worker crash or hang
+    base_dir: str = "."
+
+    def expected(self, tier: str) -> str:
+        exp = self.expect.get(tier)
+        return exp.outcome if exp else "pass"
+
+
+@dataclass(frozen=True)
+class Manifest:
+    path: str
+    models: tuple[ModelEntry, ...]
+
+    def select(self, ids: list[str] | None) -> list[ModelEntry]:
+        if not ids:
+            return list(self.models)
+        known = {m.id: m for m in self.models}
+        unknown = [i for i in ids if i not in known]
+        if unknown:
+            raise ValueError(f"{self.path}: no model {unknown}; known: {sorted(known)}")
+        return [known[i] for i in ids]
+
+
+def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
+    for key in ("id", "source"):
+        if key not in raw:
+            raise ValueError(f"{where}: model entry lacks {key!r}")
+    tiers = tuple(raw.get("tiers", defaults.get("tiers", TIER_NAMES)))
+    bad = [t for t in tiers if t not in TIER_NAMES]
+    if bad:
+        raise ValueError(f"{where}: model {raw['id']!r} names unknown tiers {bad}; known: {list(TIER_NAMES)}")
+    override = raw.get("override", {})
+    if override and not override.get("reason"):
+        raise ValueError(f"{where}: model {raw['id']!r} overrides without a reason")
+    expect = {}
+    for exp in raw.get("expect", []):
+        tier, outcome, reason = exp.get("tier"), exp.get("outcome"), exp.get("reason")
+        if tier not in TIER_NAMES or outcome not in OUTCOME_RANK or not reason:
+            raise ValueError(f"{where}: model {raw['id']!r} has a bad expectation {exp} "
+                             f"(needs tier in {TIER_NAMES}, outcome in {list(OUTCOME_RANK)}, reason)")
+        expect[tier] = Expectation(tier, outcome, reason)
+    fault = raw.get("fault")
+    if fault is not None and fault not in FAULTS:
+        raise ValueError(f"{where}: model {raw['id']!r} fault must be one of {FAULTS}")
+    return ModelEntry(
+        id=str(raw["id"]),
+        source=str(raw["source"]),
+        tiers=tiers,
+        timeout_s=float(raw.get("timeout_s", defaults.get("timeout_s", 300.0))),
+        tolerances=dict(override.get("tolerances", {})),
+        settings={k: dict(v) for k, v in override.get("settings", {}).items()},
+        override_reason=str(override.get("reason", "")),
+        expect=expect,
+        fault=fault,
+        base_dir=base_dir,
+    )
+
+
+def load(path: str | Path) -> Manifest:
+    """Parse a manifest file; errors name the file and the offending entry."""
+    path = Path(path)
+    data = tomllib.loads(path.read_text())
+    defaults = data.get("defaults", {})
+    models = [_entry(raw, defaults, str(path), str(path.parent.resolve())) for raw in data.get("model", [])]
+    ids = [m.id for m in models]
+    dupes = sorted({i for i in ids if ids.count(i) > 1})
+    if dupes:
+        raise ValueError(f"{path}: duplicate model ids {dupes}")
+    return Manifest(str(path), tuple(models))
+
+
+def from_paths(paths: list[str], tiers: tuple[str, ...] = TIER_NAMES, timeout_s: float = 300.0) -> Manifest:
+    """An ad-hoc manifest for MJCF files given on the command line (every tier expected to pass)."""
+    models, seen = [], set()
+    for p in paths:
+        base = Path(p).stem
+        mid, n = base, 1
+        while mid in seen:
+            n += 1
+            mid = f"{base}_{n}"
+        seen.add(mid)
+        models.append(ModelEntry(id=mid, source=str(Path(p).resolve()), tiers=tiers, timeout_s=timeout_s))
+    return Manifest("<command line>", tuple(models))

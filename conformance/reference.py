@@ -1,0 +1,91 @@
+"""MuJoCo as the reference: a copy of the model with settings PhysX can match, and rollouts on it."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+_INT = mujoco.mjtIntegrator
+# PhysX integrates semi-implicitly with implicit drives: RK4 has no counterpart, Euler/implicitfast do.
+_MATCHED_INTEGRATOR = {_INT.mjINT_RK4: _INT.mjINT_EULER, _INT.mjINT_IMPLICIT: _INT.mjINT_IMPLICITFAST}
+
+
+def matched(model: mujoco.MjModel, contact: bool) -> tuple[mujoco.MjModel, dict]:
+    """A copy of `model` whose integrator PhysX can match (and contacts off if asked); with the settings."""
+    ref = copy.deepcopy(model)
+    authored = _INT(int(model.opt.integrator))
+    ref.opt.integrator = int(_MATCHED_INTEGRATOR.get(authored, authored))
+    # The harness commands generalized forces on both sides; the loader does not map actuators.
+    ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    if not contact:
+        ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    return ref, settings(model, ref)
+
+
+def settings(model: mujoco.MjModel, ref: mujoco.MjModel) -> dict:
+    return {
+        "timestep": float(ref.opt.timestep),
+        "gravity": [float(g) for g in ref.opt.gravity],
+        "integrator_authored": _INT(int(model.opt.integrator)).name,
+        "integrator_reference": _INT(int(ref.opt.integrator)).name,
+        "solver": mujoco.mjtSolver(int(ref.opt.solver)).name,
+        "contacts": not bool(ref.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT)),
+        "actuators": not bool(ref.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)),
+    }
+
+
+def qpos_difference(model: mujoco.MjModel, qpos_a: np.ndarray, qpos_b: np.ndarray) -> np.ndarray:
+    """b - a in velocity space (nv), quaternion joints as rotation vectors; rows for 2-D inputs."""
+    a, b = np.atleast_2d(qpos_a), np.atleast_2d(qpos_b)
+    out = np.zeros((a.shape[0], model.nv))
+    for i in range(a.shape[0]):
+        mujoco.mj_differentiatePos(model, out[i], 1.0, a[i].astype(float), b[i].astype(float))
+    return out if np.ndim(qpos_a) == 2 else out[0]
+
+
+def body_poses(data: mujoco.MjData) -> np.ndarray:
+    """World pose of every body as (nbody, 7): x, y, z, qw, qx, qy, qz."""
+    return np.concatenate([data.xpos, data.xquat], axis=1)
+
+
+@dataclass
+class Rollout:
+    """States before each step (T+1 rows) and the generalized force applied at each step (T rows)."""
+
+    qpos: np.ndarray
+    qvel: np.ndarray
+    command: np.ndarray
+    body_pose: np.ndarray  # (T+1, nbody, 7)
+
+
+Policy = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
+
+
+def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: int,
+            command: np.ndarray | Policy | None = None) -> Rollout:
+    """Step MuJoCo from (qpos0, qvel0); `command` is a (steps, nv) array or a policy(step, qpos, qvel)."""
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = qpos0, qvel0
+    mujoco.mj_forward(model, data)
+    qpos = np.zeros((steps + 1, model.nq))
+    qvel = np.zeros((steps + 1, model.nv))
+    poses = np.zeros((steps + 1, model.nbody, 7))
+    applied = np.zeros((steps, model.nv))
+    for t in range(steps + 1):
+        qpos[t], qvel[t], poses[t] = data.qpos, data.qvel, body_poses(data)
+        if t == steps:
+            break
+        if command is None:
+            tau = np.zeros(model.nv)
+        elif callable(command):
+            tau = command(t, data.qpos.copy(), data.qvel.copy())
+        else:
+            tau = command[t]
+        applied[t] = tau
+        data.qfrc_applied[:] = tau
+        mujoco.mj_step(model, data)
+    return Rollout(qpos, qvel, applied, poses)

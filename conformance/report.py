@@ -1,0 +1,103 @@
+"""What a tier returns: metrics with tolerance and margin, a status, and the series it measured."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+STATUSES = ("pass", "fail", "chaotic", "skipped")
+
+
+@dataclass
+class Metric:
+    """One compared quantity: max and RMS of the error against its tolerance; margin = tolerance - max."""
+
+    name: str
+    max: float
+    rms: float
+    tolerance: float
+    unit: str
+    count: int = 0
+
+    @property
+    def margin(self) -> float:
+        return self.tolerance - self.max
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.max <= self.tolerance)  # NaN fails
+
+    def to_dict(self) -> dict:
+        def num(x: float) -> float | None:
+            return None if not math.isfinite(x) else float(x)
+
+        return {"name": self.name, "max": num(self.max), "rms": num(self.rms), "tolerance": self.tolerance,
+                "margin": num(self.margin), "unit": self.unit, "count": self.count, "passed": self.passed}
+
+
+def metric(name: str, errors, tolerance: float, unit: str) -> Metric:
+    """Max and RMS of the absolute errors; no samples gives a zero metric with count 0."""
+    err = np.abs(np.asarray(errors, dtype=float)).ravel()
+    if err.size == 0:
+        return Metric(name, 0.0, 0.0, tolerance, unit, 0)
+    if not np.all(np.isfinite(err)):
+        return Metric(name, math.inf, math.inf, tolerance, unit, int(err.size))
+    return Metric(name, float(err.max()), float(np.sqrt(np.mean(err**2))), tolerance, unit, int(err.size))
+
+
+@dataclass
+class Trace:
+    """A compared rollout: times, both sides' joint positions (MuJoCo layout), the command, body poses.
+
+    Poses are world (x, y, z, qw, qx, qy, qz) per step and MuJoCo body; SAPIEN poses are the links the
+    mapping assigns to those bodies (NaN where a body has no link)."""
+
+    name: str
+    time: np.ndarray  # (T,)
+    mujoco_qpos: np.ndarray  # (T, nq)
+    sapien_qpos: np.ndarray  # (T, nq)
+    qpos_error: np.ndarray  # (T, nv) differentiated positions, SAPIEN - MuJoCo
+    command: np.ndarray  # (T, nv) generalized force applied on both sides
+    mujoco_body_pose: np.ndarray  # (T, nbody, 7)
+    sapien_body_pose: np.ndarray  # (T, nbody, 7)
+
+
+@dataclass
+class TierReport:
+    """A tier's verdict with its numbers; `series` are per-step error series (name -> (T,)) for recording."""
+
+    tier: str
+    status: str
+    metrics: list[Metric] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    settings: dict = field(default_factory=dict)
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    traces: list[Trace] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"unknown tier status {self.status!r}")
+
+    @property
+    def worst(self) -> Metric | None:
+        """The metric closest to (or furthest past) its tolerance, relative to the tolerance."""
+        if not self.metrics:
+            return None
+        return max(self.metrics, key=lambda m: m.max / m.tolerance if m.tolerance > 0 else
+                   (math.inf if m.max > 0 else 0.0))
+
+    def to_dict(self) -> dict:
+        return {"tier": self.tier, "status": self.status, "metrics": [m.to_dict() for m in self.metrics],
+                "notes": list(self.notes), "settings": self.settings}
+
+
+def judged(tier: str, metrics: list[Metric], notes: list[str] | None = None, **extra) -> TierReport:
+    """A report whose status is pass exactly when every metric is within tolerance."""
+    status = "pass" if all(m.passed for m in metrics) else "fail"
+    return TierReport(tier, status, metrics, list(notes or []), **extra)
+
+
+def skipped(tier: str, reason: str) -> TierReport:
+    return TierReport(tier, "skipped", notes=[reason])

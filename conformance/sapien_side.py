@@ -1,0 +1,82 @@
+"""Read the built SAPIEN scene through the loader's mapping: link poses, shapes, state and commands."""
+
+from __future__ import annotations
+
+import numpy as np
+import sapien
+
+NAN_POSE = np.full(7, np.nan)
+
+
+def pose7(pose: sapien.Pose) -> np.ndarray:
+    """x, y, z, qw, qx, qy, qz (both MuJoCo and SAPIEN store quaternions wxyz)."""
+    return np.concatenate([np.asarray(pose.p, dtype=float), np.asarray(pose.q, dtype=float)])
+
+
+def body_link(result, body: int):
+    """The articulation link carrying MuJoCo body `body`, or None (world, static or unmapped)."""
+    entry = result.mapping.bodies[body] if body < len(result.mapping.bodies) else None
+    if entry is None or entry.articulation is None or entry.link is None:
+        return None
+    return result.articulations[entry.articulation].links[entry.link]
+
+
+def body_poses(result, nbody: int) -> np.ndarray:
+    """World pose (nbody, 7) of the link carrying each body; NaN rows for bodies without a link."""
+    out = np.tile(NAN_POSE, (nbody, 1))
+    for b in range(nbody):
+        link = body_link(result, b)
+        if link is not None:
+            out[b] = pose7(link.entity_pose)
+    return out
+
+
+def geom_component(result, geom: int):
+    """(component, shape) for MuJoCo geom `geom`, or (None, None) when the geom got no collision shape."""
+    entry = result.mapping.geoms[geom] if geom < len(result.mapping.geoms) else None
+    if entry is None:
+        return None, None
+    if entry.articulation is not None:
+        component = result.articulations[entry.articulation].links[entry.link]
+    else:
+        component = rigid_component(result.actors[entry.actor])
+    return component, component.collision_shapes[entry.shape]
+
+
+def rigid_component(entity: sapien.Entity):
+    for component in entity.components:
+        if isinstance(component, sapien.physx.PhysxRigidBaseComponent):
+            return component
+    raise ValueError(f"entity {entity.name!r} has no PhysX rigid component")
+
+
+def shape_world_pose(component, shape) -> sapien.Pose:
+    return component.entity_pose * shape.local_pose
+
+
+def set_state(result, qpos: np.ndarray, qvel: np.ndarray) -> None:
+    result.mapping.set_state(result.articulations, np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float))
+
+
+def get_state(result) -> tuple[np.ndarray, np.ndarray]:
+    qpos, qvel = result.mapping.get_state(result.articulations)
+    return np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float)
+
+
+def apply_generalized_force(result, qfrc: np.ndarray) -> None:
+    """Write the command on every articulation (set_qf persists, so this runs before every step)."""
+    for art, qf in zip(result.articulations, result.mapping.qfrc_to_sapien(np.asarray(qfrc, dtype=float),
+                                                                                 result.articulations)):
+        art.set_qf(np.asarray(qf, dtype=np.float32))
+
+
+def all_shapes(result):
+    """Every collision shape PhysX simulates: (owner label, component, shape) for links and static actors."""
+    for a, art in enumerate(result.articulations):
+        for link in art.links:
+            for shape in link.collision_shapes:
+                yield f"art{a}/{link.name}", link, shape
+    for i, actor in enumerate(result.actors):
+        component = rigid_component(actor)
+        for shape in component.collision_shapes:
+            yield f"static{i}/{actor.name}", component, shape

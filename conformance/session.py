@@ -1,0 +1,73 @@
+"""One loaded model: the loader's result next to its MuJoCo reference, with load timings and settings."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import mujoco
+
+from .reference import settings as reference_settings
+
+
+@dataclass
+class Session:
+    path: str
+    result: object  # loader.LoadResult
+    model: mujoco.MjModel
+    load_seconds: float
+    compile_seconds: float
+    fix_root_link: bool
+
+    def load_info(self) -> dict:
+        res = self.result
+        return {
+            "load_seconds": round(self.load_seconds, 4),
+            "mujoco_compile_seconds": round(self.compile_seconds, 4),
+            "fix_root_link": self.fix_root_link,
+            "articulations": len(res.articulations),
+            "links": sum(len(a.links) for a in res.articulations),
+            "dofs": sum(a.dof for a in res.articulations),
+            "unsupported": [_feature(u) for u in res.unsupported],
+            "approximations": [_feature(u) for u in res.approximations],
+        }
+
+    def settings(self) -> dict:
+        import sapien
+
+        scene_config = sapien.physx.get_scene_config()
+        return {
+            "mujoco": reference_settings(self.model, self.model),
+            "sapien": {
+                "timestep": float(self.result.scene.timestep),
+                "gravity": [float(g) for g in scene_config.gravity],
+                "solver": "PGS" if not scene_config.enable_tgs else "TGS",
+                "solver_position_iterations": [a.solver_position_iterations for a in self.result.articulations],
+                "solver_velocity_iterations": [a.solver_velocity_iterations for a in self.result.articulations],
+            },
+        }
+
+
+def _feature(item) -> dict:
+    return {"kind": str(item.kind), "name": str(item.name), "reason": str(item.reason)}
+
+
+def has_free_joint(model: mujoco.MjModel) -> bool:
+    return bool((model.jnt_type == mujoco.mjtJoint.mjJNT_FREE).any())
+
+
+def open_session(path: str, fix_root_link: bool | None = None) -> Session:
+    """Compile with MuJoCo (timed), then load with the loader (timed); free joints stay floating roots."""
+    from loader import MJCFLoader
+
+    t0 = time.perf_counter()
+    compiled = mujoco.MjModel.from_xml_path(str(path))
+    compile_seconds = time.perf_counter() - t0
+    if fix_root_link is None:
+        fix_root_link = not has_free_joint(compiled)
+    ld = MJCFLoader()
+    ld.fix_root_link = fix_root_link
+    t0 = time.perf_counter()
+    result = ld.load(str(path))
+    load_seconds = time.perf_counter() - t0
+    return Session(str(path), result, result.model, load_seconds, compile_seconds, fix_root_link)

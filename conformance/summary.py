@@ -1,0 +1,133 @@
+"""Judge results against the manifest's expectations and write summary.json / summary.md atomically."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from .manifest import OUTCOME_RANK, ModelEntry
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One model x tier cell: the outcome shown, the raw outcome and whether it is worse than expected."""
+
+    model: str
+    tier: str
+    outcome: str  # pass / fail / expected-fail / chaotic / skipped
+    raw: str
+    expected: str
+    worse: bool
+    detail: dict
+
+
+def judge(entry: ModelEntry, result: dict) -> list[Verdict]:
+    """Compare a worker result with what the manifest expects, tier by tier."""
+    verdicts = []
+    for tier in entry.tiers:
+        report = result.get("tiers", {}).get(tier)
+        if report is None:  # the worker never reached the tier: its model-level status decides
+            raw = "skipped" if result.get("status") == "skipped" else "fail"
+            detail = {"notes": [result.get("reason", "tier did not run")], "metrics": []}
+        else:
+            raw, detail = report["status"], report
+        expected = entry.expected(tier)
+        worse = OUTCOME_RANK[raw] > OUTCOME_RANK[expected]
+        outcome = "expected-fail" if raw == "fail" and expected == "fail" else raw
+        verdicts.append(Verdict(entry.id, tier, outcome, raw, expected, worse, detail))
+    return verdicts
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write via a temporary file in the same folder and rename: readers see the old or the new file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_json(path: Path, data) -> None:
+    atomic_write_text(path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n")
+
+
+def point_latest(out_dir: Path, run_dir: Path) -> None:
+    """Make `<out>/latest` point at run_dir by renaming a fresh symlink over the old one."""
+    link = out_dir / "latest"
+    tmp = out_dir / f".latest.{os.getpid()}"
+    tmp.unlink(missing_ok=True)
+    os.symlink(run_dir.name, tmp)
+    os.replace(tmp, link)
+
+
+def _fmt(x) -> str:
+    if x is None:
+        return "-"
+    return f"{x:.3g}"
+
+
+def _cell(v: Verdict) -> str:
+    metrics = v.detail.get("metrics") or []
+    if not metrics:
+        return v.outcome
+    worst = max(metrics, key=lambda m: (m["max"] / m["tolerance"]) if m["max"] is not None and m["tolerance"]
+                else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0))
+    return f"{v.outcome} {worst['name']} {_fmt(worst['max'])}/{_fmt(worst['tolerance'])}"
+
+
+def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dict:
+    """The summary document: run metadata, per-model results and verdicts, and the overall judgement."""
+    models, worse = [], []
+    for entry in entries:
+        result = results.get(entry.id, {"status": "pending", "reason": "not finished"})
+        verdicts = judge(entry, result) if result.get("status") != "pending" else []
+        worse += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts if v.worse]
+        models.append({
+            "id": entry.id, "source": entry.source, "status": result.get("status"),
+            "reason": result.get("reason", ""), "recording": result.get("recording"),
+            "seconds": result.get("seconds"), "settings": result.get("settings", {}),
+            "load": result.get("load", {}),
+            "verdicts": {v.tier: {"outcome": v.outcome, "raw": v.raw, "expected": v.expected,
+                                  "expected_reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
+                                  "worse_than_expected": v.worse, "metrics": v.detail.get("metrics", []),
+                                  "notes": v.detail.get("notes", []), "settings": v.detail.get("settings", {})}
+                         for v in verdicts},
+        })
+    return {**run, "models": models, "worse_than_expected": worse, "ok": not worse}
+
+
+def markdown(summary: dict, tiers: list[str]) -> str:
+    """summary.md: a model x tier table (worst metric max/tolerance per cell), then the failures."""
+    lines = [f"# Conformance run {summary['run']}", "",
+             f"seed {summary['seed']}; " + ", ".join(f"{k} {v}" for k, v in summary["versions"].items()), ""]
+    if summary.get("interrupted"):
+        lines += ["**Interrupted: results below are partial.**", ""]
+    lines += ["| model | " + " | ".join(tiers) + " |", "|---" * (len(tiers) + 1) + "|"]
+    for m in summary["models"]:
+        cells = []
+        for t in tiers:
+            v = m["verdicts"].get(t)
+            if v is None:
+                cells.append("" if m["status"] != "pending" else "pending")
+                continue
+            text = _cell(Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v))
+            cells.append(("**" + text + "**") if v["worse_than_expected"] else text)
+        lines.append(f"| {m['id']} | " + " | ".join(cells) + " |")
+    lines += ["", "Cells: outcome, then the worst metric as max error / tolerance (units in summary.json).", ""]
+    if summary["worse_than_expected"]:
+        lines += ["## Worse than the manifest expects", ""] + [f"- {w}" for w in summary["worse_than_expected"]]
+    else:
+        lines += ["No outcome is worse than the manifest expects."]
+    notes = [(m["id"], m["status"], m["reason"]) for m in summary["models"] if m["reason"]]
+    if notes:
+        lines += ["", "## Model notes", ""] + [f"- {i} ({s}): {r}" for i, s, r in notes]
+    return "\n".join(lines) + "\n"

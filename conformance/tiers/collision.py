@@ -1,0 +1,153 @@
+"""Tier 4: per geom, the collision shape PhysX really holds: type, size, world pose and collision groups."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import sapien
+
+from .. import sapien_side
+from ..report import Metric, TierReport, judged, metric
+from ..sampling import line_angle, quaternion_angle
+from ..tolerances import Tolerances
+
+_G = mujoco.mjtGeom
+_P = sapien.physx
+EXACT = {
+    _G.mjGEOM_PLANE: _P.PhysxCollisionShapePlane,
+    _G.mjGEOM_SPHERE: _P.PhysxCollisionShapeSphere,
+    _G.mjGEOM_CAPSULE: _P.PhysxCollisionShapeCapsule,
+    _G.mjGEOM_CYLINDER: _P.PhysxCollisionShapeCylinder,
+    _G.mjGEOM_BOX: _P.PhysxCollisionShapeBox,
+    _G.mjGEOM_MESH: _P.PhysxCollisionShapeConvexMesh,
+}
+MESHLIKE = (_P.PhysxCollisionShapeConvexMesh, _P.PhysxCollisionShapeTriangleMesh)
+_MAX_NOTES = 25
+
+
+def _rotation(q_wxyz) -> np.ndarray:
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(q_wxyz, dtype=float))
+    return mat.reshape(3, 3)
+
+
+def shape_world_vertices(component, shape) -> np.ndarray:
+    pose = sapien_side.shape_world_pose(component, shape)
+    verts = np.asarray(shape.get_vertices(), dtype=float) * np.asarray(shape.get_scale(), dtype=float)
+    return verts @ _rotation(pose.q).T + np.asarray(pose.p, dtype=float)
+
+
+def geom_world_aabb(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """World AABB of a geom's collision volume (mesh vertices, or the analytic primitive)."""
+    rot = data.geom_xmat[g].reshape(3, 3)
+    size = model.geom_size[g]
+    kind = model.geom_type[g]
+    if kind == _G.mjGEOM_MESH:
+        m = model.geom_dataid[g]
+        verts = model.mesh_vert[model.mesh_vertadr[m]:model.mesh_vertadr[m] + model.mesh_vertnum[m]]
+        world = verts @ rot.T + data.geom_xpos[g]
+        return world.min(axis=0), world.max(axis=0)
+    if kind == _G.mjGEOM_HFIELD:  # the elevation surface PhysX meshes (no base below it)
+        h = model.geom_dataid[g]
+        nrow, ncol = model.hfield_nrow[h], model.hfield_ncol[h]
+        sx, sy, sz, _ = model.hfield_size[h]
+        elevation = model.hfield_data[model.hfield_adr[h]:model.hfield_adr[h] + nrow * ncol]
+        xs, ys = np.meshgrid(np.linspace(-sx, sx, ncol), np.linspace(-sy, sy, nrow))
+        local = np.stack([xs.ravel(), ys.ravel(), elevation * sz], axis=1)
+        world = local @ rot.T + data.geom_xpos[g]
+        return world.min(axis=0), world.max(axis=0)
+    if kind == _G.mjGEOM_ELLIPSOID:
+        half = np.sqrt(((rot * size[None, :]) ** 2).sum(axis=1))
+    elif kind in (_G.mjGEOM_CYLINDER, _G.mjGEOM_CAPSULE):
+        r, h = size[0], size[1]
+        axis = rot[:, 2]
+        half = np.abs(axis) * h + r * np.sqrt(np.clip(1 - axis**2, 0, 1))
+        if kind == _G.mjGEOM_CAPSULE:
+            half = np.abs(axis) * h + r
+    elif kind == _G.mjGEOM_BOX:
+        half = np.abs(rot) @ size
+    else:  # sphere
+        half = np.full(3, size[0])
+    return data.geom_xpos[g] - half, data.geom_xpos[g] + half
+
+
+def needs_shape(model: mujoco.MjModel, g: int) -> bool:
+    return bool(model.geom_contype[g] or model.geom_conaffinity[g])
+
+
+def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
+    mismatches, groups_wrong, notes = [], [], []
+    size_err, pos_err, rot_err, mesh_err, approx_err = [], [], [], [], []
+    checked = 0
+    contact_off = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    for g in range(model.ngeom):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}"
+        component, shape = sapien_side.geom_component(result, g)
+        if shape is None:
+            if needs_shape(model, g):
+                mismatches.append(f"{name}: colliding geom has no collision shape")
+            continue
+        checked += 1
+        kind = _G(int(model.geom_type[g]))
+        groups = [int(x) for x in shape.get_collision_groups()[:2]]
+        expected = [0, 0] if contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
+        if groups != expected:
+            groups_wrong.append(f"{name}: groups {groups}, expected contype/conaffinity {expected}"
+                                + (" (contact disabled)" if contact_off else ""))
+        pose = sapien_side.shape_world_pose(component, shape)
+        p, rot = np.asarray(pose.p, dtype=float), _rotation(pose.q)
+        ref_p, ref_rot = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)
+        size = model.geom_size[g]
+        exact = EXACT.get(kind)
+        if exact is not None and not isinstance(shape, exact):
+            if kind == _G.mjGEOM_MESH and isinstance(shape, MESHLIKE):
+                pass  # a triangle mesh on a static body is the faithful choice
+            else:
+                mismatches.append(f"{name}: {kind.name} became {type(shape).__name__}")
+                continue
+        if kind == _G.mjGEOM_PLANE:
+            normal_ref = ref_rot[:, 2]
+            rot_err.append(line_angle(rot[:, 0], normal_ref))
+            pos_err.append(abs(np.dot(p - ref_p, normal_ref)))
+        elif kind == _G.mjGEOM_SPHERE:
+            size_err.append(abs(shape.radius - size[0]))
+            pos_err.append(np.linalg.norm(p - ref_p))
+        elif kind in (_G.mjGEOM_CAPSULE, _G.mjGEOM_CYLINDER):
+            size_err += [abs(shape.radius - size[0]), abs(shape.half_length - size[1])]
+            pos_err.append(np.linalg.norm(p - ref_p))
+            rot_err.append(line_angle(rot[:, 0], ref_rot[:, 2]))
+        elif kind == _G.mjGEOM_BOX:
+            size_err.append(np.max(np.abs(np.asarray(shape.half_size) - size)))
+            pos_err.append(np.linalg.norm(p - ref_p))
+            rot_err.append(float(quaternion_angle(np.asarray(pose.q, dtype=float), _mat_quat(ref_rot))))
+        elif isinstance(shape, MESHLIKE):
+            lo, hi = geom_world_aabb(model, data, g)
+            verts = shape_world_vertices(component, shape)
+            err = max(np.max(np.abs(verts.min(axis=0) - lo)), np.max(np.abs(verts.max(axis=0) - hi)))
+            if kind in (_G.mjGEOM_MESH, _G.mjGEOM_HFIELD):
+                mesh_err.append(err)
+            else:  # a primitive PhysX lacks (ellipsoid, ...) approximated by a hull: relative to its size
+                approx_err.append(err / max(float(np.max(size[:3])), 1e-9))
+        else:
+            notes.append(f"{name}: {kind.name} as {type(shape).__name__} is not compared")
+    problems = mismatches + groups_wrong
+    notes = problems[:_MAX_NOTES] + notes[:_MAX_NOTES]
+    metrics = [
+        Metric("mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count", model.ngeom),
+        Metric("groups", float(len(groups_wrong)), float(len(groups_wrong)), 0.0, "count", checked),
+        metric("size", size_err, tolerances["collision.size"], "m"),
+        metric("position", pos_err, tolerances["collision.position"], "m"),
+        metric("orientation", rot_err, tolerances["collision.orientation"], "rad"),
+        metric("mesh_aabb", mesh_err, tolerances["collision.mesh_aabb"], "m"),
+        metric("approximation_aabb", approx_err, tolerances["collision.approximation_aabb"], "relative"),
+    ]
+    return judged("collision", metrics, notes, settings={"geoms": model.ngeom, "shapes_checked": checked})
+
+
+def _mat_quat(rot: np.ndarray) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, rot.ravel())
+    return q

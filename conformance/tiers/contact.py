@@ -1,0 +1,65 @@
+"""Tier 6: dynamics with contact, judged statistically (rest heights, final-pose bands), never step by step.
+
+Both sides start at qpos0 with no command and settle under gravity. Compared: the mean height of every
+floating root over the last quarter of the horizon (rest height), and every body's mean position over that
+window (final-pose band). MuJoCo's own spread under a perturbation of the start decides whether the outcome
+is predictable at all (otherwise: chaotic)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .. import chaos, reference, sapien_side
+from ..report import TierReport, metric, skipped
+from ..tolerances import Tolerances
+from .dynamics import sapien_rollout
+
+
+def _settled(poses: np.ndarray) -> np.ndarray:
+    """Mean body positions (nbody, 3) over the last quarter of a rollout."""
+    tail = max(1, poses.shape[0] // 4)
+    return np.nanmean(poses[-tail:, :, :3], axis=0)
+
+
+def floating_roots(model: mujoco.MjModel) -> list[int]:
+    return [int(model.jnt_bodyid[j]) for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+
+
+def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    if model.nv == 0:
+        return skipped("contact", "the model has no degrees of freedom")
+    if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
+        return skipped("contact", "the model disables contact")
+    ref, matched = reference.matched(model, contact=True)
+    dt = ref.opt.timestep
+    steps = max(1, min(int(round(tolerances.setting("contact", "horizon_s") / dt)),
+                       int(tolerances.setting("contact", "max_steps"))))
+    qpos0, qvel0 = model.qpos0.copy(), np.zeros(model.nv)
+    run = reference.rollout(ref, qpos0, qvel0, steps, None)
+    other = reference.rollout(ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed),
+                              qvel0, steps, None)
+    sp_qpos, sp_poses = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
+    sapien_side.set_state(result, qpos0, qvel0)
+    bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
+    mj_final, sp_final, own = _settled(run.body_pose), _settled(sp_poses), _settled(other.body_pose)
+    band = np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1)
+    spread = np.linalg.norm(own[bodies] - mj_final[bodies], axis=1)
+    roots = floating_roots(model)
+    rest = np.abs(sp_final[roots, 2] - mj_final[roots, 2])
+    metrics = [
+        metric("final_pose_band", band, tolerances["contact.final_pose_band"], "m"),
+        metric("rest_height", rest, tolerances["contact.rest_height"], "m"),
+    ]
+    notes = []
+    chaotic = spread.size and spread.max() > tolerances.setting("contact", "spread_fraction") * \
+        tolerances["contact.final_pose_band"]
+    if chaotic:
+        notes.append(f"MuJoCo's own settled pose moves {spread.max():.3g} m under a "
+                     f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable")
+    failed = not all(m.passed for m in metrics)
+    status = "fail" if failed else ("chaotic" if chaotic else "pass")
+    return TierReport("contact", status, metrics, notes,
+                      settings={**matched, "steps": steps, "mujoco_self_spread": float(spread.max(initial=0.0))},
+                      series={"final_pose_band": np.nanmax(np.linalg.norm(
+                          sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)})

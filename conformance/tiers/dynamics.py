@@ -1,0 +1,117 @@
+"""Tier 5: dynamics without contact under identical generalized-force commands.
+
+(a) one-step error: every k steps MuJoCo's state is copied into SAPIEN, both step once, and the velocity
+increment (qacc), velocity and position are compared; (b) open-loop rollouts from qpos0 under zero command,
+seeded smooth torques, and PD tracking of a seeded target (torques computed on the MuJoCo run, replayed on
+SAPIEN). Every rollout is gated by MuJoCo's own sensitivity to a 1e-6 perturbation."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .. import chaos, commands, reference, sapien_side
+from ..report import Metric, TierReport, Trace, metric, skipped
+from ..tolerances import Tolerances
+
+
+def is_floating(model: mujoco.MjModel) -> bool:
+    return bool((model.jnt_type == mujoco.mjtJoint.mjJNT_FREE).any())
+
+
+def disable_contacts(result) -> None:
+    from loader import physx
+
+    physx.disable_contacts(result)
+
+
+def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray):
+    """Replay `command` (steps, nv) on SAPIEN from (qpos0, qvel0): qpos (T+1, nq), body poses (T+1, nbody, 7)."""
+    steps = command.shape[0]
+    sapien_side.set_state(result, qpos0, qvel0)
+    qpos = np.zeros((steps + 1, model.nq))
+    poses = np.zeros((steps + 1, model.nbody, 7))
+    qpos[0] = sapien_side.get_state(result)[0]
+    poses[0] = sapien_side.body_poses(result, model.nbody)
+    for t in range(steps):
+        sapien_side.apply_generalized_force(result, command[t])
+        result.scene.step()
+        qpos[t + 1] = sapien_side.get_state(result)[0]
+        poses[t + 1] = sapien_side.body_poses(result, model.nbody)
+    sapien_side.apply_generalized_force(result, np.zeros(model.nv))
+    return qpos, poses
+
+
+def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int) -> dict[str, np.ndarray]:
+    """Per sampled step: |SAPIEN - MuJoCo| of the velocity increment / dt, the velocity and the position."""
+    dt = ref.opt.timestep
+    qacc, qvel, qpos = [], [], []
+    for t in range(0, run.command.shape[0], every):
+        sapien_side.set_state(result, run.qpos[t], run.qvel[t])
+        q0, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding
+        sapien_side.apply_generalized_force(result, run.command[t])
+        result.scene.step()
+        q1, v1 = sapien_side.get_state(result)
+        qacc.append(np.abs((v1 - v0) - (run.qvel[t + 1] - run.qvel[t])) / dt)
+        qvel.append(np.abs(v1 - run.qvel[t + 1]))
+        qpos.append(np.abs(reference.qpos_difference(ref, run.qpos[t + 1], q1)))
+    sapien_side.apply_generalized_force(result, np.zeros(ref.nv))
+    return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}
+
+
+def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    if model.nv == 0:
+        return skipped("dynamics", "the model has no degrees of freedom")
+    ref, matched = reference.matched(model, contact=False)
+    disable_contacts(result)
+    floating = is_floating(model)
+    kind = "floating" if floating else "fixed"
+    dt = ref.opt.timestep
+    steps = max(1, min(int(round(tolerances.setting("dynamics", "horizon_s") / dt)),
+                       int(tolerances.setting("dynamics", "max_steps"))))
+    qpos0, qvel0 = model.qpos0.copy(), np.zeros(model.nv)
+    limit = tolerances.setting("chaos", "amplification_limit")
+    perturbation = tolerances.setting("chaos", "perturbation")
+    torque = commands.random_torque(ref, qpos0, steps, seed, tolerances.setting("dynamics", "torque_accel"))
+    pd = commands.PDTracking(ref, qpos0, steps, seed, tolerances.setting("dynamics", "pd_amplitude"),
+                             tolerances.setting("dynamics", "pd_freq_hz"))
+    metrics: list[Metric] = []
+    notes: list[str] = []
+    series: dict[str, np.ndarray] = {}
+    traces: list[Trace] = []
+
+    # (a) one-step error along the torque-driven MuJoCo trajectory
+    torque_run = reference.rollout(ref, qpos0, qvel0, steps, torque)
+    errs = one_step(result, ref, torque_run, int(tolerances.setting("dynamics", "one_step_every")))
+    for name, unit in (("qacc", "rad/s^2 or m/s^2"), ("qvel", "rad/s or m/s"), ("qpos", "rad or m")):
+        metrics.append(metric(f"one_step_{name}", errs[name], tolerances[f"dynamics.one_step_{name}_{kind}"], unit))
+        series[f"one_step_{name}"] = errs[name].max(axis=1)
+
+    # (b) open-loop rollouts, each judged on the horizon MuJoCo itself can predict
+    chaotic = []
+    gates = {}
+    for name, command in (("zero", None), ("torque", torque), ("pd", pd)):
+        run = torque_run if name == "torque" else reference.rollout(ref, qpos0, qvel0, steps, command)
+        gate = chaos.gate(ref, run, seed, perturbation, limit)
+        gates[name] = gate.to_dict()
+        sp_qpos, sp_poses = sapien_rollout(result, model, qpos0, qvel0, run.command)
+        err = reference.qpos_difference(ref, run.qpos, sp_qpos)
+        judged_err = err[: gate.judged_steps + 1]
+        metrics.append(metric(f"rollout_{name}_qpos", judged_err, tolerances[f"dynamics.rollout_qpos_{kind}"],
+                              "rad or m"))
+        series[f"rollout_{name}_qpos"] = np.abs(err).max(axis=1)
+        series[f"rollout_{name}_chaos_amplification"] = gate.amplification
+        if gate.chaotic:
+            chaotic.append(name)
+            notes.append(f"rollout {name}: MuJoCo amplifies a {perturbation:g} perturbation more than "
+                         f"{limit:g}x after step {gate.judged_steps} of {steps}; judged on the first "
+                         f"{gate.judged_steps} steps only")
+        traces.append(Trace(name, np.arange(steps + 1) * dt, run.qpos, sp_qpos, err,
+                            np.vstack([run.command, np.zeros((1, model.nv))]), run.body_pose, sp_poses))
+    sapien_side.set_state(result, qpos0, qvel0)
+    failed = not all(m.passed for m in metrics)
+    status = "fail" if failed else ("chaotic" if chaotic else "pass")
+    return TierReport("dynamics", status, metrics, notes,
+                      settings={**matched, "steps": steps, "base": kind, "chaos": gates,
+                                "one_step_every": int(tolerances.setting("dynamics", "one_step_every"))},
+                      series=series, traces=traces)

@@ -1,0 +1,144 @@
+"""Tier 1: links, joints, DoF, joint types, axes, limits, names and parent relations."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .. import sapien_side
+from ..report import Metric, TierReport, judged, metric
+from ..sampling import direction_angle
+from ..tolerances import Tolerances
+
+_JT = mujoco.mjtJoint
+KIND = {int(_JT.mjJNT_FREE): "free", int(_JT.mjJNT_BALL): "ball", int(_JT.mjJNT_SLIDE): "slide",
+        int(_JT.mjJNT_HINGE): "hinge"}
+SAPIEN_TYPES = {"hinge": {"revolute", "revolute_unwrapped", "continuous"}, "slide": {"prismatic"},
+                "ball": {"revolute", "revolute_unwrapped", "continuous"}}
+_MAX_NOTES = 25
+
+
+def _name(model, kind, i) -> str:
+    return mujoco.mj_id2name(model, kind, i) or f"#{i}"
+
+
+def _link_index(result) -> dict[tuple[int, int], int]:
+    """(articulation, link) -> MuJoCo body carried there."""
+    out = {}
+    for b, entry in enumerate(result.mapping.bodies):
+        if entry is not None and entry.articulation is not None and entry.link is not None:
+            out[(entry.articulation, entry.link)] = b
+    return out
+
+
+def _sapien_parent_body(result, body: int, carried: dict) -> int:
+    """The nearest ancestor link that carries a body (helper links skipped); 0 (world) at the root."""
+    entry = result.mapping.bodies[body]
+    art = result.articulations[entry.articulation]
+    link = art.links[entry.link].parent
+    while link is not None:
+        b = carried.get((entry.articulation, link.index))
+        if b is not None:
+            return b
+        link = link.parent
+    return 0
+
+
+def _mujoco_parent_body(result, model, body: int) -> int:
+    """The nearest ancestor body carried by a link; 0 when only static bodies lie between it and the world."""
+    parent = model.body_parentid[body]
+    while parent != 0 and sapien_side.body_link(result, parent) is None:
+        parent = model.body_parentid[parent]
+    return int(parent)
+
+
+def _limit_error(ref: tuple[float, float], got: np.ndarray) -> float:
+    errs = []
+    for r, g in zip(ref, np.asarray(got, dtype=float).ravel()):
+        if np.isinf(r) or np.isinf(g):
+            errs.append(0.0 if r == g else np.inf)
+        else:
+            errs.append(abs(r - g))
+    return max(errs)
+
+
+def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    mismatches: list[str] = []
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
+    carried = _link_index(result)
+
+    # Bodies: every body below a joint must be carried by a link, named like the body, under the right parent.
+    moving = np.zeros(model.nbody, dtype=bool)
+    for b in range(1, model.nbody):
+        moving[b] = model.body_jntnum[b] > 0 or moving[model.body_parentid[b]]
+    for b in range(1, model.nbody):
+        link = sapien_side.body_link(result, b)
+        if link is None:
+            if moving[b]:
+                mismatches.append(f"moving body {_name(model, mujoco.mjtObj.mjOBJ_BODY, b)!r} has no link")
+            continue
+        body_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b)
+        if body_name and link.name != body_name:
+            mismatches.append(f"body {body_name!r} is carried by link named {link.name!r}")
+        sp, mj = _sapien_parent_body(result, b, carried), _mujoco_parent_body(result, model, b)
+        if sp != mj:
+            mismatches.append(f"body {_name(model, mujoco.mjtObj.mjOBJ_BODY, b)!r}: parent "
+                              f"{_name(model, mujoco.mjtObj.mjOBJ_BODY, sp)!r} in SAPIEN, "
+                              f"{_name(model, mujoco.mjtObj.mjOBJ_BODY, mj)!r} in MuJoCo")
+
+    # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
+    axis_err, anchor_err, limit_err = [], [], []
+    expected_dofs = 0
+    for j in range(model.njnt):
+        kind = KIND[int(model.jnt_type[j])]
+        name = _name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+        entry = result.mapping.joints[j] if j < len(result.mapping.joints) else None
+        if entry is None:
+            mismatches.append(f"joint {name!r} ({kind}) is not in the mapping")
+            continue
+        if entry.kind != kind:
+            mismatches.append(f"joint {name!r}: kind {entry.kind!r} in SAPIEN, {kind!r} in MuJoCo")
+            continue
+        want = {"hinge": 1, "slide": 1, "ball": 3, "free": 0}[kind]
+        expected_dofs += want
+        if len(entry.dofs) != want:
+            mismatches.append(f"joint {name!r}: {len(entry.dofs)} SAPIEN dofs, expected {want}")
+            continue
+        art = result.articulations[entry.articulation]
+        if kind == "free":
+            continue
+        joints = [art.active_joints[d] for d in entry.dofs]
+        for joint in joints:
+            if joint.type not in SAPIEN_TYPES[kind]:
+                mismatches.append(f"joint {name!r}: SAPIEN type {joint.type!r} for a MuJoCo {kind}")
+        if kind == "ball":
+            continue
+        joint = joints[0]
+        if mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) and joint.name != name:
+            mismatches.append(f"joint {name!r} is named {joint.name!r} in SAPIEN")
+        frame = joint.get_global_pose().to_transformation_matrix()
+        axis = frame[:3, 0]
+        axis_err.append(direction_angle(axis, data.xaxis[j]))
+        if kind == "hinge":
+            offset = frame[:3, 3] - data.xanchor[j]
+            anchor_err.append(np.linalg.norm(offset - np.dot(offset, data.xaxis[j]) * data.xaxis[j]))
+        ref = tuple(model.jnt_range[j]) if model.jnt_limited[j] else (-np.inf, np.inf)
+        limit_err.append(_limit_error(ref, joint.limit))
+    sapien_dofs = sum(a.dof for a in result.articulations)
+    if sapien_dofs != expected_dofs:
+        mismatches.append(f"{sapien_dofs} SAPIEN dofs, {expected_dofs} MuJoCo joint dofs (free joints excluded)")
+
+    notes = mismatches[:_MAX_NOTES] + ([f"... {len(mismatches) - _MAX_NOTES} more"]
+                                       if len(mismatches) > _MAX_NOTES else [])
+    metrics = [
+        Metric("mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count",
+               model.nbody + model.njnt),
+        metric("axis", axis_err, tolerances["structure.axis"], "rad"),
+        metric("anchor", anchor_err, tolerances["structure.anchor"], "m"),
+        metric("limit", limit_err, tolerances["structure.limit"], "rad or m"),
+    ]
+    return judged("structure", metrics, notes,
+                  settings={"bodies": model.nbody - 1, "joints": model.njnt, "dofs": sapien_dofs,
+                            "links": sum(len(a.links) for a in result.articulations)})

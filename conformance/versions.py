@@ -1,0 +1,19 @@
+"""Versions of everything a verdict depends on, recorded in every report."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import platform
+
+_DISTRIBUTIONS = ("mujoco", "sapien", "rerun-sdk", "dm-control", "numpy")
+
+
+def versions() -> dict[str, str]:
+    out = {}
+    for dist in _DISTRIBUTIONS:
+        try:
+            out[dist] = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            out[dist] = "not installed"
+    out["python"] = platform.python_version()
+    return out

@@ -1,0 +1,116 @@
+"""Evaluate one model inside a worker process: load, run the tiers, write the recording and a result file."""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import tolerances as tolerances_mod
+from .manifest import TIER_NAMES, ModelEntry
+from .report import TierReport
+from .summary import atomic_write_json
+from .versions import versions
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything a worker needs; picklable for a spawned process."""
+
+    entry: ModelEntry
+    path: str
+    run_dir: str
+    seed: int
+    tiers: tuple[str, ...]
+    tolerance_file: str | None = None
+    record: bool = True
+
+
+def result_path(run_dir: str | Path, model_id: str) -> Path:
+    return Path(run_dir) / "models" / f"{model_id}.json"
+
+
+def _inject_fault(fault: str | None) -> None:
+    """Harness self-test: fixtures declared with `fault` make the worker die or hang like a broken model."""
+    if fault == "crash":
+        ctypes.string_at(0)  # a genuine segmentation fault, not a Python exception
+    elif fault == "hang":
+        while True:
+            time.sleep(1.0)
+
+
+def evaluate(job: Job) -> dict:
+    """Run the job in this process and return the result document (also used in-process by tests)."""
+    from .tiers import TIERS  # heavy imports happen in the worker, not in the parent
+
+    entry = job.entry
+    started = time.perf_counter()
+    result: dict = {"id": entry.id, "source": entry.source, "path": job.path, "versions": versions(),
+                    "seed": job.seed, "tiers": {}}
+    _inject_fault(entry.fault)
+    tol = tolerances_mod.load(job.tolerance_file).with_overrides(entry.tolerances, entry.settings,
+                                                                 why=entry.override_reason)
+    try:
+        from .session import open_session
+
+        session = open_session(job.path)
+    except Exception as exc:  # the loader's failure on this model is this model's failure
+        result.update(status="error", reason=f"load failed: {type(exc).__name__}: {exc}",
+                      traceback=traceback.format_exc(), seconds=time.perf_counter() - started)
+        return result
+    result["load"] = session.load_info()
+    result["settings"] = session.settings()
+    reports: dict[str, TierReport] = {}
+    for tier in sorted(job.tiers, key=TIER_NAMES.index):  # contact before dynamics, which disables it
+        t0 = time.perf_counter()
+        try:
+            report = TIERS[tier](session.result, session.model, job.seed, tol)
+        except Exception as exc:
+            log.warning("model %s tier %s raised %s", entry.id, tier, exc)
+            report = TierReport(tier, "fail", notes=[f"tier raised {type(exc).__name__}: {exc}",
+                                                     traceback.format_exc(limit=4)])
+        report.settings = {**report.settings, "seconds": round(time.perf_counter() - t0, 3)}
+        reports[tier] = report
+        result["tiers"][tier] = report.to_dict()
+    result["status"] = "ok"
+    if job.record:
+        from .recording import write_recording
+
+        rrd = Path(job.run_dir) / f"{entry.id}.rrd"
+        try:
+            write_recording(rrd, session, reports, {"model": entry.id, "seed": job.seed,
+                                                      "versions": result["versions"],
+                                                      "settings": result["settings"]})
+            result["recording"] = rrd.name
+        except Exception as exc:
+            log.warning("model %s: recording failed: %s", entry.id, exc)
+            result["recording"] = None
+            result["reason"] = f"recording failed: {type(exc).__name__}: {exc}"
+    result["seconds"] = round(time.perf_counter() - started, 3)
+    return result
+
+
+def main(job: Job) -> None:
+    """Worker process entry point: evaluate and write the result file atomically."""
+    logging.basicConfig(level=logging.WARNING)
+    result = evaluate(job)
+    atomic_write_json(result_path(job.run_dir, job.entry.id), _jsonable(result))
+
+
+def _jsonable(obj):
+    import math
+
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if hasattr(obj, "item") and callable(obj.item):
+        return _jsonable(obj.item())
+    return obj
