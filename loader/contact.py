@@ -33,6 +33,12 @@ class CollisionFilter:
         return [int(model.geom_contype[geom]), int(model.geom_conaffinity[geom]), g2, g3]
 
 
+def contacts_disabled(model: mujoco.MjModel) -> bool:
+    """`<flag contact="disable"/>` or `<flag constraint="disable"/>`: MuJoCo makes no contact at all."""
+    flags = mujoco.mjtDisableBit
+    return bool(model.opt.disableflags & (flags.mjDSBL_CONTACT | flags.mjDSBL_CONSTRAINT))
+
+
 def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]]) -> bool:
     """True when MuJoCo never generates a contact between bodies b1 and b2."""
     weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import mujoco
 
+from .contact import contacts_disabled
 from .errors import Notes
+from .joint import limits_disabled
 
 
 def _name(obj, index: int, kind: str) -> str:
@@ -30,5 +32,7 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
         if model.body_mocapid[b] >= 0:
             notes.approximate("body", _name(model.body(b), b, "body"),
                               "mocap body loaded as a fixed link at its initial pose")
-    if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
+    if contacts_disabled(model):
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
+    if limits_disabled(model):
+        notes.approximate("option", "flag limit", "limits disabled in the model: every joint is unlimited")

@@ -43,6 +43,12 @@ class JointPlan:
     ball_axis: int | None = None  # 0, 1, 2 for the three revolutes of a ball joint
 
 
+def limits_disabled(model: mujoco.MjModel) -> bool:
+    """`<flag limit="disable"/>` or `<flag constraint="disable"/>`: MuJoCo enforces no joint limit."""
+    flags = mujoco.mjtDisableBit
+    return bool(model.opt.disableflags & (flags.mjDSBL_LIMIT | flags.mjDSBL_CONSTRAINT))
+
+
 def joint_name(model: mujoco.MjModel, j: int) -> str:
     return model.joint(j).name or f"joint{j}"
 
@@ -62,7 +68,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     if jtype == FREE:
         return []
     if jtype in (HINGE, SLIDE):
-        limited = bool(model.jnt_limited[j])
+        limited = bool(model.jnt_limited[j]) and not limits_disabled(model)
         limits = tuple(float(x) for x in model.jnt_range[j]) if limited else (-np.inf, np.inf)
         ref = float(model.qpos0[model.jnt_qposadr[j]])
         axis = model.jnt_axis[j]

@@ -18,7 +18,7 @@ from . import physx
 from .builders import MJCFActorBuilder, MJCFArticulationBuilder
 from .camera import CameraConfig, SiteConfig, cameras, sites
 from .compile import CompiledModel, compile_mjcf
-from .contact import plan_collision_filter
+from .contact import contacts_disabled, plan_collision_filter
 from .errors import Notes, Unsupported, UnsupportedFeatureWarning
 from .features import find_unmapped
 from .geom import collides, plan_shape
@@ -130,7 +130,7 @@ class MJCFLoader:
         geom_class = {g.id: g.classname.name for g in compiled.spec.geoms}
         kept = [g for g in range(model.ngeom) if geom_class.get(g) not in self.ignore_classes]
         static = {0} | ({b for b in range(model.nbody) if model.body_weldid[b] == 0} if self.fix_root_link else set())
-        contact_off = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        contact_off = contacts_disabled(model)
         shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes)
                   for g in kept if collides(model, g)}
         shapes = {g: s for g, s in shapes.items() if s is not None}
