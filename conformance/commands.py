@@ -10,6 +10,8 @@ import zlib
 import mujoco
 import numpy as np
 
+from .reference import limited_dofs
+
 _HINGE_SLIDE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
@@ -28,13 +30,14 @@ def actuated_dofs(model: mujoco.MjModel) -> np.ndarray:
 
 
 def dof_inertia(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """Diagonal of the joint-space inertia at qpos (scales torques so every dof moves comparably)."""
+    """Effective inertia 1 / (M^-1)_ii of each dof at qpos: the torque giving unit acceleration on that dof
+    alone (scales commands so that light and heavy dofs move comparably)."""
     data = mujoco.MjData(model)
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
-    return np.diag(full).copy()
+    return 1.0 / np.diag(np.linalg.inv(full))
 
 
 def smooth_signal(gen: np.random.Generator, steps: int, dt: float, channels: int,
@@ -75,10 +78,11 @@ class PDTracking:
         self.kd = inertia * 2 * damping_ratio * omega * self.mask
         self.qadr = np.array([_dof_qposadr(model, d) for d in range(model.nv)])
         lo, hi = _dof_range(model, qpos0)
+        pad = np.where(np.isfinite(hi - lo), 0.1 * (hi - lo), 0.0)
+        lo, hi = lo + pad, hi - pad
         center = np.clip(qpos0[self.qadr], lo, hi)
-        half = np.minimum(amplitude, 0.5 * (hi - lo))
         wave = smooth_signal(rng(seed, "pd-target"), steps + 1, model.opt.timestep, model.nv, (0.2, 1.0))
-        self.target = np.clip(center + half * wave, lo, hi)
+        self.target = np.clip(center + amplitude * wave, lo, hi)
 
     def __call__(self, step: int, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
         q = qpos[self.qadr]
@@ -93,8 +97,7 @@ def _dof_qposadr(model: mujoco.MjModel, dof: int) -> int:
 def _dof_range(model: mujoco.MjModel, qpos0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lo = np.full(model.nv, -np.inf)
     hi = np.full(model.nv, np.inf)
-    for j in range(model.njnt):
-        if model.jnt_limited[j] and int(model.jnt_type[j]) in _HINGE_SLIDE:
-            d = model.jnt_dofadr[j]
-            lo[d], hi[d] = model.jnt_range[j]
+    for j, _, low, high in limited_dofs(model):
+        d = model.jnt_dofadr[j]
+        lo[d], hi[d] = low, high
     return lo, hi

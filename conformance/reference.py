@@ -33,9 +33,50 @@ def settings(model: mujoco.MjModel, ref: mujoco.MjModel) -> dict:
         "integrator_authored": _INT(int(model.opt.integrator)).name,
         "integrator_reference": _INT(int(ref.opt.integrator)).name,
         "solver": mujoco.mjtSolver(int(ref.opt.solver)).name,
-        "contacts": not bool(ref.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT)),
+        "contacts": not contacts_disabled(ref),
+        "limits": not limits_disabled(ref),
         "actuators": not bool(ref.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)),
     }
+
+
+_DSBL = mujoco.mjtDisableBit
+
+
+def contacts_disabled(model: mujoco.MjModel) -> bool:
+    """MuJoCo computes no contact: `<flag contact="disable"/>` or `<flag constraint="disable"/>`."""
+    return bool(model.opt.disableflags & (int(_DSBL.mjDSBL_CONTACT) | int(_DSBL.mjDSBL_CONSTRAINT)))
+
+
+def limits_disabled(model: mujoco.MjModel) -> bool:
+    """MuJoCo enforces no joint limit: `<flag limit="disable"/>` or `<flag constraint="disable"/>`."""
+    return bool(model.opt.disableflags & (int(_DSBL.mjDSBL_LIMIT) | int(_DSBL.mjDSBL_CONSTRAINT)))
+
+
+def limited_dofs(model: mujoco.MjModel) -> list[tuple[int, int, float, float]]:
+    """(joint, qpos address, lower, upper) of every limited hinge or slide joint."""
+    out = []
+    for j in range(model.njnt):
+        if model.jnt_limited[j] and not limits_disabled(model) and int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE),
+                                                                int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            out.append((j, int(model.jnt_qposadr[j]), float(model.jnt_range[j][0]), float(model.jnt_range[j][1])))
+    return out
+
+
+def initial_state(model: mujoco.MjModel, margin: float = 0.05) -> tuple[np.ndarray, np.ndarray, str]:
+    """The start of every rollout: keyframe 0 if the model has one, else qpos0; limited joints are moved
+    `margin` (fraction of the range) inside their range, since MuJoCo's soft limits and PhysX's hard limits
+    resolve a violated limit differently (hopper's qpos0 violates its foot limit)."""
+    if model.nkey:
+        qpos, qvel, origin = model.key_qpos[0].copy(), model.key_qvel[0].copy(), "keyframe 0"
+    else:
+        qpos, qvel, origin = model.qpos0.copy(), np.zeros(model.nv), "qpos0"
+    for _, adr, lo, hi in limited_dofs(model):
+        pad = margin * (hi - lo)
+        clipped = float(np.clip(qpos[adr], lo + pad, hi - pad))
+        if clipped != qpos[adr]:
+            qpos[adr] = clipped
+            origin += " (moved inside joint limits)" if "moved" not in origin else ""
+    return qpos, qvel, origin
 
 
 def qpos_difference(model: mujoco.MjModel, qpos_a: np.ndarray, qpos_b: np.ndarray) -> np.ndarray:

@@ -62,6 +62,7 @@ class Trace:
     command: np.ndarray  # (T, nv) generalized force applied on both sides
     mujoco_body_pose: np.ndarray  # (T, nbody, 7)
     sapien_body_pose: np.ndarray  # (T, nbody, 7)
+    sapien_link_pose: np.ndarray  # (T, L, 7) every articulation link, helper links included
 
 
 @dataclass

@@ -31,6 +31,35 @@ def body_poses(result, nbody: int) -> np.ndarray:
     return out
 
 
+def links(result) -> list[tuple[int, object]]:
+    """Every articulation link in a fixed order: (articulation index, link)."""
+    return [(a, link) for a, art in enumerate(result.articulations) for link in art.links]
+
+
+def link_poses(result) -> np.ndarray:
+    """World pose (L, 7) of every link, in the order of `links`."""
+    return np.array([pose7(link.entity_pose) for _, link in links(result)]).reshape(-1, 7)
+
+
+def body_link_rows(result, nbody: int) -> np.ndarray:
+    """Per MuJoCo body, the row of its link in `links(result)`, or -1."""
+    offsets = np.cumsum([0] + [len(art.links) for art in result.articulations])
+    rows = np.full(nbody, -1)
+    for b in range(nbody):
+        entry = result.mapping.bodies[b] if b < len(result.mapping.bodies) else None
+        if entry is not None and entry.articulation is not None and entry.link is not None:
+            rows[b] = offsets[entry.articulation] + entry.link
+    return rows
+
+
+def bodies_from_links(link_pose: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Body poses (..., nbody, 7) picked from link poses (..., L, 7); NaN for bodies without a link."""
+    out = np.full(link_pose.shape[:-2] + (rows.size, 7), np.nan)
+    have = rows >= 0
+    out[..., have, :] = link_pose[..., rows[have], :]
+    return out
+
+
 def geom_component(result, geom: int):
     """(component, shape) for MuJoCo geom `geom`, or (None, None) when the geom got no collision shape."""
     entry = result.mapping.geoms[geom] if geom < len(result.mapping.geoms) else None

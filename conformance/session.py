@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 
 import mujoco
@@ -58,7 +59,7 @@ def has_free_joint(model: mujoco.MjModel) -> bool:
 
 def open_session(path: str, fix_root_link: bool | None = None) -> Session:
     """Compile with MuJoCo (timed), then load with the loader (timed); free joints stay floating roots."""
-    from loader import MJCFLoader
+    from loader import MJCFLoader, NoRenderDeviceWarning, UnsupportedFeatureWarning
 
     t0 = time.perf_counter()
     compiled = mujoco.MjModel.from_xml_path(str(path))
@@ -68,6 +69,9 @@ def open_session(path: str, fix_root_link: bool | None = None) -> Session:
     ld = MJCFLoader()
     ld.fix_root_link = fix_root_link
     t0 = time.perf_counter()
-    result = ld.load(str(path))
+    with warnings.catch_warnings():  # the same features are recorded in the result and the report
+        warnings.simplefilter("ignore", UnsupportedFeatureWarning)
+        warnings.simplefilter("ignore", NoRenderDeviceWarning)
+        result = ld.load(str(path))
     load_seconds = time.perf_counter() - t0
     return Session(str(path), result, result.model, load_seconds, compile_seconds, fix_root_link)

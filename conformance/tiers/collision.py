@@ -7,6 +7,7 @@ import numpy as np
 import sapien
 
 from .. import sapien_side
+from ..reference import contacts_disabled
 from ..report import Metric, TierReport, judged, metric
 from ..sampling import line_angle, quaternion_angle
 from ..tolerances import Tolerances
@@ -82,7 +83,7 @@ def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     mismatches, groups_wrong, notes = [], [], []
     size_err, pos_err, rot_err, mesh_err, approx_err = [], [], [], [], []
     checked = 0
-    contact_off = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    contact_off = contacts_disabled(model)
     for g in range(model.ngeom):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}"
         component, shape = sapien_side.geom_component(result, g)

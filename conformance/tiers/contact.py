@@ -29,17 +29,18 @@ def floating_roots(model: mujoco.MjModel) -> list[int]:
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     if model.nv == 0:
         return skipped("contact", "the model has no degrees of freedom")
-    if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
-        return skipped("contact", "the model disables contact")
+    if reference.contacts_disabled(model):
+        return skipped("contact", "the model disables contact (contact or constraint flag)")
     ref, matched = reference.matched(model, contact=True)
     dt = ref.opt.timestep
     steps = max(1, min(int(round(tolerances.setting("contact", "horizon_s") / dt)),
                        int(tolerances.setting("contact", "max_steps"))))
-    qpos0, qvel0 = model.qpos0.copy(), np.zeros(model.nv)
+    qpos0, qvel0, start = reference.initial_state(model)
     run = reference.rollout(ref, qpos0, qvel0, steps, None)
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed),
                               qvel0, steps, None)
-    sp_qpos, sp_poses = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
+    _, sp_links = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
+    sp_poses = sapien_side.bodies_from_links(sp_links, sapien_side.body_link_rows(result, model.nbody))
     sapien_side.set_state(result, qpos0, qvel0)
     bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
     mj_final, sp_final, own = _settled(run.body_pose), _settled(sp_poses), _settled(other.body_pose)
@@ -60,6 +61,6 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     failed = not all(m.passed for m in metrics)
     status = "fail" if failed else ("chaotic" if chaotic else "pass")
     return TierReport("contact", status, metrics, notes,
-                      settings={**matched, "steps": steps, "mujoco_self_spread": float(spread.max(initial=0.0))},
+                      settings={**matched, "steps": steps, "start": start, "mujoco_self_spread": float(spread.max(initial=0.0))},
                       series={"final_pose_band": np.nanmax(np.linalg.norm(
                           sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)})

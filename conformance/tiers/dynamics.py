@@ -26,18 +26,20 @@ def disable_contacts(result) -> None:
 
 
 def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray):
-    """Replay `command` (steps, nv) on SAPIEN from (qpos0, qvel0): qpos (T+1, nq), body poses (T+1, nbody, 7)."""
+    """Replay `command` (steps, nv) on SAPIEN from (qpos0, qvel0).
+
+    Returns qpos (T+1, nq) in MuJoCo's layout and every link's world pose (T+1, L, 7)."""
     steps = command.shape[0]
     sapien_side.set_state(result, qpos0, qvel0)
     qpos = np.zeros((steps + 1, model.nq))
-    poses = np.zeros((steps + 1, model.nbody, 7))
+    poses = np.zeros((steps + 1, len(sapien_side.links(result)), 7))
     qpos[0] = sapien_side.get_state(result)[0]
-    poses[0] = sapien_side.body_poses(result, model.nbody)
+    poses[0] = sapien_side.link_poses(result)
     for t in range(steps):
         sapien_side.apply_generalized_force(result, command[t])
         result.scene.step()
         qpos[t + 1] = sapien_side.get_state(result)[0]
-        poses[t + 1] = sapien_side.body_poses(result, model.nbody)
+        poses[t + 1] = sapien_side.link_poses(result)
     sapien_side.apply_generalized_force(result, np.zeros(model.nv))
     return qpos, poses
 
@@ -69,7 +71,7 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     dt = ref.opt.timestep
     steps = max(1, min(int(round(tolerances.setting("dynamics", "horizon_s") / dt)),
                        int(tolerances.setting("dynamics", "max_steps"))))
-    qpos0, qvel0 = model.qpos0.copy(), np.zeros(model.nv)
+    qpos0, qvel0, start = reference.initial_state(model)
     limit = tolerances.setting("chaos", "amplification_limit")
     perturbation = tolerances.setting("chaos", "perturbation")
     torque = commands.random_torque(ref, qpos0, steps, seed, tolerances.setting("dynamics", "torque_accel"))
@@ -90,11 +92,12 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     # (b) open-loop rollouts, each judged on the horizon MuJoCo itself can predict
     chaotic = []
     gates = {}
+    rows = sapien_side.body_link_rows(result, model.nbody)
     for name, command in (("zero", None), ("torque", torque), ("pd", pd)):
         run = torque_run if name == "torque" else reference.rollout(ref, qpos0, qvel0, steps, command)
         gate = chaos.gate(ref, run, seed, perturbation, limit)
         gates[name] = gate.to_dict()
-        sp_qpos, sp_poses = sapien_rollout(result, model, qpos0, qvel0, run.command)
+        sp_qpos, sp_links = sapien_rollout(result, model, qpos0, qvel0, run.command)
         err = reference.qpos_difference(ref, run.qpos, sp_qpos)
         judged_err = err[: gate.judged_steps + 1]
         metrics.append(metric(f"rollout_{name}_qpos", judged_err, tolerances[f"dynamics.rollout_qpos_{kind}"],
@@ -107,11 +110,12 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
                          f"{limit:g}x after step {gate.judged_steps} of {steps}; judged on the first "
                          f"{gate.judged_steps} steps only")
         traces.append(Trace(name, np.arange(steps + 1) * dt, run.qpos, sp_qpos, err,
-                            np.vstack([run.command, np.zeros((1, model.nv))]), run.body_pose, sp_poses))
+                            np.vstack([run.command, np.zeros((1, model.nv))]), run.body_pose,
+                            sapien_side.bodies_from_links(sp_links, rows), sp_links))
     sapien_side.set_state(result, qpos0, qvel0)
     failed = not all(m.passed for m in metrics)
     status = "fail" if failed else ("chaotic" if chaotic else "pass")
     return TierReport("dynamics", status, metrics, notes,
-                      settings={**matched, "steps": steps, "base": kind, "chaos": gates,
+                      settings={**matched, "steps": steps, "base": kind, "chaos": gates, "start": start,
                                 "one_step_every": int(tolerances.setting("dynamics", "one_step_every"))},
                       series=series, traces=traces)

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 
 from .. import sapien_side
+from ..reference import limits_disabled
 from ..report import Metric, TierReport, judged, metric
 from ..sampling import direction_angle
 from ..tolerances import Tolerances
@@ -124,7 +125,8 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         if kind == "hinge":
             offset = frame[:3, 3] - data.xanchor[j]
             anchor_err.append(np.linalg.norm(offset - np.dot(offset, data.xaxis[j]) * data.xaxis[j]))
-        ref = tuple(model.jnt_range[j]) if model.jnt_limited[j] else (-np.inf, np.inf)
+        enforced = model.jnt_limited[j] and not limits_disabled(model)
+        ref = tuple(model.jnt_range[j]) if enforced else (-np.inf, np.inf)
         limit_err.append(_limit_error(ref, joint.limit))
     sapien_dofs = sum(a.dof for a in result.articulations)
     if sapien_dofs != expected_dofs:
