@@ -112,6 +112,7 @@ class MJCFArticulationBuilder(ArticulationBuilder):
     def __init__(self):
         super().__init__()
         self.floating = False
+        self.name = ""
 
     def create_link_builder(self, parent: MJCFLinkBuilder | None = None) -> MJCFLinkBuilder:
         if self.link_builders:
@@ -129,5 +130,6 @@ class MJCFArticulationBuilder(ArticulationBuilder):
 
     def build(self, fix_root_link=None, build_mimic_joints=True) -> sapien.physx.PhysxArticulation:
         articulation = super().build(fix_root_link=fix_root_link, build_mimic_joints=build_mimic_joints)
+        articulation.name = self.name
         physx.apply_articulation_settings(articulation, [b.plan for b in self.link_builders])
         return articulation

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from .frames import pose, quat_mul, mat_to_quat
+from .frames import mat_to_quat, pose, quat_mul
 from .tree import body_name
 
 # SAPIEN cameras look along +X with +Z up; MuJoCo's look along -Z with +Y up.

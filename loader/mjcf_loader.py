@@ -154,6 +154,7 @@ class MJCFLoader:
             builder.set_scene(self.scene)
             builder.set_initial_pose(art.root_pose)
             builder.floating = art.floating
+            builder.name = art.name
             link_builders = []
             for link in art.links:
                 lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)

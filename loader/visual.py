@@ -15,7 +15,18 @@ import numpy as np
 import sapien
 
 from .frames import X_TO_Z, pose
-from .geom import BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, mesh_faces, mesh_vertices, unit_sphere_points
+from .geom import (
+    BOX,
+    CAPSULE,
+    CYLINDER,
+    ELLIPSOID,
+    MESH,
+    PLANE,
+    SPHERE,
+    mesh_faces,
+    mesh_vertices,
+    unit_sphere_points,
+)
 
 DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0], dtype=np.float32)
 

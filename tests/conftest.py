@@ -7,7 +7,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from loader import MJCFLoader  # noqa: E402
+from loader import MJCFLoader
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,81 @@
+"""Collision filtering and static world geoms, on small fixtures, with MuJoCo and PhysX as oracles."""
+
+from __future__ import annotations
+
+import numpy as np
+from models import FIXTURES
+from reference import collision_filter_mismatches, component_of
+
+from loader import MJCFLoader
+
+
+def _separation_after(result, steps: int) -> tuple[float, float]:
+    """Distances within the excluded pair (left, right) and the plain pair (third, fourth), both overlapping
+    by 5 cm at the start, after PhysX has stepped them."""
+    for _ in range(steps):
+        result.scene.step()
+    poses = {art.name: art.root_pose.p for art in result.articulations}
+    return (float(np.linalg.norm(poses["right"] - poses["left"])),
+            float(np.linalg.norm(poses["fourth"] - poses["third"])))
+
+
+def test_excluded_pair_never_touches_in_physx_while_others_do(load):
+    result = load(FIXTURES / "excluded_pair.xml")
+    assert not collision_filter_mismatches(result)
+    excluded, plain = _separation_after(result, 50)
+    assert abs(excluded - 0.15) < 1e-4  # excluded: the overlapping boxes stay where they are
+    assert plain > 0.15 + 0.01  # not excluded: PhysX pushes the overlapping boxes apart
+
+
+def test_exclusion_is_load_bearing(tmp_path):
+    """The same scene without <exclude>: the pair is pushed apart (so the test above can fail)."""
+    text = (FIXTURES / "excluded_pair.xml").read_text()
+    start, end = text.index("<contact>"), text.index("</contact>") + len("</contact>")
+    (tmp_path / "no_exclude.xml").write_text(text[:start] + text[end:])
+    result = MJCFLoader().load(tmp_path / "no_exclude.xml")
+    excluded, _ = _separation_after(result, 50)
+    assert excluded > 0.15 + 0.01
+
+
+def test_a_chain_of_40_bodies_collides_like_mujoco(load):
+    result = load(FIXTURES / "chain_40_bodies.xml")
+    model = result.model
+    assert model.nbody == 41 and model.njnt == 48
+    assert not [e for e in result.unsupported if e.kind == "contact"]
+    assert not collision_filter_mismatches(result)
+    words = {tuple(component_of(result, result.mapping.geoms[g]).collision_shapes[0].get_collision_groups()[2:])
+             for g in range(model.ngeom)}
+    assert len(words) > 1  # bits are really spent on the chain's weld-parent pairs
+
+
+def test_world_geoms_are_one_static_actor(load):
+    result = load(FIXTURES / "world_geoms.xml")
+    model = result.model
+    assert len(result.actors) == 1 and len(result.articulations) == 1
+    floor, wall, ghost = (model.geom(n).id for n in ("floor", "wall", "ghost"))
+    assert result.mapping.geoms[floor].actor == 0 and result.mapping.geoms[wall].actor == 0
+    assert result.mapping.geoms[ghost] is None  # contype = conaffinity = 0: no shape at all
+    actor = component_of(result, result.mapping.geoms[floor])
+    assert len(actor.collision_shapes) == 2
+    # the ball falls onto the static floor and rests on it
+    for _ in range(500):
+        result.scene.step()
+    height = result.articulations[0].root_pose.p[2]
+    assert 0.09 < height < 0.11
+
+
+def test_filter_bits_running_out_is_reported_not_silent(tmp_path):
+    """40 bodies of two joints each need 39 weld-parent filters in one cluster: more than 32 bits."""
+    lines = []
+    for line in (FIXTURES / "chain_40_bodies.xml").read_text().splitlines():
+        if 'b" type="hinge"' not in line:
+            lines.append(line)
+        if 'a" type="hinge"' in line:
+            lines.append(line.replace('a" type', 'b" type').replace('axis="0 1 0"', 'axis="0 0 1"'))
+    (tmp_path / "chain.xml").write_text("\n".join(lines))
+    result = MJCFLoader().load(tmp_path / "chain.xml")
+    assert result.model.njnt == 80
+    overflow = [e for e in result.unsupported if e.kind == "contact"]
+    assert len(overflow) == 39 - 32
+    # everything else still agrees with MuJoCo
+    assert not collision_filter_mismatches(result)

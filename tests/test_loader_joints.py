@@ -1,0 +1,137 @@
+"""Joint mapping rules, each on its own small fixture, with MuJoCo as the oracle."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from models import FIXTURES
+from reference import POSE_TOLERANCE, link_of, link_pose_errors, random_qpos
+
+
+def test_ball_joint_is_three_revolutes_with_matching_poses(load, rng):
+    result = load(FIXTURES / "ball_joint.xml")
+    shoulder = result.mapping.joints[result.model.joint("shoulder").id]
+    assert shoulder.kind == "ball" and len(shoulder.dofs) == 3
+    art = result.articulations[shoulder.articulation]
+    assert [art.active_joints[d].type for d in shoulder.dofs] == ["revolute_unwrapped"] * 3
+    assert max(link_pose_errors(result, rng, random_configurations=50)) < POSE_TOLERANCE
+
+
+def test_ball_joint_state_round_trips_through_sapien(load, rng):
+    result = load(FIXTURES / "ball_joint.xml")
+    model = result.model
+    for _ in range(20):
+        qpos = random_qpos(model, rng)
+        qvel = rng.normal(size=model.nv)
+        result.mapping.set_state(result.articulations, qpos, qvel)
+        back_qpos, back_qvel = result.mapping.get_state(result.articulations)
+        adr = model.jnt_qposadr[model.joint("shoulder").id]
+        sign = np.sign(back_qpos[adr] * qpos[adr]) or 1.0  # q and -q are the same rotation
+        np.testing.assert_allclose(sign * back_qpos[adr : adr + 4], qpos[adr : adr + 4], atol=1e-5)
+        np.testing.assert_allclose(back_qvel, qvel, rtol=1e-4, atol=1e-4)
+    result.reset()
+
+
+def test_ball_joint_velocity_gives_mujocos_body_angular_velocity(load, rng):
+    """The Euler-rate conversion is checked against MuJoCo's own body velocities, not against its inverse."""
+    result = load(FIXTURES / "ball_joint.xml")
+    model = result.model
+    data = mujoco.MjData(model)
+    arm = model.body("arm").id
+    for _ in range(10):
+        data.qpos[:] = random_qpos(model, rng)
+        data.qvel[:] = rng.normal(size=model.nv)
+        mujoco.mj_forward(model, data)
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, arm, velocity, 0)  # world axes
+        result.mapping.set_state(result.articulations, data.qpos, data.qvel)
+        np.testing.assert_allclose(link_of(result, arm).angular_velocity, velocity[:3], atol=1e-4)
+    result.reset()
+
+
+def test_several_joints_in_one_body_become_a_chain_in_joint_order(load, rng):
+    result = load(FIXTURES / "multi_joint_body.xml")
+    model = result.model
+    assert sum(art.dof for art in result.articulations) == model.nv == 6
+    for name in ("rootx", "rootz", "rooty", "hip_x", "hip_y", "hip_z"):
+        assert len(result.mapping.joints[model.joint(name).id].dofs) == 1
+    # helper links carry no real mass: the body's whole mass sits on its own link
+    thigh = link_of(result, model.body("thigh").id)
+    assert thigh.mass == pytest.approx(model.body_mass[model.body("thigh").id], rel=1e-6)
+    art = result.articulations[0]
+    assert sum(link.mass for link in art.links) == pytest.approx(model.body_mass.sum(), rel=1e-6)
+    assert max(link_pose_errors(result, rng, random_configurations=50)) < POSE_TOLERANCE
+
+
+def test_joint_limits_are_mujocos_radians_and_metres(load):
+    result = load(FIXTURES / "multi_joint_body.xml")
+    model = result.model
+    for name in ("hip_x", "hip_y", "hip_z"):
+        target = result.mapping.joints[model.joint(name).id]
+        joint = result.articulations[target.articulation].active_joints[target.dofs[0]]
+        np.testing.assert_allclose(joint.limit[0], model.jnt_range[model.joint(name).id], rtol=1e-6)
+        assert joint.type == "revolute"
+
+
+def test_joint_ref_makes_sapien_q_equal_mujoco_q(load, rng):
+    result = load(FIXTURES / "joint_ref.xml")
+    model = result.model
+    qpos, _ = result.mapping.get_state(result.articulations)  # the loader starts at qpos0
+    np.testing.assert_allclose(qpos, model.qpos0, atol=1e-6)
+    assert model.qpos0[0] == pytest.approx(np.deg2rad(30))
+    unlimited = result.mapping.joints[model.joint("unlimited").id]
+    assert result.articulations[0].active_joints[unlimited.dofs[0]].type == "revolute_unwrapped"
+    assert max(link_pose_errors(result, rng, random_configurations=50)) < POSE_TOLERANCE
+
+
+def test_free_body_is_a_floating_root_whose_state_round_trips(load, rng):
+    result = load(FIXTURES / "free_body.xml")
+    model = result.model
+    art = result.articulations[0]
+    assert art.root.joint.type == "undefined" and art.dof == 1
+    for _ in range(10):
+        qpos = random_qpos(model, rng)
+        qvel = rng.normal(size=model.nv)
+        result.mapping.set_state(result.articulations, qpos, qvel)
+        back_qpos, back_qvel = result.mapping.get_state(result.articulations)
+        sign = np.sign(back_qpos[3] * qpos[3]) or 1.0
+        np.testing.assert_allclose(back_qpos[:3], qpos[:3], atol=1e-6)
+        np.testing.assert_allclose(sign * back_qpos[3:7], qpos[3:7], atol=1e-6)
+        np.testing.assert_allclose(back_qvel, qvel, atol=1e-5)
+    result.reset()
+
+
+def test_free_body_velocity_is_converted_to_the_centre_of_mass(load, rng):
+    """SAPIEN's root velocity must equal MuJoCo's centre-of-mass velocity (computed by MuJoCo)."""
+    result = load(FIXTURES / "free_body.xml")
+    model = result.model
+    data = mujoco.MjData(model)
+    box = model.body("box").id
+    data.qpos[:] = random_qpos(model, rng)
+    data.qvel[:] = rng.normal(size=model.nv)
+    mujoco.mj_forward(model, data)
+    result.mapping.set_state(result.articulations, data.qpos, data.qvel)
+    # MuJoCo's body object velocity is taken at the body's centre of mass (xipos), here in world axes
+    velocity = np.zeros(6)
+    mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, box, velocity, 0)
+    assert np.linalg.norm(data.xipos[box] - data.xpos[box]) > 0.01  # the origin is off the centre of mass
+    art = result.articulations[0]
+    np.testing.assert_allclose(art.root_angular_velocity, velocity[:3], atol=1e-5)
+    np.testing.assert_allclose(art.root_linear_velocity, velocity[3:], atol=1e-5)
+    result.reset()
+
+
+def test_free_fall_matches_mujoco_after_one_hundred_steps(load):
+    result = load(FIXTURES / "free_body.xml")
+    model = result.model
+    data = mujoco.MjData(model)
+    mujoco.mj_resetData(model, data)
+    result.reset()
+    for _ in range(100):
+        mujoco.mj_step(model, data)
+        result.scene.step()
+    qpos, _ = result.mapping.get_state(result.articulations)
+    assert data.qpos[2] < 1.0 - 0.04  # it really fell (0.049 m in 0.2 s)
+    np.testing.assert_allclose(qpos[:3], data.qpos[:3], atol=1e-4)
+    result.reset()

@@ -1,0 +1,97 @@
+"""Articulations, names, builders and the ManiSkill-compatible surface."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from models import FIXTURES, suite_path
+from reference import POSE_TOLERANCE, link_pose_errors
+
+from loader import MJCFLoader, UnsupportedFeatureWarning
+
+
+def test_unnamed_bodies_load_with_unique_link_names(load, rng):
+    result = load(FIXTURES / "unnamed_bodies.xml")
+    names = [link.name for art in result.articulations for link in art.links]
+    assert len(names) == len(set(names))
+    assert len(result.articulations) == 2
+    assert max(link_pose_errors(result, rng, random_configurations=10)) < POSE_TOLERANCE
+
+
+def test_parse_returns_builders_that_build_on_their_own():
+    loader = MJCFLoader(ignore_classes=["motor"], visual_groups=[0, 2])
+    articulation_builders, actor_builders, cameras = loader.parse(suite_path("cartpole"))
+    assert loader.scene is not None
+    articulations = [builder.build() for builder in articulation_builders]
+    actors = [builder.build_static("world") for builder in actor_builders]
+    assert [art.dof for art in articulations] == [2]
+    assert len(actors) == 1
+    assert {camera.name for camera in cameras} == {"fixed", "lookatcart"}
+    # the PhysX overrides are applied by build() itself
+    art = articulations[0]
+    assert all(link.linear_damping == 0 and link.angular_damping == 0 for link in art.links)
+    assert all(float(joint.friction) == 0 for joint in art.active_joints)
+
+
+def test_fix_root_link_false_lets_a_jointless_root_float(tmp_path):
+    (tmp_path / "box.xml").write_text(
+        '<mujoco><worldbody><body name="crate" pos="0 0 1"><geom type="box" size=".1 .1 .1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    loader = MJCFLoader()
+    loader.fix_root_link = False
+    result = loader.load(tmp_path / "box.xml")
+    for _ in range(100):
+        result.scene.step()
+    assert result.articulations[0].root_pose.p[2] < 0.95  # fell under gravity
+    fixed = MJCFLoader().load(tmp_path / "box.xml")
+    for _ in range(100):
+        fixed.scene.step()
+    assert fixed.articulations[0].root_pose.p[2] == pytest.approx(1.0)
+
+
+def test_unsupported_features_are_listed_and_warned_once_each():
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = MJCFLoader().load(suite_path("cartpole"))
+    kinds = {entry.kind for entry in result.unsupported}
+    assert "actuator" in kinds
+    ours = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
+    assert len(ours) == len(result.unsupported) + len(result.approximations)
+
+
+def test_keyframe_is_usable_as_the_initial_state(load):
+    result = load(suite_path("dog"))
+    qpos, qvel = result.state(0)
+    np.testing.assert_allclose(qpos, result.model.key_qpos[0])
+    result.reset(0)
+    back, _ = result.mapping.get_state(result.articulations)
+    np.testing.assert_allclose(back[7:], qpos[7:], atol=1e-5)
+    result.reset()
+
+
+def test_no_render_device_skips_visuals_but_keeps_physics():
+    from loader import has_render_device
+
+    if has_render_device():
+        pytest.skip("a render device exists here: visuals are built")
+    result = MJCFLoader(visual_groups=[0, 1, 2]).load(suite_path("pendulum"))
+    assert result.articulations and not any(
+        type(c).__name__ == "RenderBodyComponent" for art in result.articulations for link in art.links
+        for c in link.entity.components
+    )
+
+
+def test_cameras_and_sites_carry_their_body_and_pose(load):
+    result = load(suite_path("cartpole"))
+    camera = next(c for c in result.cameras if c.name == "fixed")
+    assert camera.body == "world" and 0 < camera.fovy < np.pi
+    assert result.sites == {} or all(site.body for site in result.sites.values())
+
+
+def test_textures_come_from_the_compiled_model(load):
+    result = load(suite_path("cartpole"))
+    grid = next(t for t in result.textures if t.name == "grid")
+    assert grid.type == "2d" and grid.data.ndim == 3 and grid.data.size > 0
