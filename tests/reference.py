@@ -132,7 +132,7 @@ def collision_filter_mismatches(result) -> list[tuple]:
             physx = _physx_collides(component_of(result, ta).collision_shapes[ta.shape],
                                     component_of(result, tb).collision_shapes[tb.shape])
             physx = physx and not _direct_parent_child(result, body_a, body_b)
-            if physx != ((a, b) in mujoco_pairs):
-                if not {f"{name(body_a)}/{name(body_b)}", f"{name(body_b)}/{name(body_a)}"} & reported:
-                    mismatches.append((model.geom(a).name or a, model.geom(b).name or b, physx))
+            pair_names = {f"{name(body_a)}/{name(body_b)}", f"{name(body_b)}/{name(body_a)}"}
+            if physx != ((a, b) in mujoco_pairs) and not pair_names & reported:
+                mismatches.append((model.geom(a).name or a, model.geom(b).name or b, physx))
     return mismatches

@@ -64,7 +64,7 @@ def test_unsupported_features_are_listed_and_warned_once_each():
 
 def test_keyframe_is_usable_as_the_initial_state(load):
     result = load(suite_path("dog"))
-    qpos, qvel = result.state(0)
+    qpos, _ = result.state(0)
     np.testing.assert_allclose(qpos, result.model.key_qpos[0])
     result.reset(0)
     back, _ = result.mapping.get_state(result.articulations)
