@@ -19,7 +19,7 @@ from .dynamics import sapien_rollout
 def _settled(poses: np.ndarray) -> np.ndarray:
     """Mean body positions (nbody, 3) over the last quarter of a rollout."""
     tail = max(1, poses.shape[0] // 4)
-    return np.nanmean(poses[-tail:, :, :3], axis=0)
+    return poses[-tail:, :, :3].mean(axis=0)  # NaN rows (bodies without a link) stay NaN
 
 
 def floating_roots(model: mujoco.MjModel) -> list[int]:

@@ -1,0 +1,114 @@
+"""The runner isolates every model in a worker: a crash or a hang fails that model, the run completes,
+the exit status reflects it, and summaries are written atomically."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SELFTEST = ROOT / "corpus" / "selftest.toml"
+
+
+def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "conformance", "run", *args], cwd=ROOT, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def selftest_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("reports")
+    started = time.monotonic()
+    proc = run_cli("--manifest", str(SELFTEST), "--out", str(out), "--jobs", "2", "--quiet")
+    elapsed = time.monotonic() - started
+    latest = out / "latest"
+    return proc, out, latest.resolve(), json.loads((latest / "summary.json").read_text()), elapsed
+
+
+def _model(summary: dict, model_id: str) -> dict:
+    return next(m for m in summary["models"] if m["id"] == model_id)
+
+
+def test_crash_is_that_models_failure(selftest_run):
+    _, _, _, summary, _ = selftest_run
+    crash = _model(summary, "crash")
+    assert crash["status"] == "crashed"
+    assert "SIGSEGV" in crash["reason"]
+    assert {v["outcome"] for v in crash["verdicts"].values()} == {"fail"}
+
+
+def test_hang_is_killed_at_its_timeout(selftest_run):
+    _, _, _, summary, elapsed = selftest_run
+    hang = _model(summary, "hang")
+    assert hang["status"] == "timeout"
+    assert "3 s timeout" in hang["reason"]
+    assert {v["outcome"] for v in hang["verdicts"].values()} == {"fail"}
+    assert elapsed < 120, "the hung worker must not hold the run"
+
+
+def test_the_rest_of_the_run_completes(selftest_run):
+    _, _, run_dir, summary, _ = selftest_run
+    pendulum = _model(summary, "pendulum")
+    assert pendulum["status"] == "ok"
+    assert {v["outcome"] for v in pendulum["verdicts"].values()} == {"pass"}
+    assert (run_dir / "pendulum.rrd").stat().st_size > 0
+    assert not (run_dir / "crash.rrd").exists()
+
+
+def test_missing_source_is_skipped_with_reason_never_passed(selftest_run):
+    _, _, _, summary, _ = selftest_run
+    missing = _model(summary, "missing")
+    assert missing["status"] == "skipped"
+    assert "does_not_exist.xml" in missing["reason"]
+    assert {v["outcome"] for v in missing["verdicts"].values()} == {"skipped"}
+
+
+def test_exit_status_is_nonzero_exactly_when_worse_than_expected(selftest_run, tmp_path):
+    proc, _, _, summary, _ = selftest_run
+    assert proc.returncode == 1, proc.stderr
+    assert not summary["ok"]
+    assert any(w.startswith("crash/") for w in summary["worse_than_expected"])
+    assert not any(w.startswith("pendulum/") for w in summary["worse_than_expected"])
+    # the healthy fixture alone meets every expectation
+    ok = run_cli("--manifest", str(SELFTEST), "--model", "pendulum", "--out", str(tmp_path), "--quiet",
+                 "--no-record", "--tiers", "structure,kinematics")
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+
+
+def test_summary_records_versions_and_markdown_table(selftest_run):
+    _, _, run_dir, summary, _ = selftest_run
+    assert set(summary["versions"]) == {"mujoco", "sapien", "rerun-sdk", "dm-control", "numpy", "python"}
+    text = (run_dir / "summary.md").read_text()
+    assert "| crash |" in text and "| pendulum |" in text
+    assert not list(run_dir.glob(".*")), "no temporary files are left behind"
+
+
+def test_interrupted_run_keeps_a_valid_summary_and_earlier_runs(selftest_run, tmp_path):
+    _, out, earlier, _, _ = selftest_run
+    before = {p.name: p.read_bytes() for p in earlier.iterdir() if p.is_file()}
+    proc = subprocess.Popen([sys.executable, "-m", "conformance", "run", "--manifest", str(SELFTEST),
+                             "--model", "hang", "--out", str(out), "--quiet", "--timeout-scale", "100"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    runs = set()
+    while time.monotonic() < deadline and not runs:
+        runs = {p for p in out.iterdir() if p.is_dir() and not p.is_symlink() and p != earlier
+                and (p / "summary.json").exists()}
+        time.sleep(0.2)
+    assert runs, "the run never wrote its first summary"
+    time.sleep(3)  # the worker is now hanging
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    (run,) = runs
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["interrupted"] is True
+    assert {p.name: p.read_bytes() for p in earlier.iterdir() if p.is_file()} == before
+    assert os.readlink(out / "latest") == run.name

@@ -1,0 +1,132 @@
+"""Every tolerance is backed by a mutation: a small deliberate mistake in the built SAPIEN scene must make
+the tier meant to catch it fail, while the untouched scene passes the same tier."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sapien
+
+from conformance import tolerances
+from conformance.corpus import dm_control_suite_dir
+from conformance.session import open_session
+from conformance.tiers import TIERS
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXTURE = ROOT / "corpus" / "fixtures" / "pendulum.xml"
+TOL = tolerances.load()
+
+
+def _path(name: str) -> Path:
+    if name == "fixture_pendulum":
+        return FIXTURE
+    suite = dm_control_suite_dir()
+    if suite is None:
+        pytest.skip("dm_control is not installed")
+    return suite / f"{name}.xml"
+
+
+def _session(name: str):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return open_session(str(_path(name)))
+
+
+def _tier(session, tier: str):
+    return TIERS[tier](session.result, session.model, 0, TOL)
+
+
+def _heaviest_body_link(session):
+    model = session.model
+    body = max(range(1, model.nbody), key=lambda b: model.body_mass[b])
+    entry = session.result.mapping.bodies[body]
+    return session.result.articulations[entry.articulation].links[entry.link]
+
+
+def _last_hinge(session):
+    """The SAPIEN joint of the last hinge (the lightest end of the chain)."""
+    model = session.model
+    hinges = [j for j, e in enumerate(session.result.mapping.joints) if e.kind == "hinge"]
+    entry = session.result.mapping.joints[hinges[-1]]
+    return session.result.articulations[entry.articulation].active_joints[entry.dofs[0]], model
+
+
+def mutate_mass(session) -> None:
+    link = _heaviest_body_link(session)
+    link.mass = link.mass * 1.01
+
+
+def mutate_joint_frame(session) -> None:
+    joint, _ = _last_hinge(session)
+    pose = joint.pose_in_child
+    joint.pose_in_child = sapien.Pose(np.asarray(pose.p) + np.array([0.0, 0.001, 0.0]), pose.q)  # 1 mm, off-axis
+
+
+def mutate_armature(session) -> None:
+    joint, _ = _last_hinge(session)
+    joint.armature = np.asarray(joint.armature) + 0.001
+
+
+def mutate_collision_groups(session) -> None:
+    for art in session.result.articulations:
+        for link in art.links:
+            for shape in link.collision_shapes:
+                g = list(shape.get_collision_groups())
+                if g[0] != g[1]:
+                    shape.set_collision_groups([g[1], g[0], g[2], g[3]])
+                    return
+    raise AssertionError("no shape with contype != conaffinity to swap")
+
+
+def mutate_joint_limit(session) -> None:
+    # PhysX ignores a switch to +-inf (a change of joint motion) once the articulation is in a scene,
+    # so the limit is dropped by widening it far past any motion.
+    for art in session.result.articulations:
+        for joint in art.active_joints:
+            lo, hi = np.asarray(joint.limit)[0]
+            if np.isfinite(lo) and np.isfinite(hi):
+                joint.limit = [[-1e4, 1e4]]
+                assert np.asarray(joint.limit)[0, 1] == 1e4
+                return
+    raise AssertionError("no limited joint to drop")
+
+
+CASES = [
+    # (mutation, tier, failing metric, models)
+    (mutate_mass, "inertia", "mass", ["fixture_pendulum", "cartpole", "walker", "humanoid"]),
+    (mutate_joint_frame, "kinematics", "position", ["fixture_pendulum", "reacher", "walker", "humanoid"]),
+    (mutate_armature, "dynamics", None, ["fixture_pendulum", "acrobot", "reacher", "walker"]),
+    (mutate_collision_groups, "collision", "groups", ["fixture_pendulum"]),
+    (mutate_joint_limit, "structure", "limit", ["fixture_pendulum", "walker", "cheetah"]),
+]
+
+
+@pytest.mark.parametrize("mutation,tier,metric_name,model", [
+    pytest.param(m, t, n, model, id=f"{m.__name__}-{model}") for m, t, n, models in CASES for model in models])
+def test_mutation_is_caught(mutation, tier, metric_name, model):
+    clean = _tier(_session(model), tier)
+    assert clean.status == "pass", f"{model} {tier} must pass before the mutation: {clean.to_dict()}"
+    session = _session(model)
+    mutation(session)
+    report = _tier(session, tier)
+    assert report.status == "fail", f"{mutation.__name__} went unnoticed by {tier} on {model}"
+    failed = {m.name for m in report.metrics if not m.passed}
+    if metric_name is not None:
+        assert metric_name in failed, failed
+
+
+def test_one_percent_mass_error_is_measured_as_one_percent():
+    session = _session("fixture_pendulum")
+    mutate_mass(session)
+    mass = next(m for m in _tier(session, "inertia").metrics if m.name == "mass")
+    assert mass.max == pytest.approx(0.01, rel=1e-4)
+
+
+def test_one_millimetre_frame_offset_is_measured_as_one_millimetre():
+    session = _session("fixture_pendulum")
+    mutate_joint_frame(session)
+    position = next(m for m in _tier(session, "kinematics").metrics if m.name == "position")
+    assert position.max == pytest.approx(0.001, rel=1e-3)
