@@ -117,6 +117,8 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
     poses = np.zeros((steps + 1, model.nbody, 7))
     applied = np.zeros((steps, model.nv))
     for t in range(steps + 1):
+        if t:  # mj_step leaves xpos/xquat at the state before the step: bring them to the new state
+            mujoco.mj_kinematics(model, data)
         qpos[t], qvel[t], poses[t] = data.qpos, data.qvel, body_poses(data)
         if t == steps:
             break

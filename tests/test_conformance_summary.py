@@ -1,0 +1,70 @@
+"""Judging outcomes against expectations, and atomic writes."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+
+from conformance import summary
+from conformance.manifest import Expectation, ModelEntry
+
+
+def _result(status: str, **tiers: str) -> dict:
+    return {"status": status, "tiers": {t: {"status": s, "metrics": [], "notes": []} for t, s in tiers.items()}}
+
+
+def test_known_gap_is_expected_fail_and_not_worse():
+    entry = ModelEntry(id="m", source="x", tiers=("dynamics",),
+                       expect={"dynamics": Expectation("dynamics", "fail", "tendons are not mapped")})
+    (v,) = summary.judge(entry, _result("ok", dynamics="fail"))
+    assert v.outcome == "expected-fail" and not v.worse
+
+
+@pytest.mark.parametrize("raw,expected,worse", [
+    ("pass", "pass", False), ("chaotic", "pass", True), ("fail", "chaotic", True),
+    ("chaotic", "chaotic", False), ("pass", "fail", False), ("skipped", "pass", True),
+])
+def test_worse_than_expected(raw, expected, worse):
+    expect = {} if expected == "pass" else {"contact": Expectation("contact", expected, "why")}
+    entry = ModelEntry(id="m", source="x", tiers=("contact",), expect=expect)
+    (v,) = summary.judge(entry, _result("ok", contact=raw))
+    assert v.worse is worse and v.raw == raw
+
+
+def test_a_crashed_worker_fails_every_tier():
+    entry = ModelEntry(id="m", source="x", tiers=("structure", "dynamics"))
+    verdicts = summary.judge(entry, {"status": "crashed", "reason": "killed by SIGSEGV"})
+    assert [v.outcome for v in verdicts] == ["fail", "fail"] and all(v.worse for v in verdicts)
+
+
+def test_build_flags_the_run(tmp_path):
+    entries = [ModelEntry(id="a", source="x", tiers=("structure",)),
+               ModelEntry(id="b", source="y", tiers=("structure",))]
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, entries,
+                        {"a": _result("ok", structure="pass"), "b": _result("ok", structure="fail")})
+    assert not doc["ok"] and doc["worse_than_expected"] == ["b/structure: fail (expected pass)"]
+    json.dumps(doc, allow_nan=False)
+    assert "| b | **fail** |" in summary.markdown(doc, ["structure"])
+
+
+def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path, monkeypatch):
+    path = tmp_path / "summary.json"
+    summary.atomic_write_json(path, {"run": 1})
+
+    def broken_replace(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", broken_replace)
+    with pytest.raises(OSError):
+        summary.atomic_write_json(path, {"run": 2})
+    assert json.loads(path.read_text()) == {"run": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+
+
+def test_latest_points_at_the_newest_run(tmp_path):
+    for name in ("run1", "run2"):
+        (tmp_path / name).mkdir()
+        summary.point_latest(tmp_path, tmp_path / name)
+    assert os.readlink(tmp_path / "latest") == "run2"
