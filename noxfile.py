@@ -17,3 +17,16 @@ def tests(session: nox.Session) -> None:
 def lint(session: nox.Session) -> None:
     """Static checks."""
     session.run("python", "-m", "ruff", "check", "loader", "conformance", "tests", "noxfile.py")
+
+
+@nox.session
+def conformance(session: nox.Session) -> None:
+    """MuJoCo vs SAPIEN conformance over the corpus manifest; arguments pass through to `run`
+    (e.g. `nox -s conformance -- --model humanoid --tiers dynamics`)."""
+    session.run("python", "-m", "conformance", "run", *session.posargs)
+
+
+@nox.session
+def bench(session: nox.Session) -> None:
+    """Loader time vs MuJoCo compile time and the harness's steps per second, as JSON (reports/bench.json)."""
+    session.run("python", "-m", "conformance", "bench", *session.posargs)
