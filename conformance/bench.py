@@ -70,7 +70,7 @@ def bench(entries: list[ModelEntry], out: Path, steps: int = 200) -> dict:
             continue
         try:
             models[entry.id] = bench_model(str(resolved.path), steps)
-        except Exception as exc:  # one broken model does not end the benchmark
+        except Exception as exc:  # noqa: BLE001 - one broken model does not end the benchmark
             models[entry.id] = {"error": f"{type(exc).__name__}: {exc}"}
     doc = {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions(),
            "repeats": REPEATS, "models": models}

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import tomllib
 
 TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "dynamics")
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.

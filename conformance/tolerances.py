@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+
+import tomllib
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,11 @@ class Tolerances:
             return self.settings[tier][name]
         except KeyError:
             raise KeyError(f"no setting {tier}.{name} in tolerances.toml") from None
+
+    def horizon_steps(self, tier: str, timestep: float) -> int:
+        """Steps of a tier's rollouts: `horizon_s` at this timestep, capped by `max_steps`, at least one."""
+        steps = round(self.setting(tier, "horizon_s") / timestep)
+        return max(1, min(steps, int(self.setting(tier, "max_steps"))))
 
     def with_overrides(self, tolerances: dict[str, float] | None = None,
                        settings: dict[str, dict] | None = None, why: str = "per-model override") -> Tolerances:

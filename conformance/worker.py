@@ -59,7 +59,7 @@ def evaluate(job: Job) -> dict:
         from .session import open_session
 
         session = open_session(job.path)
-    except Exception as exc:  # the loader's failure on this model is this model's failure
+    except Exception as exc:  # noqa: BLE001 - the loader's failure on this model is this model's failure
         result.update(status="error", reason=f"load failed: {type(exc).__name__}: {exc}",
                       traceback=traceback.format_exc(), seconds=time.perf_counter() - started)
         return result
@@ -70,7 +70,7 @@ def evaluate(job: Job) -> dict:
         t0 = time.perf_counter()
         try:
             report = TIERS[tier](session.result, session.model, job.seed, tol)
-        except Exception as exc:
+        except Exception as exc:  # noqa: BLE001 - a tier that raises fails, the others still run
             log.warning("model %s tier %s raised %s", entry.id, tier, exc)
             report = TierReport(tier, "fail", notes=[f"tier raised {type(exc).__name__}: {exc}",
                                                      traceback.format_exc(limit=4)])
@@ -87,7 +87,7 @@ def evaluate(job: Job) -> dict:
                                                       "versions": result["versions"],
                                                       "settings": result["settings"]})
             result["recording"] = rrd.name
-        except Exception as exc:
+        except Exception as exc:  # noqa: BLE001 - a failed recording is noted, the verdicts stand
             log.warning("model %s: recording failed: %s", entry.id, exc)
             result["recording"] = None
             result["reason"] = f"recording failed: {type(exc).__name__}: {exc}"

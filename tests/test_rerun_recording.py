@@ -64,7 +64,7 @@ def test_every_body_and_link_has_a_transform_per_step(recorded):
 
 
 def test_sim_time_is_steps_times_timestep(recorded):
-    session, reports, rrd, _ = recorded
+    session, _, rrd, _ = recorded
     rows = rrd["/" + recording.body_path(session.model, 1)]
     seconds = np.array([t.total_seconds() for t in rows["sim_time"]])
     np.testing.assert_allclose(seconds, np.arange(len(seconds)) * session.model.opt.timestep, atol=1e-9)

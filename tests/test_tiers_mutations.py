@@ -94,6 +94,10 @@ def mutate_joint_limit(session) -> None:
     raise AssertionError("no limited joint to drop")
 
 
+def mutate_timestep(session) -> None:
+    session.result.scene.timestep = session.result.scene.timestep * 1.01
+
+
 CASES = [
     # (mutation, tier, failing metric, models)
     (mutate_mass, "inertia", "mass", ["fixture_pendulum", "cartpole", "walker", "humanoid"]),
@@ -101,6 +105,7 @@ CASES = [
     (mutate_armature, "dynamics", None, ["fixture_pendulum", "acrobot", "reacher", "walker"]),
     (mutate_collision_groups, "collision", "groups", ["fixture_pendulum"]),
     (mutate_joint_limit, "structure", "limit", ["fixture_pendulum", "walker", "cheetah"]),
+    (mutate_timestep, "dynamics", "settings_mismatches", ["fixture_pendulum"]),
 ]
 
 

@@ -33,8 +33,7 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
         return skipped("contact", "the model disables contact (contact or constraint flag)")
     ref, matched = reference.matched(model, contact=True)
     dt = ref.opt.timestep
-    steps = max(1, min(int(round(tolerances.setting("contact", "horizon_s") / dt)),
-                       int(tolerances.setting("contact", "max_steps"))))
+    steps = tolerances.horizon_steps("contact", dt)
     qpos0, qvel0, start = reference.initial_state(model)
     run = reference.rollout(ref, qpos0, qvel0, steps, None)
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed),

@@ -50,7 +50,7 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int) ->
     qacc, qvel, qpos = [], [], []
     for t in range(0, run.command.shape[0], every):
         sapien_side.set_state(result, run.qpos[t], run.qvel[t])
-        q0, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding
+        _, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding
         sapien_side.apply_generalized_force(result, run.command[t])
         result.scene.step()
         q1, v1 = sapien_side.get_state(result)
@@ -61,6 +61,22 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int) ->
     return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}
 
 
+def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
+    """Timestep, gravity and solver of the SAPIEN scene against the MuJoCo reference."""
+    import sapien
+
+    config = sapien.physx.get_scene_config()
+    gravity = np.zeros(3) if ref.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else ref.opt.gravity
+    out = []
+    if abs(result.scene.timestep - ref.opt.timestep) > 1e-6 * ref.opt.timestep:  # SAPIEN stores float32
+        out.append(f"timestep {result.scene.timestep} in SAPIEN, {ref.opt.timestep} in MuJoCo")
+    if np.max(np.abs(np.asarray(config.gravity) - gravity)) > 1e-6:
+        out.append(f"gravity {list(config.gravity)} in SAPIEN, {list(gravity)} in MuJoCo")
+    if config.enable_tgs:
+        out.append("SAPIEN uses TGS; the harness expects PGS (TGS adds an O(dt) gap)")
+    return out
+
+
 def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     if model.nv == 0:
         return skipped("dynamics", "the model has no degrees of freedom")
@@ -69,16 +85,17 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     floating = is_floating(model)
     kind = "floating" if floating else "fixed"
     dt = ref.opt.timestep
-    steps = max(1, min(int(round(tolerances.setting("dynamics", "horizon_s") / dt)),
-                       int(tolerances.setting("dynamics", "max_steps"))))
+    steps = tolerances.horizon_steps("dynamics", dt)
     qpos0, qvel0, start = reference.initial_state(model)
     limit = tolerances.setting("chaos", "amplification_limit")
     perturbation = tolerances.setting("chaos", "perturbation")
     torque = commands.random_torque(ref, qpos0, steps, seed, tolerances.setting("dynamics", "torque_accel"))
     pd = commands.PDTracking(ref, qpos0, steps, seed, tolerances.setting("dynamics", "pd_amplitude"),
                              tolerances.setting("dynamics", "pd_freq_hz"))
-    metrics: list[Metric] = []
-    notes: list[str] = []
+    mismatched = settings_mismatches(result, ref)
+    metrics: list[Metric] = [Metric("settings_mismatches", float(len(mismatched)), float(len(mismatched)), 0.0,
+                                    "count", 3)]
+    notes: list[str] = list(mismatched)
     series: dict[str, np.ndarray] = {}
     traces: list[Trace] = []
 
