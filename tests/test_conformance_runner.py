@@ -112,3 +112,19 @@ def test_interrupted_run_keeps_a_valid_summary_and_earlier_runs(selftest_run, tm
     assert summary["interrupted"] is True
     assert {p.name: p.read_bytes() for p in earlier.iterdir() if p.is_file()} == before
     assert os.readlink(out / "latest") == run.name
+
+
+def test_mjcf_paths_on_the_command_line(tmp_path):
+    proc = run_cli(str(ROOT / "corpus" / "fixtures" / "pendulum.xml"), "--out", str(tmp_path), "--quiet",
+                   "--tiers", "structure,inertia", "--seed", "5", "--jobs", "1")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((tmp_path / "latest" / "summary.json").read_text())
+    assert summary["seed"] == 5 and summary["tiers"] == ["structure", "inertia"]
+    (model,) = summary["models"]
+    assert model["id"] == "pendulum" and set(model["verdicts"]) == {"structure", "inertia"}
+    assert (tmp_path / "latest" / "pendulum.rrd").exists()
+
+
+def test_unknown_model_is_a_usage_error(tmp_path):
+    proc = run_cli("--manifest", str(SELFTEST), "--model", "nope", "--out", str(tmp_path), "--quiet")
+    assert proc.returncode == 2 and "nope" in proc.stderr

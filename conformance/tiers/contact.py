@@ -36,6 +36,9 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     steps = tolerances.horizon_steps("contact", dt)
     qpos0, qvel0, start = reference.initial_state(model)
     run = reference.rollout(ref, qpos0, qvel0, steps, None)
+    # MuJoCo against itself: the 1e-6 gate of every rollout (recorded; contact is judged by bands, below)
+    gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
+                      tolerances.setting("chaos", "amplification_limit"))
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed),
                               qvel0, steps, None)
     _, sp_links = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
@@ -60,6 +63,6 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     failed = not all(m.passed for m in metrics)
     status = "fail" if failed else ("chaotic" if chaotic else "pass")
     return TierReport("contact", status, metrics, notes,
-                      settings={**matched, "steps": steps, "start": start, "mujoco_self_spread": float(spread.max(initial=0.0))},
+                      settings={**matched, "steps": steps, "start": start, "chaos": gate.to_dict(), "mujoco_self_spread": float(spread.max(initial=0.0))},
                       series={"final_pose_band": np.nanmax(np.linalg.norm(
                           sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)})
