@@ -22,8 +22,11 @@ def lint(session: nox.Session) -> None:
 @nox.session
 def conformance(session: nox.Session) -> None:
     """MuJoCo vs SAPIEN conformance over the corpus manifest; arguments pass through to `run`
-    (e.g. `nox -s conformance -- --model humanoid --tiers dynamics`)."""
-    session.run("python", "-m", "conformance", "run", *session.posargs)
+    (e.g. `nox -s conformance -- --model humanoid --tiers dynamics`; a leading `run` is accepted too)."""
+    args = list(session.posargs)
+    if args[:1] != ["run"]:
+        args = ["run", *args]
+    session.run("python", "-m", "conformance", *args)
 
 
 @nox.session

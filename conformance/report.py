@@ -81,14 +81,6 @@ class TierReport:
         if self.status not in STATUSES:
             raise ValueError(f"unknown tier status {self.status!r}")
 
-    @property
-    def worst(self) -> Metric | None:
-        """The metric closest to (or furthest past) its tolerance, relative to the tolerance."""
-        if not self.metrics:
-            return None
-        return max(self.metrics, key=lambda m: m.max / m.tolerance if m.tolerance > 0 else
-                   (math.inf if m.max > 0 else 0.0))
-
     def to_dict(self) -> dict:
         return {"tier": self.tier, "status": self.status, "metrics": [m.to_dict() for m in self.metrics],
                 "notes": list(self.notes), "settings": self.settings}

@@ -81,7 +81,8 @@ def _cell(v: Verdict) -> str:
         return v.outcome
     worst = max(metrics, key=lambda m: (m["max"] / m["tolerance"]) if m["max"] is not None and m["tolerance"]
                 else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0))
-    return f"{v.outcome} {worst['name']} {_fmt(worst['max'])}/{_fmt(worst['tolerance'])}"
+    return (f"{v.outcome}: {worst['name']} {_fmt(worst['max'])} (tol {_fmt(worst['tolerance'])}, "
+            f"margin {_fmt(worst['margin'])})")
 
 
 def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dict:
@@ -122,7 +123,9 @@ def markdown(summary: dict, tiers: list[str]) -> str:
             text = _cell(Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v))
             cells.append(("**" + text + "**") if v["worse_than_expected"] else text)
         lines.append(f"| {m['id']} | " + " | ".join(cells) + " |")
-    lines += ["", "Cells: outcome, then the worst metric as max error / tolerance (units in summary.json).", ""]
+    legend = ("Cells: outcome, then the metric closest to (or furthest past) its tolerance: max error, tolerance "
+              "and margin = tolerance - max (units and every other metric in summary.json).")
+    lines += ["", legend, ""]
     if summary["worse_than_expected"]:
         lines += ["## Worse than the manifest expects", ""] + [f"- {w}" for w in summary["worse_than_expected"]]
     else:

@@ -49,6 +49,15 @@ def test_build_flags_the_run(tmp_path):
     assert "| b | **fail** |" in summary.markdown(doc, ["structure"])
 
 
+def test_markdown_cell_shows_error_tolerance_and_margin():
+    entry = ModelEntry(id="a", source="x", tiers=("inertia",))
+    metrics = [{"name": "mass", "max": 2e-7, "rms": 1e-7, "tolerance": 1e-5, "margin": 1e-5 - 2e-7, "unit": "relative"},
+               {"name": "com", "max": 4e-6, "rms": 1e-6, "tolerance": 5e-6, "margin": 1e-6, "unit": "m"}]
+    result = {"status": "ok", "tiers": {"inertia": {"status": "pass", "metrics": metrics, "notes": []}}}
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"a": result})
+    assert "| a | pass: com 4e-06 (tol 5e-06, margin 1e-06) |" in summary.markdown(doc, ["inertia"])
+
+
 def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path, monkeypatch):
     path = tmp_path / "summary.json"
     summary.atomic_write_json(path, {"run": 1})
