@@ -9,7 +9,13 @@ from pathlib import Path
 from . import manifest as manifest_mod
 from .manifest import TIER_NAMES
 
-DEFAULT_MANIFEST = Path("corpus") / "manifest.toml"
+def _default_manifest() -> Path:
+    """The repository's corpus next to this package (editable install), else `corpus/` in the cwd."""
+    beside = Path(__file__).resolve().parents[1] / "corpus" / "manifest.toml"
+    return beside if beside.is_file() else Path("corpus") / "manifest.toml"
+
+
+DEFAULT_MANIFEST = _default_manifest()
 
 
 def _tiers(text: str) -> tuple[str, ...]:

@@ -126,7 +126,15 @@ def test_verdict_text_names_every_tier_seed_and_versions(recorded):
     assert "seed: 7" in text and f"mujoco {mujoco.__version__}" in text
 
 
-def test_default_blueprint_is_stored(recorded):
+def test_default_blueprint_shows_both_models_series_and_verdict(recorded):
     *_, path = recorded
     reader = rc.RrdReader(str(path))
-    assert len(list(reader.blueprints())) >= 1
+    (blueprint,) = list(reader.blueprints())
+    views = {}
+    for chunk in reader.stream(store=blueprint):
+        batch = chunk.to_record_batch()
+        if "ViewBlueprint:class_identifier" in batch.schema.names:
+            kind = batch.column("ViewBlueprint:class_identifier").to_pylist()[-1][0]
+            origin = batch.column("ViewBlueprint:space_origin").to_pylist()[-1][0]
+            views.setdefault(kind, set()).add(origin)
+    assert views == {"3D": {"/"}, "TimeSeries": {"/joints", "/tiers"}, "TextDocument": {"/verdict"}}
