@@ -9,6 +9,7 @@ from pathlib import Path
 from . import manifest as manifest_mod
 from .manifest import TIER_NAMES
 
+
 def _default_manifest() -> Path:
     """The repository's corpus next to this package (editable install), else `corpus/` in the cwd."""
     beside = Path(__file__).resolve().parents[1] / "corpus" / "manifest.toml"

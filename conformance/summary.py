@@ -133,4 +133,8 @@ def markdown(summary: dict, tiers: list[str]) -> str:
     notes = [(m["id"], m["status"], m["reason"]) for m in summary["models"] if m["reason"]]
     if notes:
         lines += ["", "## Model notes", ""] + [f"- {i} ({s}): {r}" for i, s, r in notes]
+    gaps = [(m["id"], t, v["raw"], v["expected_reason"]) for m in summary["models"]
+            for t, v in m["verdicts"].items() if v["expected_reason"]]
+    if gaps:
+        lines += ["", "## Known gaps (from the manifest)", ""] + [f"- {i}/{t} ({raw}): {why}" for i, t, raw, why in gaps]
     return "\n".join(lines) + "\n"

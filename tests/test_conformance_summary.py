@@ -20,6 +20,10 @@ def test_known_gap_is_expected_fail_and_not_worse():
                        expect={"dynamics": Expectation("dynamics", "fail", "tendons are not mapped")})
     (v,) = summary.judge(entry, _result("ok", dynamics="fail"))
     assert v.outcome == "expected-fail" and not v.worse
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": _result("ok", dynamics="fail")})
+    assert doc["ok"]
+    text = summary.markdown(doc, ["dynamics"])
+    assert "| m | expected-fail |" in text and "- m/dynamics (fail): tendons are not mapped" in text
 
 
 @pytest.mark.parametrize("raw,expected,worse", [
