@@ -222,7 +222,7 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
     path = Path(path)
     model, result = session.model, session.result
     rec = rr.RecordingStream("mjcf_sapien_conformance", recording_id=f"{meta.get('model')}-{meta.get('seed')}")
-    tmp = path.with_name(f".{path.name}.partial")
+    tmp = path.with_name(f".{path.name}.partial")  # the runner removes it if the worker dies
     rec.save(tmp, default_blueprint=blueprint())
     rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     log_geometry(rec, model, result)

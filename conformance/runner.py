@@ -57,6 +57,8 @@ def _describe_exit(code: int | None) -> str:
 
 
 def _collect(job: Job, exitcode: int | None, timed_out: bool, seconds: float) -> dict:
+    partial = Path(job.run_dir) / f".{job.entry.id}.rrd.partial"  # a recording the worker did not finish
+    partial.unlink(missing_ok=True)
     if timed_out:
         return {"id": job.entry.id, "status": "timeout", "seconds": round(seconds, 3),
                 "reason": f"worker exceeded its {job.entry.timeout_s:g} s timeout and was killed"}
