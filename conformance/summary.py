@@ -87,11 +87,13 @@ def _cell(v: Verdict) -> str:
 
 def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dict:
     """The summary document: run metadata, per-model results and verdicts, and the overall judgement."""
-    models, worse = [], []
+    models, worse, better = [], [], []
     for entry in entries:
         result = results.get(entry.id, {"status": "pending", "reason": "not finished"})
         verdicts = judge(entry, result) if result.get("status") != "pending" else []
         worse += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts if v.worse]
+        better += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts
+                   if OUTCOME_RANK[v.raw] < OUTCOME_RANK[v.expected]]
         models.append({
             "id": entry.id, "source": entry.source, "status": result.get("status"),
             "reason": result.get("reason", ""), "recording": result.get("recording"),
@@ -103,7 +105,7 @@ def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dic
                                   "notes": v.detail.get("notes", []), "settings": v.detail.get("settings", {})}
                          for v in verdicts},
         })
-    return {**run, "models": models, "worse_than_expected": worse, "ok": not worse}
+    return {**run, "models": models, "worse_than_expected": worse, "better_than_expected": better, "ok": not worse}
 
 
 def markdown(summary: dict, tiers: list[str]) -> str:
@@ -130,6 +132,9 @@ def markdown(summary: dict, tiers: list[str]) -> str:
         lines += ["## Worse than the manifest expects", ""] + [f"- {w}" for w in summary["worse_than_expected"]]
     else:
         lines += ["No outcome is worse than the manifest expects."]
+    if summary.get("better_than_expected"):
+        lines += ["", "## Better than the manifest expects (update its expectations)", ""]
+        lines += [f"- {b}" for b in summary["better_than_expected"]]
     notes = [(m["id"], m["status"], m["reason"]) for m in summary["models"] if m["reason"]]
     if notes:
         lines += ["", "## Model notes", ""] + [f"- {i} ({s}): {r}" for i, s, r in notes]

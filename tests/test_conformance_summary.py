@@ -43,6 +43,14 @@ def test_a_crashed_worker_fails_every_tier():
     assert [v.outcome for v in verdicts] == ["fail", "fail"] and all(v.worse for v in verdicts)
 
 
+def test_a_gap_that_closed_is_listed_for_the_manifest_update():
+    entry = ModelEntry(id="m", source="x", tiers=("dynamics",),
+                       expect={"dynamics": Expectation("dynamics", "fail", "tendons are not mapped")})
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": _result("ok", dynamics="pass")})
+    assert doc["ok"] and doc["better_than_expected"] == ["m/dynamics: pass (expected fail)"]
+    assert "update its expectations" in summary.markdown(doc, ["dynamics"])
+
+
 def test_build_flags_the_run(tmp_path):
     entries = [ModelEntry(id="a", source="x", tiers=("structure",)),
                ModelEntry(id="b", source="y", tiers=("structure",))]
