@@ -1,4 +1,10 @@
-"""The tiers: plain functions `tier(result, model, seed, tolerances) -> TierReport`, no Rerun, no I/O."""
+"""The tiers: plain functions `tier(result, model, seed, tolerances) -> TierReport`, no Rerun, no I/O.
+
+`result` is a `loader.LoadResult`, `model` the MuJoCo reference (never modified: MuJoCo runs use copies),
+`seed` drives configurations and commands, `tolerances` a `conformance.tolerances.Tolerances`.
+Side effects on the SAPIEN scene: every tier may set its state (each ends at the start state); `dynamics`
+turns every collision shape off, so run `contact` first (the order of `TIERS`) or give it a fresh load.
+"""
 
 from .collision import collision
 from .contact import contact
