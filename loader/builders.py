@@ -113,6 +113,7 @@ class MJCFArticulationBuilder(ArticulationBuilder):
         super().__init__()
         self.floating = False
         self.name = ""
+        self.timestep = 0.002  # the model's, set by the loader: drives compensate MuJoCo's explicit terms
 
     def create_link_builder(self, parent: MJCFLinkBuilder | None = None) -> MJCFLinkBuilder:
         if self.link_builders:
@@ -131,5 +132,5 @@ class MJCFArticulationBuilder(ArticulationBuilder):
     def build(self, fix_root_link=None, build_mimic_joints=True) -> sapien.physx.PhysxArticulation:
         articulation = super().build(fix_root_link=fix_root_link, build_mimic_joints=build_mimic_joints)
         articulation.name = self.name
-        physx.apply_articulation_settings(articulation, [b.plan for b in self.link_builders])
+        physx.apply_articulation_settings(articulation, [b.plan for b in self.link_builders], self.timestep)
         return articulation

@@ -14,13 +14,6 @@ def _name(obj, index: int, kind: str) -> str:
 
 
 def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
-    for i in range(model.nu):
-        notes.drop("actuator", _name(model.actuator(i), i, "actuator"),
-                   "actuators are not mapped yet: apply joint forces with set_qf")
-    for i in range(model.ntendon):
-        notes.drop("tendon", _name(model.tendon(i), i, "tendon"), "tendons are not mapped yet")
-    for i in range(model.neq):
-        notes.drop("equality", _name(model.equality(i), i, "equality"), "equality constraints are not mapped yet")
     for i in range(model.nflex):
         notes.drop("flex", f"flex{i}", "deformable (flex) objects have no PhysX articulation equivalent")
     for i in range(model.nplugin):
@@ -32,6 +25,10 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
         if model.body_mocapid[b] >= 0:
             notes.approximate("body", _name(model.body(b), b, "body"),
                               "mocap body loaded as a fixed link at its initial pose")
+    if model.opt.density > 0 or model.opt.viscosity > 0:
+        notes.drop("option", "density/viscosity", "fluid drag and lift (MuJoCo's fluid model) are not simulated")
+    if any(model.jnt_limited) and not limits_disabled(model):
+        notes.approximate("joint", "limits", "PhysX joint limits are hard; MuJoCo's are soft (solref/solimp)")
     if contacts_disabled(model):
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
     if limits_disabled(model):

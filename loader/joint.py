@@ -79,9 +79,9 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
             kind = "prismatic"
             ref_offset = pose((-ref, 0, 0))
         spring_target = float(model.qpos_spring[model.jnt_qposadr[j]])
-        if stiffness > 0:
-            notes.approximate("joint", name, "stiffness mapped to a PhysX drive (implicit spring; MuJoCo "
-                              "integrates springs explicitly): agreement is O(timestep)")
+        if stiffness * model.opt.timestep > damping:
+            notes.approximate("joint", name, "spring stiffer than its damping can absorb in one step: the PhysX "
+                              "drive cannot have negative damping, agreement is O(timestep)")
         return [
             JointPlan(kind, name, limits, pose(anchor, quat_x_to(axis)), ref_offset, damping, armature,
                       stiffness, spring_target, j)

@@ -15,15 +15,18 @@ import numpy as np
 import sapien
 
 from . import physx
+from .actuator import Actuation, ActuatorMap, plan_actuation
 from .builders import MJCFActorBuilder, MJCFArticulationBuilder
 from .camera import CameraConfig, SiteConfig, cameras, sites
 from .compile import CompiledModel, compile_mjcf
 from .contact import contacts_disabled, plan_collision_filter
+from .equality import EqualityLink, map_equalities
 from .errors import Notes, Unsupported, UnsupportedFeatureWarning
 from .features import find_unmapped
 from .geom import collides, plan_shape
 from .joint import FREE, KIND
 from .mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .tendon import map_tendons
 from .texture import MJCFTexture, textures
 from .tree import TreePlan, plan_tree
 from .visual import add_visual, visuals_available
@@ -45,6 +48,9 @@ class LoadResult:
     mapping: Mapping
     unsupported: list[Unsupported] = field(default_factory=list)
     approximations: list[Unsupported] = field(default_factory=list)
+    actuators: list[ActuatorMap] = field(default_factory=list)
+    equalities: list[EqualityLink] = field(default_factory=list)
+    actuation: Actuation | None = field(default=None, repr=False)
 
     @property
     def articulation(self) -> sapien.physx.PhysxArticulation | None:
@@ -58,9 +64,30 @@ class LoadResult:
         keyframe = self.model.keyframe(key)
         return keyframe.qpos.copy(), keyframe.qvel.copy()
 
+    def ctrl(self, key: int | str | None = None) -> np.ndarray:
+        """MuJoCo ctrl of keyframe `key`, or zeros (MuJoCo's initial ctrl) when `key` is None."""
+        return np.zeros(self.model.nu) if key is None else self.model.keyframe(key).ctrl.copy()
+
     def reset(self, key: int | str | None = None) -> None:
-        """Put the SAPIEN scene into the state of keyframe `key` (or qpos0)."""
+        """Put the SAPIEN scene into the state (and ctrl) of keyframe `key`, or qpos0 with zero ctrl."""
         self.mapping.set_state(self.articulations, *self.state(key))
+        self.set_ctrl(self.ctrl(key))
+
+    def set_ctrl(self, ctrl) -> None:
+        """Apply a MuJoCo control vector (size nu) to the SAPIEN articulations: drive targets and joint forces.
+
+        Clamped to ctrlrange as MuJoCo does. It writes every articulation's `qf` (SAPIEN keeps it across steps);
+        tendon actuators depend on the state, so call it every step as a controller would.
+        """
+        if self.actuation is not None:
+            self.actuation.set_ctrl(self.articulations, ctrl)
+
+    def disable_actuators(self, disabled: bool = True) -> None:
+        """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
+        spring-damper drives and `qf` is cleared; `disable_actuators(False)` puts them back."""
+        if self.actuation is not None:
+            self.actuation.enabled = not disabled
+            self.actuation.set_ctrl(self.articulations, None)
 
 
 @dataclass
@@ -106,16 +133,20 @@ class MJCFLoader:
         articulations = [builder.build() for builder in parsed.articulation_builders]
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
         mapping = _mapping(model, parsed, articulations)
-        for entry in parsed.notes.unsupported:
-            warnings.warn(f"{parsed.compiled.path}: unsupported {entry}", UnsupportedFeatureWarning, stacklevel=2)
-        for entry in parsed.notes.approximations:
-            warnings.warn(f"{parsed.compiled.path}: approximated {entry}", UnsupportedFeatureWarning, stacklevel=2)
+        actuation = plan_actuation(model, mapping, parsed.notes)
+        equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
+        map_tendons(model, articulations, mapping, parsed.notes)
         result = LoadResult(
             path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=self.scene,
             articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
             textures=textures(parsed.compiled.spec, model), mapping=mapping,
             unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
+            actuators=actuation.actuators, equalities=equalities, actuation=actuation,
         )
+        for entry in result.unsupported:
+            warnings.warn(f"{result.path}: unsupported {entry}", UnsupportedFeatureWarning, stacklevel=2)
+        for entry in result.approximations:
+            warnings.warn(f"{result.path}: approximated {entry}", UnsupportedFeatureWarning, stacklevel=2)
         result.reset()
         return result
 
@@ -155,6 +186,7 @@ class MJCFLoader:
             builder.set_initial_pose(art.root_pose)
             builder.floating = art.floating
             builder.name = art.name
+            builder.timestep = float(model.opt.timestep)
             link_builders = []
             for link in art.links:
                 lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)

@@ -11,6 +11,9 @@ import mujoco
 import numpy as np
 import sapien
 
+from . import drive
+from .drive import DofDrive
+
 MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
 MAX_LINK_ANGULAR_VELOCITY = 1e4  # rad/s
 MAX_JOINT_VELOCITY = 1e4
@@ -35,7 +38,7 @@ def create_scene(model: mujoco.MjModel) -> sapien.Scene:
     return scene
 
 
-def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, plans) -> None:
+def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, plans, timestep: float) -> None:
     """Joint armature, damping and springs from the plans, and the PhysX overrides, on a built articulation."""
     articulation.set_sleep_threshold(0.0)
     by_name = {plan.name: plan for plan in plans}
@@ -52,10 +55,8 @@ def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, pl
         joint.set_friction(0.0)
         joint.set_max_velocity(MAX_JOINT_VELOCITY)
         joint.set_armature(np.array([plan.armature], np.float32))
-        # a drive with stiffness 0 is exact viscous damping; with stiffness it is MuJoCo's joint spring
-        joint.set_drive_properties(plan.stiffness, plan.damping, np.inf, "force")
-        joint.set_drive_target(plan.spring_target)
-        joint.set_drive_velocity_target(0.0)
+        passive = DofDrive(plan.stiffness, plan.damping)
+        drive.apply(joint, passive, plan.stiffness * plan.spring_target, timestep)
 
 
 def disable_contacts(result) -> None:

@@ -1,0 +1,185 @@
+"""Actuators onto PhysX joint drives and generalized forces, with `set_ctrl` to replay any MuJoCo ctrl.
+
+An actuator on a hinge or slide joint with a fixed gain and an affine bias (motor, position, velocity and the
+general PD form) is exact: its joint-space force gear*(gain*ctrl + b0) + gear^2*b1*q + gear^2*b2*qdot joins the
+joint's passive spring-damper in one PhysX drive (`drive.py`). That assumes MuJoCo's implicitfast integrator, which
+treats kv implicitly as PhysX does; under Euler MuJoCo's kv is explicit (an O(timestep) difference).
+An actuator on a fixed tendon applies J^T f as a generalized force, its bias evaluated from the state when
+`set_ctrl` is called (call it every step). Activation dynamics, muscles and site/body transmissions are not mapped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from . import drive
+from .drive import DofDrive
+from .errors import Notes
+from .mapping import Mapping
+from .tendon import fixed_tendon_terms
+
+TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
+
+
+@dataclass(frozen=True)
+class ActuatorMap:
+    """One MuJoCo actuator in SAPIEN. `stiffness`/`damping` are its joint-space PhysX drive gains."""
+
+    name: str
+    kind: str  # "motor", "position", "velocity", "general"
+    joint: str | None
+    tendon: str | None
+    articulation: int | None
+    dofs: tuple[int, ...]
+    gear: float
+    ctrlrange: tuple[float, float] | None
+    forcerange: tuple[float, float] | None
+    stiffness: float = 0.0
+    damping: float = 0.0
+    mapped: bool = True
+    reason: str = ""
+
+
+def _kind(model: mujoco.MjModel, a: int) -> str:
+    bias = model.actuator_biasprm[a]
+    if int(model.actuator_biastype[a]) == int(BIAS.mjBIAS_NONE) or not np.any(bias[:3]):
+        return "motor"
+    if bias[1] != 0:
+        return "position"
+    return "velocity" if bias[2] != 0 else "general"
+
+
+@dataclass
+class Actuation:
+    """Everything `set_ctrl` needs: per-DoF drives, the actuators' force laws, the clamp rules."""
+
+    model: mujoco.MjModel
+    mapping: Mapping
+    actuators: list[ActuatorMap]
+    drives: dict[tuple[int, int], DofDrive] = field(default_factory=dict)  # (articulation, dof) -> drive
+    passive: dict[tuple[int, int], DofDrive] = field(default_factory=dict)  # the same without actuators
+    tendon_terms: dict[int, list[tuple[int, int, float]]] = field(default_factory=dict)  # actuator -> (a, dof, coef)
+    enabled: bool = True
+
+    def set_ctrl(self, articulations, ctrl) -> None:
+        model = self.model
+        ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
+        clamp = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
+        for a in range(model.nu):
+            if clamp and model.actuator_ctrllimited[a]:
+                ctrl[a] = np.clip(ctrl[a], *model.actuator_ctrlrange[a])
+        drives = self.drives if self.enabled else self.passive
+        constants = {key: d.constant for key, d in drives.items()}
+        forces = [np.zeros(art.dof) for art in articulations]
+        for a, actuator in enumerate(self.actuators):
+            if not actuator.mapped or not self.enabled:
+                continue
+            gain, bias = model.actuator_gainprm[a][0], model.actuator_biasprm[a]
+            if actuator.joint is not None:
+                key = (actuator.articulation, actuator.dofs[0])
+                constants[key] += actuator.gear * (gain * ctrl[a] + bias[0])
+                continue
+            q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
+            v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+            terms = self.tendon_terms[a]
+            length = sum(c * q[art][dof] for art, dof, c in terms)
+            speed = sum(c * v[art][dof] for art, dof, c in terms)
+            force = gain * ctrl[a] + bias[0] + bias[1] * actuator.gear * length + bias[2] * actuator.gear * speed
+            if model.actuator_forcelimited[a]:
+                force = np.clip(force, *model.actuator_forcerange[a])
+            for art, dof, c in terms:
+                forces[art][dof] += actuator.gear * c * force
+        timestep = float(model.opt.timestep)
+        for (art, dof), dof_drive in drives.items():
+            joint = articulations[art].active_joints[dof]
+            forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep)
+        for art, qf in zip(articulations, forces):
+            if art.dof:
+                art.set_qf(qf.astype(np.float32))
+
+
+def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Actuation:
+    actuation = Actuation(model, mapping, [])
+    # every hinge/slide DoF gets its passive law; actuators add to it
+    for j, target in enumerate(mapping.joints):
+        if target.kind in ("hinge", "slide"):
+            adr = model.jnt_qposadr[j]
+            stiffness = float(model.jnt_stiffness[j])
+            passive = DofDrive(stiffness, float(model.dof_damping[model.jnt_dofadr[j]]),
+                               stiffness * float(model.qpos_spring[adr]))
+            actuation.passive[(target.articulation, target.dofs[0])] = passive
+            actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))
+    disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    actuated_dofs: dict[tuple[int, int], int] = {}
+    for a in range(model.nu):
+        entry = _plan_one(model, mapping, a, disabled, actuation)
+        actuation.actuators.append(entry)
+        if not entry.mapped:
+            notes.drop("actuator", entry.name, entry.reason)
+        elif entry.joint is not None:
+            key = (entry.articulation, entry.dofs[0])
+            actuated_dofs[key] = actuated_dofs.get(key, 0) + 1
+            if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
+                notes.approximate("actuator", entry.name, "kv is implicit in PhysX (as in MuJoCo's implicitfast); "
+                                  "this model integrates with Euler, where kv is explicit: O(timestep)")
+        else:
+            notes.approximate("actuator", entry.name, "tendon actuator force evaluated from the state at "
+                              "set_ctrl (explicit)")
+    for key, dof_drive in actuation.drives.items():
+        if not dof_drive.exact(float(model.opt.timestep)):
+            notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
+                              "damping absorbs in one step: PhysX damping clamped at 0, O(timestep)")
+    return actuation
+
+
+def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
+    name = model.actuator(a).name or f"actuator{a}"
+    gear = float(model.actuator_gear[a][0])
+    ctrlrange = tuple(float(x) for x in model.actuator_ctrlrange[a]) if model.actuator_ctrllimited[a] else None
+    forcerange = tuple(float(x) for x in model.actuator_forcerange[a]) if model.actuator_forcelimited[a] else None
+    trn = int(model.actuator_trntype[a])
+    target = int(model.actuator_trnid[a][0])
+    base = {"name": name, "kind": _kind(model, a), "joint": None, "tendon": None, "articulation": None, "dofs": (),
+            "gear": gear, "ctrlrange": ctrlrange, "forcerange": forcerange}
+    if disabled:
+        return ActuatorMap(**base, mapped=False, reason="actuation disabled by the model's <flag actuation>")
+    if int(model.actuator_dyntype[a]) != int(DYN.mjDYN_NONE):
+        dyn = DYN(int(model.actuator_dyntype[a])).name.removeprefix("mjDYN_").lower()
+        return ActuatorMap(**base, mapped=False, reason=f"activation dynamics ({dyn}) have no PhysX equivalent")
+    if int(model.actuator_gaintype[a]) != int(GAIN.mjGAIN_FIXED) or int(model.actuator_biastype[a]) not in (
+            int(BIAS.mjBIAS_NONE), int(BIAS.mjBIAS_AFFINE)):
+        return ActuatorMap(**base, mapped=False, reason="gain or bias is not affine (muscle or user)")
+    bias = model.actuator_biasprm[a] if int(model.actuator_biastype[a]) == int(BIAS.mjBIAS_AFFINE) else np.zeros(3)
+    if trn == int(TRN.mjTRN_JOINT):
+        joint = mapping.joints[target]
+        if joint.kind not in ("hinge", "slide"):
+            return ActuatorMap(**base, mapped=False, reason=f"drives a {joint.kind} joint")
+        stiffness, damping = -bias[1] * gear**2, -bias[2] * gear**2
+        key = (joint.articulation, joint.dofs[0])
+        dof_drive = actuation.drives[key]
+        dof_drive.stiffness += stiffness
+        dof_drive.damping += damping
+        if forcerange is not None:
+            dof_drive.force_limit = min(dof_drive.force_limit, abs(gear) * max(abs(x) for x in forcerange))
+        base.update(joint=model.joint(target).name or f"joint{target}", articulation=joint.articulation,
+                    dofs=joint.dofs)
+        return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping))
+    if trn == int(TRN.mjTRN_TENDON):
+        terms = fixed_tendon_terms(model, target)
+        if not terms:
+            return ActuatorMap(**base, mapped=False, reason="drives a spatial tendon")
+        mapped_terms = []
+        for joint_id, coefficient in terms:
+            joint = mapping.joints[joint_id]
+            if joint.kind not in ("hinge", "slide"):
+                return ActuatorMap(**base, mapped=False, reason="its tendon crosses a ball or free joint")
+            mapped_terms.append((joint.articulation, joint.dofs[0], coefficient))
+        actuation.tendon_terms[a] = mapped_terms
+        base.update(tendon=model.tendon(target).name or f"tendon{target}",
+                    articulation=mapped_terms[0][0], dofs=tuple(d for _, d, _ in mapped_terms))
+        return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2), damping=float(-bias[2] * gear**2))
+    kind = TRN(trn).name.removeprefix("mjTRN_").lower()
+    return ActuatorMap(**base, mapped=False, reason=f"{kind} transmission is not mapped")

@@ -1,0 +1,48 @@
+"""Joint drives: MuJoCo's passive spring-damper and its PD-form actuators as one PhysX drive per DoF.
+
+MuJoCo integrates joint damping implicitly (Euler and implicitfast), and under implicitfast also actuator kv,
+while springs and actuator kp are explicit. A PhysX drive is implicit in both. With D' = D - K*dt the drive's
+force over a step, K(p - q[t+1]) - D' v[t+1] = K(p - q[t]) - D v[t+1], is MuJoCo's. The state-independent part
+of the force (K*springref, gear*(gain*ctrl + bias0)) becomes the drive's position target (K > 0), its velocity
+target (K = 0, D' > 0), or a generalized force (neither).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class DofDrive:
+    """Joint-space force law on one DoF: constant - stiffness * q - damping * qdot (MuJoCo's terms)."""
+
+    stiffness: float = 0.0
+    damping: float = 0.0
+    constant: float = 0.0
+    force_limit: float = np.inf
+
+    def physx_damping(self, timestep: float) -> float:
+        """The PhysX drive damping that reproduces MuJoCo's semi-implicit step (clamped at 0)."""
+        return max(self.damping - self.stiffness * timestep, 0.0)
+
+    def exact(self, timestep: float) -> bool:
+        return self.damping - self.stiffness * timestep >= 0.0
+
+
+def apply(joint, drive: DofDrive, constant: float, timestep: float) -> float:
+    """Configure `joint`'s drive for the force law with state-independent part `constant`; returns the
+    generalized force left to apply with `set_qf` (non-zero only for a DoF with neither stiffness nor damping)."""
+    damping = drive.physx_damping(timestep)
+    joint.set_drive_properties(drive.stiffness, damping, drive.force_limit, "force")
+    if drive.stiffness > 0:
+        joint.set_drive_target(constant / drive.stiffness)
+        joint.set_drive_velocity_target(0.0)
+        return 0.0
+    joint.set_drive_target(0.0)
+    if damping > 0:
+        joint.set_drive_velocity_target(constant / damping)
+        return 0.0
+    joint.set_drive_velocity_target(0.0)
+    return constant

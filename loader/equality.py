@@ -1,0 +1,177 @@
+"""Equality constraints: joint and tendon couplings as stiff PhysX fixed tendons, connect and weld as PhysX D6
+joints.
+
+MuJoCo's equalities are soft: solref (timeconst, dampratio) gives a reference acceleration -b v - k r with
+k = 1 / (dmax^2 timeconst^2 dampratio^2) and b = 2 / (dmax timeconst), and the impedance d (solimp) mixes it
+with the unconstrained acceleration a0: the constraint accelerates as (1 - d) a0 + d (-b v - k r). A spring and
+damper on the constraint's effective mass m = 1 / (J M^-1 J^T) behave the same when their gains are
+m d / (1 - d) times k and b. The loader takes m at qpos0 and d at small violations (solimp's dmin).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import sapien
+
+from .errors import Notes
+from .mapping import Mapping
+from .tendon import create_fixed_tendon, fixed_tendon_terms
+from .tree import world_poses_at_qpos0
+
+EQ = mujoco.mjtEq
+
+
+@dataclass
+class EqualityLink:
+    """What an equality constraint became: a fixed tendon or a D6 joint (`kind`), or nothing (`mapped` False)."""
+
+    name: str
+    kind: str
+    mapped: bool
+    reason: str = ""
+
+
+def _name(model: mujoco.MjModel, e: int) -> str:
+    return model.equality(e).name or f"equality{e}"
+
+
+def soft_gains(model: mujoco.MjModel, e: int, jacobian: np.ndarray) -> tuple[float, float]:
+    """Spring and damper (force per unit violation / rate) of equality `e` along `jacobian` at qpos0."""
+    timeconst, dampratio = model.eq_solref[e]
+    dmin, dmax = model.eq_solimp[e][:2]
+    if timeconst <= 0:  # direct (-stiffness, -damping) form
+        k, b = -timeconst, -dampratio
+    else:
+        timeconst = max(timeconst, 2 * model.opt.timestep)  # MuJoCo's refsafe clamp
+        k = 1.0 / (dmax**2 * timeconst**2 * dampratio**2)
+        b = 2.0 / (dmax * timeconst)
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_forward(model, data)
+    solved = np.zeros((1, model.nv))
+    mujoco.mj_solveM(model, data, solved, jacobian.reshape(1, -1))
+    mass = 1.0 / float(jacobian @ solved[0])
+    scale = mass * dmin / (1.0 - dmin)
+    return k * scale, b * scale
+
+
+def _joint_dof(model: mujoco.MjModel, mapping: Mapping, joint: int) -> tuple[int, int] | None:
+    target = mapping.joints[joint]
+    if target.kind not in ("hinge", "slide"):
+        return None
+    return target.articulation, target.dofs[0]
+
+
+def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, mapping: Mapping,
+                   notes: Notes) -> list[EqualityLink]:
+    result = []
+    for e in range(model.neq):
+        name = _name(model, e)
+        etype = int(model.eq_type[e])
+        if not model.eq_active0[e]:
+            notes.drop("equality", name, "inactive at start: PhysX constraints cannot be switched on later")
+            result.append(EqualityLink(name, "", False, "inactive"))
+            continue
+        if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)):
+            result.append(_coupling(model, e, name, articulations, mapping, notes))
+        elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
+            result.append(_d6(model, e, name, scene, articulations, mapping, notes))
+        else:
+            reason = f"equality type {EQ(etype).name.removeprefix('mjEQ_').lower()} has no PhysX equivalent"
+            notes.drop("equality", name, reason)
+            result.append(EqualityLink(name, "", False, reason))
+    return result
+
+
+def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
+    """obj1 = poly(obj2): the linear part, obj1 - c1 obj2 = c0, as a fixed tendon over the joints involved."""
+    c0, c1, *higher = model.eq_data[e][:5]
+    if any(abs(c) > 0 for c in higher):
+        notes.approximate("equality", name, "polynomial coupling: only its linear part (c0 + c1 x) is mapped")
+    etype = int(model.eq_type[e])
+    objects = [int(model.eq_obj1id[e])] + ([int(model.eq_obj2id[e])] if model.eq_obj2id[e] >= 0 else [])
+    weights = [1.0, -float(c1)]
+    terms: dict[tuple[int, int], float] = {}
+    for obj, weight in zip(objects, weights):
+        joints = [(obj, 1.0)] if etype == int(EQ.mjEQ_JOINT) else fixed_tendon_terms(model, obj)
+        if not joints:
+            reason = "couples a spatial tendon, which PhysX cannot express"
+            notes.drop("equality", name, reason)
+            return EqualityLink(name, "", False, reason)
+        for joint, coefficient in joints:
+            dof = _joint_dof(model, mapping, joint)
+            if dof is None:
+                reason = "couples a ball or free joint"
+                notes.drop("equality", name, reason)
+                return EqualityLink(name, "", False, reason)
+            terms[dof] = terms.get(dof, 0.0) + weight * coefficient
+    if len({a for a, _ in terms}) != 1:
+        reason = "couples joints of two articulations"
+        notes.drop("equality", name, reason)
+        return EqualityLink(name, "", False, reason)
+    offset = float(c0)
+    if etype == int(EQ.mjEQ_JOINT):
+        # MuJoCo's joint equality is about q - qpos0 of each joint when both are given: fold the offsets in
+        j1 = objects[0]
+        q1 = model.qpos0[model.jnt_qposadr[j1]]
+        q2 = model.qpos0[model.jnt_qposadr[objects[1]]] if len(objects) > 1 else 0.0
+        offset = float(c0) + q1 - float(c1) * q2 if len(objects) > 1 else float(c0)
+    else:
+        offset = float(c0) + float(model.tendon_length0[objects[0]]) - float(c1) * (
+            float(model.tendon_length0[objects[1]]) if len(objects) > 1 else 0.0)
+    jacobian = np.zeros(model.nv)
+    for (a, dof), coefficient in terms.items():
+        mujoco_dof = next(i for i, (aa, dd) in enumerate(mapping.dofs) if aa == a and dd == dof)
+        jacobian[mujoco_dof] = coefficient
+    stiffness, damping = soft_gains(model, e, jacobian)
+    articulation = next(iter(terms))[0]
+    create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in terms.items()}, offset,
+                        stiffness, damping)
+    notes.approximate("equality", name, "solref softness mapped to tendon stiffness/damping at qpos0's "
+                      "effective mass")
+    return EqualityLink(name, "fixed tendon", True)
+
+
+def _d6(model, e, name, scene, articulations, mapping, notes) -> EqualityLink:
+    """connect: the two anchor points coincide (translation locked); weld: the relative pose is held too."""
+    if int(model.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+        reason = "site-based connect/weld is not mapped"
+        notes.drop("equality", name, reason)
+        return EqualityLink(name, "", False, reason)
+    body1, body2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+
+    def component(body):
+        target = mapping.bodies[body]
+        if target.articulation is None:
+            return None
+        return articulations[target.articulation].links[target.link]
+
+    etype = int(model.eq_type[e])
+    if etype == int(EQ.mjEQ_CONNECT):
+        frame1 = sapien.Pose(model.eq_data[e][0:3])  # the anchor in body1's frame
+        frame2 = sapien.Pose(model.eq_data[e][3:6])  # the same point in body2's frame at qpos0
+    else:
+        # weld: body2 held at `relpose` in body1's frame (the qpos0 relative pose when relpose is unset)
+        relative_quat = model.eq_data[e][6:10]
+        if np.linalg.norm(relative_quat) > 0:
+            frame1 = sapien.Pose(model.eq_data[e][3:6], relative_quat / np.linalg.norm(relative_quat))
+        else:
+            data = world_poses_at_qpos0(model)
+            frame1 = (sapien.Pose(data.xpos[body1], data.xquat[body1]).inv()
+                      * sapien.Pose(data.xpos[body2], data.xquat[body2]))
+        frame2 = sapien.Pose()
+    ends = [(component(body1), frame1), (component(body2), frame2)]
+    if ends[1][0] is None:  # SAPIEN takes the world (None) only as the first end; a locked joint is symmetric
+        ends.reverse()
+    drive = scene.create_drive(ends[0][0], ends[0][1], ends[1][0], ends[1][1])
+    for axis in "xyz":
+        getattr(drive, f"set_limit_{axis}")(0.0, 0.0)
+    if etype == int(EQ.mjEQ_WELD):
+        drive.set_limit_twist(0.0, 0.0)
+        drive.set_limit_cone(0.0, 0.0)
+    notes.approximate("equality", name, f"{'connect' if etype == int(EQ.mjEQ_CONNECT) else 'weld'} as a rigid "
+                      "PhysX D6 joint (MuJoCo's is soft: solref)")
+    return EqualityLink(name, "D6 joint", True)

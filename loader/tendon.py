@@ -1,0 +1,89 @@
+"""Fixed tendons: linear combinations of joint positions, MuJoCo's `<tendon><fixed>` and the linear part of
+joint and tendon equalities, as PhysX fixed tendons.
+
+A PhysX fixed tendon is a tree of links whose incoming joints carry coefficients; its length is
+sum(coefficient * q) and its spring force reaches each joint scaled by the joint's `recip_coefficient`. Setting
+that to the coefficient itself gives MuJoCo's J^T f (measured: two equal links coupled q_a - 0.5 q_b = 0.3 settle
+at 0.24 and -0.12, as J^T f predicts).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import sapien
+
+
+def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, float]]:
+    """(MuJoCo joint id, coefficient) pairs of a fixed tendon, or [] for a spatial one."""
+    start, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
+    if any(int(model.wrap_type[w]) != int(mujoco.mjtWrap.mjWRAP_JOINT) for w in range(start, start + count)):
+        return []
+    return [(int(model.wrap_objid[w]), float(model.wrap_prm[w])) for w in range(start, start + count)]
+
+
+def create_fixed_tendon(
+    articulation: sapien.physx.PhysxArticulation, dof_coefficients: dict[int, float], rest_length: float,
+    stiffness: float, damping: float, low: float = -np.inf, high: float = np.inf,
+) -> None:
+    """A PhysX fixed tendon over the DoFs (indices into `articulation.active_joints`) with these coefficients."""
+    joints = articulation.active_joints
+    coefficient_of = {joints[d].child_link.name: c for d, c in dof_coefficients.items()}
+    # the tendon's links: every link from the common ancestor down to each coupled joint's child link
+    paths = []
+    for d in dof_coefficients:
+        path, link = [], joints[d].child_link
+        while link is not None:
+            path.append(link)
+            link = link.parent
+        paths.append(path[::-1])
+    common = 0
+    while all(len(p) > common + 1 for p in paths) and len({p[common + 1].name for p in paths}) == 1:
+        common += 1
+    while paths[0][common].name in coefficient_of:  # the tendon's root joint carries no coefficient
+        common -= 1
+    chain, seen = [paths[0][common]], {paths[0][common].name}
+    for path in paths:
+        for link in path[common + 1 :]:
+            if link.name not in seen:
+                chain.append(link)
+                seen.add(link.name)
+    coefficients = [coefficient_of.get(link.name, 0.0) if i else 0.0 for i, link in enumerate(chain)]
+    finite = float(np.finfo(np.float32).max)
+    articulation.create_fixed_tendon(
+        chain, coefficients, coefficients, rest_length=rest_length, offset=0.0, stiffness=stiffness,
+        damping=damping, low=max(low, -finite), high=min(high, finite),
+    )
+
+
+def map_tendons(model: mujoco.MjModel, articulations, mapping, notes) -> None:
+    """Passive tendon properties: a fixed tendon's spring and damper become a PhysX fixed tendon."""
+    for t in range(model.ntendon):
+        name = model.tendon(t).name or f"tendon{t}"
+        terms = fixed_tendon_terms(model, t)
+        if not terms:
+            notes.drop("tendon", name, "spatial tendon: PhysX has no path-wrapping tendon")
+            continue
+        if model.tendon_limited[t]:
+            notes.drop("tendon", name, "tendon length limit not mapped")
+        stiffness, damping = float(model.tendon_stiffness[t]), float(model.tendon_damping[t])
+        if stiffness == 0 and damping == 0:
+            continue  # a transmission only: actuators and equalities read it
+        low, high = model.tendon_lengthspring[t]
+        if low != high:
+            notes.approximate("tendon", name, "spring dead band collapsed to its lower end")
+        dofs = {}
+        for joint, coefficient in terms:
+            target = mapping.joints[joint]
+            if target.kind not in ("hinge", "slide"):
+                notes.drop("tendon", name, "crosses a ball or free joint")
+                break
+            dofs[(target.articulation, target.dofs[0])] = coefficient
+        else:
+            if len({a for a, _ in dofs}) != 1:
+                notes.drop("tendon", name, "spans two articulations")
+                continue
+            articulation = next(iter(dofs))[0]
+            create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in dofs.items()}, float(low),
+                                stiffness, damping)
+            notes.approximate("tendon", name, "spring and damper are implicit in PhysX (MuJoCo: explicit spring)")

@@ -1,0 +1,158 @@
+"""Actuators, tendons and equality constraints: both simulators receive the same ctrl; MuJoCo is the oracle.
+
+Contact is off on both sides and MuJoCo integrates with implicitfast, the integrator the drive mapping assumes.
+Tolerances are measured: unsaturated panda servos agree to 3e-6 rad over 1 s; the coupled-joint fixture to
+4.4e-3 rad over 2 s (MuJoCo's soft equality as a PhysX tendon spring: see loader/equality.py); the panda and
+2f85 grippers to 5e-4 while closing.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from models import FIXTURES, menagerie_root
+
+from loader import MJCFLoader, physx
+
+SERVO_TOLERANCE = 2e-5  # rad, measured 3e-6
+COUPLING_TOLERANCE = 1e-2  # rad, measured 4.4e-3 (soft equality)
+GRIPPER_TOLERANCE = 1e-3  # rad or m, measured 5e-4
+needs_menagerie = pytest.mark.skipif(menagerie_root() is None, reason="Menagerie slice not installed")
+
+
+def _contact_free(path, mutate=None):
+    result = MJCFLoader().load(path)
+    physx.disable_contacts(result)
+    model = result.model
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    if mutate:
+        mutate(result)
+    return result, model
+
+
+def _replay(result, model, ctrl_at, seconds: float, reference=None) -> np.ndarray:
+    """Step both simulators under the same ctrl sequence; the worst |qpos| difference per step.
+    `reference` is the model MuJoCo runs (default: the loaded one)."""
+    reference = reference or model
+    data = mujoco.MjData(reference)
+    key = 0 if reference.nkey else None
+    if key is None:
+        mujoco.mj_resetData(reference, data)
+    else:
+        mujoco.mj_resetDataKeyframe(reference, data, key)
+    result.reset(key)
+    errors = []
+    for step in range(int(seconds / reference.opt.timestep)):
+        ctrl = ctrl_at(step, data)
+        data.ctrl[:] = ctrl
+        result.set_ctrl(ctrl)
+        mujoco.mj_step(reference, data)
+        result.scene.step()
+        qpos, _ = result.mapping.get_state(result.articulations)
+        errors.append(np.abs(qpos - data.qpos).max())
+    return np.array(errors)
+
+
+def _small_steps(model, seed=0, size=0.001):
+    rng = np.random.default_rng(seed)
+    low, high = model.actuator_ctrlrange.T
+    span = np.where(model.actuator_ctrllimited, high - low, 2.0)
+    initial = model.key_ctrl[0].copy() if model.nkey else np.zeros(model.nu)
+    target = initial + size * span * rng.uniform(-1, 1, model.nu)
+
+    def ctrl_at(step, data):
+        return initial if step < 100 else target
+
+    return ctrl_at
+
+
+@needs_menagerie
+def test_panda_position_servos_track_like_mujoco():
+    result, model = _contact_free(menagerie_root() / "franka_emika_panda/panda.xml")
+    assert all(a.mapped for a in result.actuators)
+    errors = _replay(result, model, _small_steps(model), 1.0)
+    assert errors.max() < SERVO_TOLERANCE, errors.max()
+
+
+@needs_menagerie
+def test_a_five_percent_kp_error_is_caught():
+    def mutate(result):
+        for drive in result.actuation.drives.values():
+            if drive.stiffness > 0:
+                drive.stiffness *= 1.05
+
+    result, model = _contact_free(menagerie_root() / "franka_emika_panda/panda.xml", mutate)
+    errors = _replay(result, model, _small_steps(model), 1.0)
+    assert errors.max() > SERVO_TOLERANCE
+
+
+def _fixture_ctrl(step, data):
+    return np.array([np.sin(step * 0.01), 0.3 * np.cos(step * 0.005)])
+
+
+def test_motor_servo_and_joint_coupling_match_mujoco():
+    result, model = _contact_free(FIXTURES / "coupled_joints.xml")
+    errors = _replay(result, model, _fixture_ctrl, 2.0)
+    assert errors.max() < COUPLING_TOLERANCE, errors.max()
+
+
+def test_set_ctrl_clamps_to_ctrlrange():
+    result, model = _contact_free(FIXTURES / "coupled_joints.xml")
+    errors = _replay(result, model, lambda step, data: np.array([5.0, -3.0]), 0.5)
+    assert errors.max() < COUPLING_TOLERANCE
+
+
+@pytest.mark.parametrize("edit", [('gear="2"', 'gear="-2"'), ('polycoef="0 2 0 0 0"', 'polycoef="0 0.5 0 0 0"')],
+                         ids=["gear sign", "inverted coupling ratio"])
+def test_a_wrong_gear_sign_or_coupling_ratio_is_caught(tmp_path, edit):
+    text = (FIXTURES / "coupled_joints.xml").read_text()
+    assert edit[0] in text
+    (tmp_path / "mutated.xml").write_text(text.replace(*edit))
+    result, _ = _contact_free(tmp_path / "mutated.xml")
+    _, reference = _contact_free(FIXTURES / "coupled_joints.xml")
+    errors = _replay(result, result.model, _fixture_ctrl, 2.0, reference=reference)
+    assert errors.max() > 10 * COUPLING_TOLERANCE
+
+
+def _closing(actuator: int, start: float, end: float, steps: int):
+    def ctrl_at(step, data):
+        ctrl = data.ctrl.copy()
+        ctrl[actuator] = start + (end - start) * min(1.0, step / (steps / 2))
+        return ctrl
+
+    return ctrl_at
+
+
+@needs_menagerie
+def test_panda_finger_tendon_and_equality_hold_while_closing():
+    result, model = _contact_free(menagerie_root() / "franka_emika_panda/panda.xml")
+    assert [e.kind for e in result.equalities] == ["fixed tendon"]
+    errors = _replay(result, model, _closing(7, 255.0, 0.0, 500), 1.0)
+    assert errors.max() < GRIPPER_TOLERANCE, errors.max()
+    qpos, _ = result.mapping.get_state(result.articulations)
+    assert qpos[-1] < 0.005 and abs(qpos[-1] - qpos[-2]) < 1e-4  # closed, both fingers together
+
+
+@needs_menagerie
+def test_robotiq_2f85_linkage_holds_while_closing():
+    result, model = _contact_free(menagerie_root() / "robotiq_2f85_v4/2f85.xml")
+    assert sorted(e.kind for e in result.equalities) == ["D6 joint", "D6 joint", "fixed tendon"]
+    errors = _replay(result, model, _closing(0, 0.0, 255.0, 500), 1.0)
+    assert errors.max() < GRIPPER_TOLERANCE, errors.max()
+    qpos, _ = result.mapping.get_state(result.articulations)
+    assert qpos.min() > 0.8  # closed: every joint of the linkage moved with the driver
+
+
+@needs_menagerie
+@pytest.mark.parametrize("relative", ["aloha/scene.xml", "boston_dynamics_spot/spot.xml",
+                                      "franka_emika_panda/panda.xml", "google_barkour_vb/barkour_vb.xml",
+                                      "leap_hand/right_hand.xml", "robotiq_2f85_v4/2f85.xml",
+                                      "tetheria_aero_hand_open/right_hand.xml", "unitree_go1/go1.xml"])
+def test_every_menagerie_actuator_is_mapped_or_listed_with_its_reason(relative):
+    result = MJCFLoader().load(menagerie_root() / relative)
+    assert len(result.actuators) == result.model.nu
+    dropped = {e.name: e.reason for e in result.unsupported if e.kind == "actuator"}
+    for actuator in result.actuators:
+        assert actuator.mapped or dropped[actuator.name] == actuator.reason
