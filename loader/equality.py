@@ -68,6 +68,8 @@ def _joint_dof(model: mujoco.MjModel, mapping: Mapping, joint: int) -> tuple[int
 def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, mapping: Mapping,
                    notes: Notes) -> list[EqualityLink]:
     result = []
+    if model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_EQUALITY | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
+        return result  # MuJoCo enforces none of them (<flag equality/constraint="disable"/>)
     for e in range(model.neq):
         name = _name(model, e)
         etype = int(model.eq_type[e])
