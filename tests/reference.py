@@ -6,26 +6,8 @@ import mujoco
 import numpy as np
 import sapien
 
-from loader.frames import quat_conj, quat_mul
-
-
-def random_qpos(model: mujoco.MjModel, rng: np.random.Generator) -> np.ndarray:
-    """A configuration within joint limits (unlimited hinges in [-pi, pi], slides in [-1, 1])."""
-    q = model.qpos0.copy()
-    for j in range(model.njnt):
-        adr, jtype = model.jnt_qposadr[j], model.jnt_type[j]
-        if jtype == mujoco.mjtJoint.mjJNT_FREE:
-            q[adr : adr + 3] = rng.uniform(-1, 1, 3)
-            quat = rng.normal(size=4)
-            q[adr + 3 : adr + 7] = quat / np.linalg.norm(quat)
-        elif jtype == mujoco.mjtJoint.mjJNT_BALL:
-            quat = rng.normal(size=4)
-            q[adr : adr + 4] = quat / np.linalg.norm(quat)
-        else:
-            default = (-np.pi, np.pi) if jtype == mujoco.mjtJoint.mjJNT_HINGE else (-1.0, 1.0)
-            low, high = model.jnt_range[j] if model.jnt_limited[j] else default
-            q[adr] = rng.uniform(low, high)
-    return q
+from conformance.sampling import quaternion_angle
+from conformance.sampling import random_configuration as random_qpos
 
 
 def body_poses(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -33,12 +15,6 @@ def body_poses(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     return data.xpos.copy(), data.xquat.copy()
-
-
-def rotation_angle(q_a, q_b) -> float:
-    """Angle of the rotation between two unit quaternions (wxyz), accurate near zero."""
-    d = quat_mul(quat_conj(np.asarray(q_a, np.float64)), np.asarray(q_b, np.float64))
-    return float(2 * np.arctan2(np.linalg.norm(d[1:]), abs(d[0])))
 
 
 def touching_geom_pairs(spec: mujoco.MjSpec) -> set[tuple[int, int]]:
@@ -87,7 +63,7 @@ def link_pose_errors(result, rng: np.random.Generator, random_configurations: in
         for body in range(1, model.nbody):
             link_pose = link_of(result, body).entity_pose
             worst_position = max(worst_position, float(np.abs(link_pose.p - xpos[body]).max()))
-            worst_angle = max(worst_angle, rotation_angle(xquat[body], link_pose.q))
+            worst_angle = max(worst_angle, float(quaternion_angle(xquat[body], link_pose.q)))
     result.reset()
     return worst_position, worst_angle
 

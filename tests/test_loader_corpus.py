@@ -13,9 +13,9 @@ from reference import (
     component_of,
     link_of,
     link_pose_errors,
-    rotation_angle,
 )
 
+from conformance.sampling import quaternion_angle
 from loader.frames import X_TO_Z, quat_mul
 
 INERTIA_RTOL = 1e-6
@@ -115,7 +115,7 @@ def test_collision_shapes_have_type_size_and_world_pose(load, path):
         if kind in ("capsule", "cylinder", "plane"):
             geom_quat = quat_mul(geom_quat, X_TO_Z)
         assert np.abs(world.p - data.geom_xpos[g]).max() < POSE_TOLERANCE
-        assert rotation_angle(geom_quat, world.q) < POSE_TOLERANCE
+        assert quaternion_angle(geom_quat, world.q) < POSE_TOLERANCE
         if kind == "mesh":  # the hull's vertices are the compiled mesh's own
             vertices = np.asarray(shape.get_vertices())
             mesh = model.geom_dataid[g]
