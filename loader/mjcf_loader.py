@@ -169,7 +169,7 @@ class MJCFLoader:
             model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
         for g, shape in shapes.items():
             shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)
-        show = visuals_available() and bool(self.visual_groups)
+        show = bool(self.visual_groups) and visuals_available(self.scene)
         visual = {g for g in kept if show and int(model.geom_group[g]) in self.visual_groups}
 
         def dress(builder, body: int) -> None:

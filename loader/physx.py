@@ -31,9 +31,15 @@ def configure(model: mujoco.MjModel) -> None:
 
 
 def create_scene(model: mujoco.MjModel) -> sapien.Scene:
-    """A CPU PhysX scene with gravity, solver and timestep matched to `model`."""
+    """A CPU PhysX scene with gravity, solver and timestep matched to `model` (and a render system where a
+    render device exists, so that visual shapes can be added)."""
+    from .visual import has_render_device
+
     configure(model)
-    scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    systems = [sapien.physx.PhysxCpuSystem()]
+    if has_render_device():
+        systems.append(sapien.render.RenderSystem())
+    scene = sapien.Scene(systems)
     scene.timestep = float(model.opt.timestep)
     return scene
 

@@ -47,12 +47,22 @@ def has_render_device() -> bool:
 _warned = False
 
 
-def visuals_available() -> bool:
+def scene_renders(scene: sapien.Scene) -> bool:
+    try:
+        scene.get_system("render")
+    except RuntimeError:
+        return False
+    return True
+
+
+def visuals_available(scene: sapien.Scene) -> bool:
+    """Visual shapes can be built: a render device exists and the scene has a render system."""
     global _warned
-    if has_render_device():
+    if has_render_device() and scene_renders(scene):
         return True
     if not _warned:
-        warnings.warn("no render device: visual shapes are skipped, physics is loaded", NoRenderDeviceWarning,
+        reason = "no render device" if not has_render_device() else "the scene has no render system"
+        warnings.warn(f"{reason}: visual shapes are skipped, physics is loaded", NoRenderDeviceWarning,
                       stacklevel=3)
         _warned = True
     return False
