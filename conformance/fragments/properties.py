@@ -1,0 +1,280 @@
+"""Properties of a loader on one MJCF document, with MuJoCo as the oracle.
+
+- MuJoCo compiles it: the loader loads it, and the harness's own tiers (structure, kinematics, inertia,
+  collision, and a short contact-free dynamics run) pass. Failures confined to elements the loader itself
+  lists in `result.unsupported` / `result.approximations` are excused, and every excuse and skip is counted.
+- MuJoCo rejects it: the loader raises `MJCFError` carrying MuJoCo's message (`MissingAssetError` for a missing
+  file), never another exception, and never a model.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ..report import TierReport
+from ..tiers import TIERS
+from ..tolerances import Tolerances
+from ..tolerances import load as load_tolerances
+from .document import Document, RawDocument, write
+from .known_bugs import known_bug
+
+STATIC_TIERS = ("structure", "kinematics", "inertia", "collision")
+# A short contact-free run is enough to see joint damping/armature/inertia mistakes in the one-step error.
+DYNAMICS_SETTINGS = {"dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2}}
+# Loader notes about joints change joint dynamics (frictionloss dropped, springs implicit, ball damping per
+# angle): the dynamics tier is skipped (and counted) on documents that carry one.
+DYNAMICS_NOTE_KINDS = ("joint",)
+
+
+# PhysX holds poses in float32: an absolute position tolerance measured on metre-sized models must grow with
+# the distances a generated model spans (slide ranges of 90 m in degree-unit documents, row 19). 1e-6 of the
+# extent is about 8 float32 ulps; the harness's own (larger) tolerance stays the floor.
+FLOAT32_RELATIVE = 1e-6
+EXTENT_SCALED = ("kinematics.position", "inertia.com", "collision.position", "structure.anchor")
+_FREE_SPAN = 0.5  # m: how far the kinematics tier moves a free joint (conformance.sampling)
+_SLIDE_SPAN = 0.2  # m: its span for an unlimited slide
+
+
+class Tally(Counter):
+    """Across examples: documents compiled or rejected, tiers passed, skipped or excused, with reasons."""
+
+    def summary(self) -> str:
+        return ", ".join(f"{key}: {count}" for key, count in sorted(self.items()))
+
+
+TALLY = Tally()
+
+
+@dataclass
+class Outcome:
+    """What the properties found on one document."""
+
+    path: Path
+    compiled: bool
+    reports: dict[str, TierReport] = field(default_factory=dict)
+    failures: list[str] = field(default_factory=list)
+    excused: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    tier_errors: list[str] = field(default_factory=list)
+    result: object = None  # loader.LoadResult when loaded
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+
+def tolerances() -> Tolerances:
+    return load_tolerances().with_overrides(settings=DYNAMICS_SETTINGS, why="fragments: short dynamics")
+
+
+def extent(model: mujoco.MjModel) -> float:
+    """An upper bound of how far from the origin any body or geom gets in the kinematics tier's samples."""
+    reach = 1.0 + float(np.abs(model.body_pos).sum() + np.abs(model.geom_pos).sum() + model.geom_rbound.max(
+        initial=0.0))
+    for j in range(model.njnt):
+        kind = int(model.jnt_type[j])
+        if kind == int(mujoco.mjtJoint.mjJNT_FREE):
+            reach += _FREE_SPAN + float(np.abs(model.qpos0[model.jnt_qposadr[j]:][:3]).sum())
+        elif kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
+            span = np.abs(model.jnt_range[j]).max() if model.jnt_limited[j] else _SLIDE_SPAN
+            reach += float(span) + abs(float(model.qpos0[model.jnt_qposadr[j]]))
+    return reach
+
+
+def scaled_tolerances(model: mujoco.MjModel, base: Tolerances | None = None) -> Tolerances:
+    """`base` with the absolute position tolerances raised to FLOAT32_RELATIVE times the model's extent."""
+    base = base or tolerances()
+    reach = extent(model)
+    raised = {key: FLOAT32_RELATIVE * reach for key in EXTENT_SCALED if FLOAT32_RELATIVE * reach > base[key]}
+    return base.with_overrides(raised, why=f"float32 poses over a {reach:.3g} m extent") if raised else base
+
+
+def mujoco_unstable(model: mujoco.MjModel, steps: int) -> bool:
+    """MuJoCo itself blows up (bad qacc) within the dynamics horizon under zero command: nothing to compare."""
+    from ..reference import matched
+
+    ref, _ = matched(model, contact=False)
+    data = mujoco.MjData(ref)
+    for _ in range(steps):
+        mujoco.mj_step(ref, data)
+    return bool(data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number) or not np.all(np.isfinite(data.qpos))
+
+
+def compile_with_mujoco(path: Path) -> tuple[mujoco.MjModel | None, str | None]:
+    try:
+        return mujoco.MjModel.from_xml_path(str(path)), None
+    except ValueError as error:
+        return None, str(error)
+
+
+def load(path: Path):
+    """The loader on `path` (default options), its warnings silenced: the result lists the same notes."""
+    from loader import MJCFLoader
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return MJCFLoader().load(str(path))
+
+
+def check_error_parity(path: Path, mujoco_error: str) -> list[str]:
+    """MuJoCo rejected `path`: the loader must raise its typed error with MuJoCo's message."""
+    from loader import MissingAssetError, MJCFError
+
+    try:
+        load(path)
+    except MJCFError as error:
+        failures = []
+        if error.mujoco_message.strip() != mujoco_error.strip():
+            failures.append(f"loader error message {error.mujoco_message!r} differs from MuJoCo's "
+                            f"{mujoco_error.strip()!r}")
+        missing_file = "error opening file" in mujoco_error.lower()
+        if missing_file and not isinstance(error, MissingAssetError):
+            failures.append(f"MuJoCo could not open a file but the loader raised {type(error).__name__}, "
+                            "not MissingAssetError")
+        return failures
+    except Exception as error:  # noqa: BLE001 - any other exception is exactly the bug to report
+        return [(f"MuJoCo rejects the document ({mujoco_error.splitlines()[0]}) and the loader crashed with "
+                f"{type(error).__name__}: {error}")]
+    return [f"MuJoCo rejects the document ({mujoco_error.splitlines()[0]}) but the loader returned a model"]
+
+
+def _noted_names(result) -> set[str]:
+    return {entry.name for entry in [*result.unsupported, *result.approximations]}
+
+
+def _excusable(report: TierReport, noted: set[str]) -> bool:
+    """A failing tier whose failing metrics are counts and whose every note names a noted element."""
+    failing = [m for m in report.metrics if not m.passed]
+    if not failing or any(m.name not in ("mismatches", "groups") for m in failing):
+        return False
+    problems = [note for note in report.notes if ":" in note]
+    return bool(problems) and all(note.split(":", 1)[0] in noted for note in problems)
+
+
+def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: bool = True, seed: int = 0,
+                tol: Tolerances | None = None, known_bugs: bool = True):
+    """Run the harness's tiers on a load result: (reports, failures, excused, skipped, tier errors).
+
+    A tier that raises is a harness problem: it is returned apart (callers count it, regressions fail on it).
+    `known_bugs`: failures explained by an open bug on record (`known_bugs.py`) are excused and counted."""
+    tol = scaled_tolerances(model, tol)
+    reports, failures, excused, skipped, errors = {}, [], [], [], []
+    noted = _noted_names(result)
+    names = list(tiers)
+    if dynamics:
+        joint_notes = [e for e in [*result.unsupported, *result.approximations] if e.kind in DYNAMICS_NOTE_KINDS
+                       and not _about_limits(e)]
+        if joint_notes:
+            skipped.append(f"dynamics: loader notes on joints ({_reason(joint_notes[0])})")
+        elif model.nv and mujoco_unstable(model, tol.horizon_steps("dynamics", model.opt.timestep)):
+            skipped.append("dynamics: MuJoCo itself is unstable on the model (bad qacc)")
+        else:
+            names.append("dynamics")
+    for name in names:
+        try:
+            report = TIERS[name](result, model, seed, tol)
+        except Exception as error:  # noqa: BLE001 - a harness error is reported, not mistaken for a loader bug
+            errors.append(f"{name}: tier raised {type(error).__name__}: {error}")
+            continue
+        reports[name] = report
+        if report.status == "skipped":
+            skipped.append(f"{name}: {report.notes[0] if report.notes else 'skipped'}")
+        elif report.status == "fail":
+            bug = known_bug(name, result, model) if known_bugs else None
+            if _excusable(report, noted):
+                excused.append(f"{name}: " + "; ".join(report.notes))
+            elif bug is not None:
+                excused.append(f"{name}: known bug {bug}")
+            elif name == "dynamics" and any(_about_limits(e) for e in result.approximations + result.unsupported):
+                excused.append(f"{name}: joint limits the loader lists as approximated (hard vs soft)")
+            else:
+                failing = [f"{m.name} {m.max:.3g} > {m.tolerance:.3g} {m.unit}" for m in report.metrics
+                           if not m.passed]
+                failures.append(f"{name} tier fails: {', '.join(failing)}; notes: {report.notes[:5]}")
+    return reports, failures, excused, skipped, errors
+
+
+def _about_limits(entry) -> bool:
+    """Notes on joint limits (hard in PhysX, soft in MuJoCo; ball cones) matter only once a limit is reached."""
+    return entry.kind == "joint" and "limit" in entry.reason
+
+
+def _reason(entry) -> str:
+    """A note's reason without its numbers, so that tallies group alike notes."""
+    return "".join(c if not c.isdigit() else "#" for c in entry.reason.split(":")[0]).replace("#.#", "#")
+
+
+def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators: bool = True,
+               strict: bool = False) -> Outcome:
+    """Every property on the document at `path` (meshes beside it). `strict` (regression replays): a tier that
+    raises is a failure and open bugs on record are not excused; otherwise both are counted in the tally."""
+    path = Path(path)
+    model, mujoco_error = compile_with_mujoco(path)
+    if model is None:
+        TALLY["rejected by MuJoCo"] += 1
+        return Outcome(path, False, failures=check_error_parity(path, mujoco_error))
+    TALLY["compiled by MuJoCo"] += 1
+    from loader import MJCFError
+
+    try:
+        result = load(path)
+    except MJCFError as error:
+        return Outcome(path, True, failures=[f"MuJoCo compiles the document but the loader raised {error}"])
+    outcome = Outcome(path, True, result=result)
+    if actuators:
+        from .actuators import check_actuators
+
+        check_actuators(result, outcome)
+    if hasattr(result, "disable_actuators"):
+        result.disable_actuators()  # the tiers' reference runs with actuation disabled (conformance.reference)
+    reports, failures, excused, skipped, errors = check_tiers(result, result.model, tiers, dynamics,
+                                                              known_bugs=not strict)
+    outcome.tier_errors = errors
+    if strict:
+        outcome.failures += errors
+    outcome.reports = reports
+    outcome.failures += failures
+    outcome.excused += excused
+    outcome.skipped += skipped
+    for name, report in reports.items():
+        TALLY[f"tier {name} {report.status}"] += 1
+    for entry in excused:
+        tier, why = entry.split(": ", 1)
+        listed = why.startswith(("known bug", "joint limits"))
+        TALLY[f"excused {tier}: {why if listed else 'element the loader lists'}"] += 1
+    for entry in outcome.skipped:
+        TALLY[f"skipped {entry}"] += 1
+    for entry in errors:
+        TALLY[f"harness error {entry.split(':', 2)[0]}: {entry.split(':', 2)[1].strip()}"] += 1
+    return outcome
+
+
+def check_document(document: Document | RawDocument, tiers=STATIC_TIERS, dynamics: bool = True,
+                   actuators: bool = True) -> Outcome:
+    """Write `document` (meshes beside it) into a temporary folder and check it with `check_path`."""
+    with tempfile.TemporaryDirectory(prefix="fragment-") as folder:
+        outcome = check_path(write(document, folder), tiers, dynamics, actuators)
+        outcome.result = None  # the scene outlives the folder only as long as needed
+        return outcome
+
+
+def assert_conforms(document: Document | RawDocument, tiers=STATIC_TIERS, dynamics: bool = True,
+                    actuators: bool = True, property_name: str = "fragment") -> Outcome:
+    """`check_document`, raising AssertionError with the document on failure (and saving the shrunk
+    counterexample into the regression corpus on hypothesis's final replay)."""
+    outcome = check_document(document, tiers, dynamics, actuators)
+    if outcome.failures:
+        from .regressions import save_if_final
+
+        saved = save_if_final(document, property_name)
+        xml = document.render()[0]
+        where = f"\nsaved as {saved}" if saved else ""
+        raise AssertionError("\n".join(outcome.failures) + f"{where}\n--- document ---\n{xml}")
+    return outcome

@@ -1,0 +1,64 @@
+"""Shrunk counterexamples as minimal MJCF files in `corpus/regressions/`, replayed by the test suite forever.
+
+A failing property saves its document on hypothesis's final replay (the shrunk example) when the regression
+folder exists (a source checkout). Known loader bugs are listed in `known_bugs.toml` beside the files, each
+with the reason the replaying test is expected to fail.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+from pathlib import Path
+
+import tomllib
+
+from .document import Document, RawDocument, write
+
+log = logging.getLogger(__name__)
+REGRESSIONS = Path(__file__).resolve().parents[2] / "corpus" / "regressions"
+KNOWN_BUGS = "known_bugs.toml"
+# set to "0" to keep failing runs from writing into the corpus (e.g. while developing a mutation)
+SAVE_ENV = "FRAGMENTS_SAVE_REGRESSIONS"
+
+
+def regression_dir() -> Path:
+    return Path(os.environ.get("FRAGMENTS_REGRESSION_DIR", REGRESSIONS))
+
+
+def save_regression(document: Document | RawDocument, property_name: str, folder: Path | None = None) -> Path:
+    """Write `document` as `<property>-<hash>.xml` (meshes as `<property>-<hash>.<mesh>.obj`)."""
+    folder = Path(folder or regression_dir())
+    xml, _ = document.render()
+    stem = f"{property_name}-{hashlib.sha1(xml.encode()).hexdigest()[:10]}"
+    path = write(document, folder, stem)
+    log.warning("fragments: counterexample of %s saved as %s", property_name, path)
+    return path
+
+
+def save_if_final(document: Document | RawDocument, property_name: str) -> Path | None:
+    """Save on hypothesis's final replay of a failing example (the shrunk one); otherwise do nothing."""
+    if os.environ.get(SAVE_ENV, "1") == "0" or not regression_dir().is_dir():
+        return None
+    try:
+        from hypothesis.control import current_build_context
+
+        final = getattr(current_build_context(), "is_final", False)
+    except Exception:  # noqa: BLE001 - outside a hypothesis test: nothing to shrink, nothing to save
+        return None
+    return save_regression(document, property_name) if final else None
+
+
+def regression_files(folder: Path | None = None) -> list[Path]:
+    folder = Path(folder or regression_dir())
+    return sorted(folder.glob("*.xml")) if folder.is_dir() else []
+
+
+def known_bugs(folder: Path | None = None) -> dict[str, str]:
+    """File name -> reason, for regressions that reproduce a known, still open loader bug."""
+    path = Path(folder or regression_dir()) / KNOWN_BUGS
+    if not path.is_file():
+        return {}
+    data = tomllib.loads(path.read_text())
+    return {name: str(entry["reason"]) for name, entry in data.get("bug", {}).items()}
