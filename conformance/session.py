@@ -62,7 +62,7 @@ def open_session(path: str, fix_root_link: bool | None = None) -> Session:
     compile_seconds = time.perf_counter() - t0
     if fix_root_link is None:
         fix_root_link = True  # free joints float whatever this says; jointless roots are welded, as in MuJoCo
-    ld = MJCFLoader()
+    ld = MJCFLoader(ignore_classes=[])  # compare every geom MuJoCo has
     ld.fix_root_link = fix_root_link
     t0 = time.perf_counter()
     with warnings.catch_warnings():  # the same features are recorded in the result and the report

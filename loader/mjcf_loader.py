@@ -103,14 +103,14 @@ class _Parsed:
 class MJCFLoader:
     """Load MJCF files into SAPIEN; the surface matches ManiSkill's MJCF loader.
 
-    `ignore_classes`: geoms whose default class is listed are skipped entirely.
-    `visual_groups`: geom groups that become visual shapes (where a render device exists).
+    `ignore_classes`: geoms whose default class is listed are skipped entirely (ManiSkill's default: "motor").
+    `visual_groups`: geom groups that become visual shapes where a render device exists (ManiSkill's: 0 and 2).
     `fix_root_link`: trees whose root has no free joint are fixed to the world (a free joint always floats).
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
-        self.ignore_classes = list(ignore_classes or [])
-        self.visual_groups = list(visual_groups if visual_groups is not None else [0, 1, 2])
+        self.ignore_classes = list(ignore_classes if ignore_classes is not None else ["motor"])
+        self.visual_groups = list(visual_groups if visual_groups is not None else [0, 2])
         self.scene: sapien.Scene | None = None
         self.fix_root_link = True
 

@@ -18,7 +18,7 @@ def load():
     def _load(path, fix_root_link=True):
         key = (str(path), fix_root_link)
         if key not in cache:
-            loader = MJCFLoader()
+            loader = MJCFLoader(ignore_classes=[])
             loader.fix_root_link = fix_root_link
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

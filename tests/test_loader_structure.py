@@ -94,3 +94,17 @@ def test_textures_come_from_the_compiled_model(load):
     result = load(suite_path("cartpole"))
     grid = next(t for t in result.textures if t.name == "grid")
     assert grid.type == "2d" and grid.data.ndim == 3 and grid.data.size > 0
+
+
+def test_ignore_classes_skips_a_class_entirely_and_defaults_like_maniskill(tmp_path):
+    (tmp_path / "classes.xml").write_text(
+        '<mujoco><default><default class="motor"><geom rgba="1 0 0 1"/></default></default><worldbody>'
+        '<body name="b"><freejoint/><geom type="sphere" size=".1"/><geom class="motor" type="box" size=".1 .1 .1"/>'
+        "</body></worldbody></mujoco>"
+    )
+    default = MJCFLoader()
+    assert default.ignore_classes == ["motor"] and default.visual_groups == [0, 2]
+    skipped = default.load(tmp_path / "classes.xml")
+    assert [g is None for g in skipped.mapping.geoms] == [False, True]
+    kept = MJCFLoader(ignore_classes=[]).load(tmp_path / "classes.xml")
+    assert all(g is not None for g in kept.mapping.geoms)
