@@ -108,3 +108,12 @@ def test_ignore_classes_skips_a_class_entirely_and_defaults_like_maniskill(tmp_p
     assert [g is None for g in skipped.mapping.geoms] == [False, True]
     kept = MJCFLoader(ignore_classes=[]).load(tmp_path / "classes.xml")
     assert all(g is not None for g in kept.mapping.geoms)
+
+
+def test_included_robot_with_frame_and_replicate_arrives_whole(load, rng):
+    """ManiSkill's loader lost robots from included files; MuJoCo's compiler resolves include, frame, replicate."""
+    result = load(FIXTURES / "include_scene.xml")
+    model = result.model
+    assert model.nbody == 5 and model.njnt == 4  # world, base, three replicated segments
+    assert [art.dof for art in result.articulations] == [4]
+    assert max(link_pose_errors(result, rng, random_configurations=10)) < POSE_TOLERANCE

@@ -1,0 +1,49 @@
+"""The fragment properties under the CI profile (derandomized, bounded), seeded with the corner cases.
+
+Each test also checks, through the tally, that the property really exercised what it claims: documents that
+compiled and passed the tiers, documents MuJoCo rejected, actuators compared. Skips and excuses are logged."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+from conformance.fragments import TALLY
+from conformance.fragments.fuzz import CI_EXAMPLES, ci_settings, hypothesis_test
+
+log = logging.getLogger(__name__)
+
+
+def _run(name: str) -> dict[str, int]:
+    before = TALLY.copy()
+    hypothesis_test(name, ci_settings(CI_EXAMPLES[name]))()
+    delta = {key: TALLY[key] - before.get(key, 0) for key in TALLY if TALLY[key] != before.get(key, 0)}
+    log.info("%s property: %s", name, ", ".join(f"{k}: {v}" for k, v in sorted(delta.items())))
+    return delta
+
+
+@pytest.fixture(autouse=True)
+def _no_regression_files(monkeypatch):
+    # a failure here is reported with its document; saving to the corpus is the fuzz session's job
+    monkeypatch.setenv("FRAGMENTS_SAVE_REGRESSIONS", "0")
+
+
+def test_generated_documents_conform_to_mujoco():
+    delta = _run("conformance")
+    assert delta.get("compiled by MuJoCo", 0) >= 40, delta
+    assert delta.get("rejected by MuJoCo", 0) >= 10, delta  # error parity on what the generator gets wrong
+    for tier in ("structure", "kinematics", "inertia", "collision", "dynamics"):
+        assert delta.get(f"tier {tier} pass", 0) >= 20, (tier, delta)
+    assert delta.get("actuators checked", 0) >= 10, delta
+    assert delta.get("drive gains checked (dofs)", 0) >= 50, delta
+
+
+def test_rejected_documents_raise_the_loaders_typed_error():
+    delta = _run("error_parity")
+    assert delta.get("rejected by MuJoCo", 0) >= CI_EXAMPLES["error_parity"] * 0.9, delta
+
+
+def test_random_orientations_agree_on_forward_kinematics():
+    delta = _run("kinematics")
+    assert delta.get("tier kinematics pass", 0) >= CI_EXAMPLES["kinematics"] * 0.5, delta
