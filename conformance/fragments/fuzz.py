@@ -23,7 +23,7 @@ from .strategies import broken_documents, documents, kinematic_trees
 
 log = logging.getLogger(__name__)
 DATABASE = Path(".hypothesis") / "fragments"
-CI_EXAMPLES = {"conformance": 120, "error_parity": 60, "kinematics": 80}
+CI_EXAMPLES = {"conformance": 300, "error_parity": 100, "kinematics": 150}
 SHARES = {"conformance": 3, "error_parity": 1, "kinematics": 1}  # how `--examples N` is split
 _HEALTH = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much]
 

@@ -1,0 +1,36 @@
+"""Every shrunk counterexample in corpus/regressions/ is replayed with all the properties, strictly (no known-bug
+excuse, a tier that raises fails). Files of bugs still open are strict xfails with the reason on record."""
+
+from __future__ import annotations
+
+import pytest
+
+from conformance.fragments import check_path
+from conformance.fragments.regressions import REGRESSIONS, known_bugs, regression_files
+
+KNOWN = known_bugs(REGRESSIONS)
+
+
+def _params():
+    for path in regression_files(REGRESSIONS):
+        reason = KNOWN.get(path.name)
+        marks = [pytest.mark.xfail(strict=True, reason=" ".join(reason.split()))] if reason else []
+        yield pytest.param(path, id=path.stem, marks=marks)
+
+
+@pytest.mark.parametrize("path", list(_params()))
+def test_regression_replays_clean(path):
+    outcome = check_path(path, strict=True)
+    assert not outcome.failures, "\n".join(outcome.failures)
+
+
+def test_every_known_bug_has_its_file():
+    names = {path.name for path in regression_files(REGRESSIONS)}
+    assert KNOWN, "known_bugs.toml lists no bug: delete this test together with the file"
+    assert set(KNOWN) <= names, set(KNOWN) - names
+
+
+def test_every_open_bug_detector_names_a_known_bug():
+    from conformance.fragments.known_bugs import KNOWN_BUGS
+
+    assert {bug.regression for bug in KNOWN_BUGS} <= set(KNOWN)
