@@ -33,3 +33,11 @@ def conformance(session: nox.Session) -> None:
 def bench(session: nox.Session) -> None:
     """Loader time vs MuJoCo compile time and the harness's steps per second, as JSON (reports/bench.json)."""
     session.run("python", "-m", "conformance", "bench", *session.posargs)
+
+
+@nox.session
+def fuzz(session: nox.Session) -> None:
+    """Generated MJCF fragments against MuJoCo, many examples, hypothesis database kept in .hypothesis/fragments;
+    `nox -s fuzz -- --examples 5000` sets the total; prints examples per second at the end. Shrunk
+    counterexamples are written to corpus/regressions/."""
+    session.run("python", "-m", "conformance.fragments", *session.posargs)
