@@ -43,7 +43,7 @@ def gate(model: mujoco.MjModel, reference: Rollout, seed: int, perturbation: flo
     """Replay the reference's commands from a perturbed start; cut the horizon where the gap grows > limit x."""
     steps = reference.command.shape[0]
     start = perturbed(model, reference.qpos[0], perturbation, seed)
-    other = rollout(model, start, reference.qvel[0], steps, reference.command)
+    other = rollout(model, start, reference.qvel[0], steps, reference.command, reference.ctrl)
     gap = np.abs(qpos_difference(model, reference.qpos, other.qpos)).max(axis=1) if model.nv else np.zeros(steps + 1)
     amplification = gap / perturbation
     over = np.nonzero(amplification > limit)[0]

@@ -101,3 +101,50 @@ def _dof_range(model: mujoco.MjModel, qpos0: np.ndarray) -> tuple[np.ndarray, np
         d = model.jnt_dofadr[j]
         lo[d], hi[d] = low, high
     return lo, hi
+
+
+def hold_ctrl(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray) -> np.ndarray:
+    """The ctrl both sides hold at the start: keyframe 0's if the model has a keyframe, else the ctrl under
+    which every affine actuator's force is zero at (qpos0, qvel0) (a position servo holds its joint, a motor is
+    off); clipped to ctrlrange."""
+    if model.nkey:
+        ctrl = model.key_ctrl[0].copy()
+    else:
+        data = mujoco.MjData(model)
+        data.qpos[:], data.qvel[:] = qpos0, qvel0
+        mujoco.mj_forward(model, data)
+        gain, bias = model.actuator_gainprm[:, 0], model.actuator_biasprm
+        affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+        bias_force = np.where(affine, bias[:, 0] + bias[:, 1] * data.actuator_length
+                              + bias[:, 2] * data.actuator_velocity, 0.0)
+        ctrl = np.where(gain != 0, -bias_force / np.where(gain != 0, gain, 1.0), 0.0)
+    return clip_ctrl(model, ctrl)
+
+
+def clip_ctrl(model: mujoco.MjModel, ctrl: np.ndarray) -> np.ndarray:
+    """ctrl inside each limited actuator's ctrlrange (rows of a sequence too)."""
+    lo = np.where(model.actuator_ctrllimited, model.actuator_ctrlrange[:, 0], -np.inf)
+    hi = np.where(model.actuator_ctrllimited, model.actuator_ctrlrange[:, 1], np.inf)
+    return np.clip(ctrl, lo, hi)
+
+
+def ctrl_span(model: mujoco.MjModel) -> np.ndarray:
+    """Width of each actuator's ctrlrange (1 for an unlimited ctrl)."""
+    return np.where(model.actuator_ctrllimited, np.diff(model.actuator_ctrlrange, axis=1)[:, 0], 1.0)
+
+
+def ctrl_sequence(model: mujoco.MjModel, hold: np.ndarray, steps: int, seed: int, step_fraction: float,
+                  smooth_fraction: float, phases: tuple[float, float], scale: float = 1.0) -> np.ndarray:
+    """(steps, nu) seeded ctrl: hold at `hold` for the first phases[0] of the horizon, then a step to a random
+    target (hold +- step_fraction of the ctrlrange width), held until phases[1] of the horizon, then smooth random
+    motion (smooth_fraction of the width) about that target; `scale` shrinks every deviation from `hold`.
+    phases[1] = 1 gives hold-then-step only. Everything stays inside ctrlrange."""
+    span = ctrl_span(model)
+    target = step_fraction * span * rng(seed, "ctrl-step").uniform(-1.0, 1.0, model.nu)
+    out = np.zeros((steps, model.nu))
+    first, second = round(phases[0] * steps), round(phases[1] * steps)
+    out[first:] = target
+    if second < steps:
+        wave = smooth_signal(rng(seed, "ctrl-smooth"), steps - second, model.opt.timestep, model.nu, (0.2, 1.0))
+        out[second:] += smooth_fraction * span * wave
+    return clip_ctrl(model, hold + scale * out)

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import tomllib
 
-TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "dynamics")
+TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "actuated_contact", "actuated",
+              "dynamics")
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
 OUTCOME_RANK = {"pass": 0, "chaotic": 1, "skipped": 2, "fail": 3}
 FAULTS = ("crash", "hang")

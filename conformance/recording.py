@@ -8,6 +8,9 @@ Layout (entity paths):
   sapien/static/<actor>/shape/<k>         static actors' shapes (world frame)
   joints/<joint>/{mujoco_q,sapien_q,difference,command}   time series of the recorded rollout
   tiers/<tier>/<series>                   each tier's error series
+  actuators/<tier>/<actuator>/{ctrl,mujoco_force,sapien_force}   the actuated tiers' ctrl (as MuJoCo clamps it)
+                                          and actuator-space force per step (report.ActuatorTrace says how the
+                                          SAPIEN force is derived)
   verdict                                 markdown: verdict table, seed, settings, versions
 Timelines: `step` (sequence) and `sim_time` (seconds); kinematics series use `configuration`.
 """
@@ -169,10 +172,25 @@ def log_tier_series(rec: rr.RecordingStream, reports: dict[str, TierReport], dt:
             if tier == "kinematics":
                 indexes = [rr.TimeColumn("configuration", sequence=np.arange(values.size))]
             else:
-                stride = every if name.startswith("one_step") else 1
+                stride = int(report.settings.get("one_step_every", every)) if name.startswith("one_step") else 1
                 steps = np.arange(values.size) * stride
                 indexes = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("sim_time", duration=steps * dt)]
             rec.send_columns(f"tiers/{tier}/{part(name)}", indexes=indexes, columns=rr.Scalars.columns(scalars=values))
+
+
+def log_actuators(rec: rr.RecordingStream, reports: dict[str, TierReport]) -> None:
+    """Per actuator of each actuated tier: the ctrl and both sides' actuator force, one scalar per step."""
+    for tier, report in reports.items():
+        trace = report.actuators
+        if trace is None:
+            continue
+        times = _times(trace.time)
+        for a, name in enumerate(trace.names):
+            base = f"actuators/{part(tier)}/{part(name or f'actuator{a}')}"
+            for series, values in (("ctrl", trace.ctrl), ("mujoco_force", trace.mujoco_force),
+                                   ("sapien_force", trace.sapien_force)):
+                rec.send_columns(f"{base}/{series}", indexes=times,
+                                 columns=rr.Scalars.columns(scalars=np.asarray(values[:, a], dtype=float)))
 
 
 def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
@@ -204,6 +222,7 @@ def blueprint() -> rrb.Blueprint:
             ),
             rrb.Horizontal(
                 rrb.TimeSeriesView(name="joints", origin="/joints"),
+                rrb.TimeSeriesView(name="actuators (ctrl, force)", origin="/actuators"),
                 rrb.TimeSeriesView(name="tier errors", origin="/tiers"),
             ),
             row_shares=[3, 2],
@@ -231,6 +250,7 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
         log_trace(rec, model, result, trace)
     every = int(reports["dynamics"].settings.get("one_step_every", 1)) if "dynamics" in reports else 1
     log_tier_series(rec, reports, float(model.opt.timestep), every)
+    log_actuators(rec, reports)
     rec.log("verdict", rr.TextDocument(verdict_markdown(reports, meta), media_type=rr.MediaType.MARKDOWN),
             static=True)
     rec.flush()

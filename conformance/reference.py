@@ -14,13 +14,20 @@ _INT = mujoco.mjtIntegrator
 _MATCHED_INTEGRATOR = {_INT.mjINT_RK4: _INT.mjINT_EULER, _INT.mjINT_IMPLICIT: _INT.mjINT_IMPLICITFAST}
 
 
-def matched(model: mujoco.MjModel, contact: bool) -> tuple[mujoco.MjModel, dict]:
-    """A copy of `model` whose integrator PhysX can match (and contacts off if asked); with the settings."""
+def matched(model: mujoco.MjModel, contact: bool, actuation: bool = False) -> tuple[mujoco.MjModel, dict]:
+    """A copy of `model` whose integrator PhysX can match (and contacts off if asked); with the settings.
+
+    Without `actuation` (the dynamics tiers command generalized forces) MuJoCo's actuators are disabled, as the
+    harness disables them in SAPIEN. With it (the actuated tiers) they stay on and MuJoCo integrates with
+    implicitfast whatever the model says: the loader's drive mapping is exact against implicitfast only
+    (actuator kv is implicit there, as in a PhysX drive; explicit under Euler)."""
     ref = copy.deepcopy(model)
     authored = _INT(int(model.opt.integrator))
-    ref.opt.integrator = int(_MATCHED_INTEGRATOR.get(authored, authored))
-    # The harness commands generalized forces on both sides; the loader does not map actuators.
-    ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    if actuation:
+        ref.opt.integrator = int(_INT.mjINT_IMPLICITFAST)
+    else:
+        ref.opt.integrator = int(_MATCHED_INTEGRATOR.get(authored, authored))
+        ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     if not contact:
         ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     return ref, settings(model, ref)
@@ -95,20 +102,24 @@ def body_poses(data: mujoco.MjData) -> np.ndarray:
 
 @dataclass
 class Rollout:
-    """States before each step (T+1 rows) and the generalized force applied at each step (T rows)."""
+    """States before each step (T+1 rows) and the generalized force applied at each step (T rows); with a
+    ctrl sequence also the ctrl MuJoCo applied (after its clamp) and `data.actuator_force` at each step."""
 
     qpos: np.ndarray
     qvel: np.ndarray
     command: np.ndarray
     body_pose: np.ndarray  # (T+1, nbody, 7)
+    ctrl: np.ndarray | None = None  # (T, nu) as given
+    actuator_force: np.ndarray | None = None  # (T, nu) actuator-space force of each step
 
 
 Policy = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
 
 
 def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: int,
-            command: np.ndarray | Policy | None = None) -> Rollout:
-    """Step MuJoCo from (qpos0, qvel0); `command` is a (steps, nv) array or a policy(step, qpos, qvel)."""
+            command: np.ndarray | Policy | None = None, ctrl: np.ndarray | None = None) -> Rollout:
+    """Step MuJoCo from (qpos0, qvel0); `command` is a (steps, nv) array or a policy(step, qpos, qvel);
+    `ctrl` (steps, nu) is written to `data.ctrl` before each step."""
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = qpos0, qvel0
     mujoco.mj_forward(model, data)
@@ -116,6 +127,7 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
     qvel = np.zeros((steps + 1, model.nv))
     poses = np.zeros((steps + 1, model.nbody, 7))
     applied = np.zeros((steps, model.nv))
+    force = np.zeros((steps, model.nu)) if ctrl is not None else None
     for t in range(steps + 1):
         if t:  # mj_step leaves xpos/xquat at the state before the step: bring them to the new state
             mujoco.mj_kinematics(model, data)
@@ -130,5 +142,9 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
             tau = command[t]
         applied[t] = tau
         data.qfrc_applied[:] = tau
+        if ctrl is not None:
+            data.ctrl[:] = ctrl[t]
         mujoco.mj_step(model, data)
-    return Rollout(qpos, qvel, applied, poses)
+        if force is not None:  # computed by mj_step from the state before the step
+            force[t] = data.actuator_force
+    return Rollout(qpos, qvel, applied, poses, None if ctrl is None else np.asarray(ctrl), force)

@@ -66,6 +66,22 @@ class Trace:
 
 
 @dataclass
+class ActuatorTrace:
+    """Per-actuator series of an actuated rollout (T steps): the ctrl both sides received (after MuJoCo's
+    ctrlrange clamp) and each side's actuator-space force at that step. MuJoCo: `data.actuator_force`. SAPIEN: the
+    loader's force law gain*ctrl + b0 + b1*length + b2*velocity (for a joint actuator equal to
+    (gear*(gain*ctrl + b0) - stiffness*q - damping*qdot) / gear with the loader's drive gains) evaluated on the
+    state read back from SAPIEN before the step, clamped to forcerange; PhysX applies it implicitly (through the
+    drive, with the velocity after the step), as MuJoCo's implicitfast does."""
+
+    names: list[str]
+    time: np.ndarray  # (T,)
+    ctrl: np.ndarray  # (T, nu)
+    mujoco_force: np.ndarray  # (T, nu)
+    sapien_force: np.ndarray  # (T, nu)
+
+
+@dataclass
 class TierReport:
     """A tier's verdict with its numbers; `series` are per-step error series (name -> (T,)) for recording."""
 
@@ -76,6 +92,7 @@ class TierReport:
     settings: dict = field(default_factory=dict)
     series: dict[str, np.ndarray] = field(default_factory=dict)
     traces: list[Trace] = field(default_factory=list)
+    actuators: ActuatorTrace | None = None
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:

@@ -109,3 +109,9 @@ def all_shapes(result):
         component = rigid_component(actor)
         for shape in component.collision_shapes:
             yield f"static{i}/{actor.name}", component, shape
+
+
+
+def contacts_enabled(result) -> bool:
+    """Whether any shape can still collide (`dynamics` and `actuated` zero every shape's groups)."""
+    return any(g[0] or g[1] for _, _, shape in all_shapes(result) for g in [shape.get_collision_groups()])

@@ -26,7 +26,10 @@ def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
 def selftest_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("reports")
     started = time.monotonic()
-    proc = run_cli("--manifest", str(SELFTEST), "--out", str(out), "--jobs", "2", "--quiet")
+    # the harness pendulum has no actuators: its actuated tiers would be skipped, which counts as worse than the
+    # selftest manifest's "pass" (they run in test_conformance_worker.py and test_tiers_actuated.py)
+    proc = run_cli("--manifest", str(SELFTEST), "--out", str(out), "--jobs", "2", "--quiet",
+                   "--tiers", "structure,kinematics,inertia,collision,contact,dynamics")
     elapsed = time.monotonic() - started
     latest = out / "latest"
     return proc, out, latest.resolve(), json.loads((latest / "summary.json").read_text()), elapsed

@@ -137,4 +137,4 @@ def test_default_blueprint_shows_both_models_series_and_verdict(recorded):
             kind = batch.column("ViewBlueprint:class_identifier").to_pylist()[-1][0]
             origin = batch.column("ViewBlueprint:space_origin").to_pylist()[-1][0]
             views.setdefault(kind, set()).add(origin)
-    assert views == {"3D": {"/"}, "TimeSeries": {"/joints", "/tiers"}, "TextDocument": {"/verdict"}}
+    assert views == {"3D": {"/"}, "TimeSeries": {"/joints", "/actuators", "/tiers"}, "TextDocument": {"/verdict"}}

@@ -16,7 +16,7 @@ from ..tolerances import Tolerances
 from .dynamics import sapien_rollout
 
 
-def _settled(poses: np.ndarray) -> np.ndarray:
+def settled(poses: np.ndarray) -> np.ndarray:
     """Mean body positions (nbody, 3) over the last quarter of a rollout."""
     tail = max(1, poses.shape[0] // 4)
     return poses[-tail:, :, :3].mean(axis=0)  # NaN rows (bodies without a link) stay NaN
@@ -45,7 +45,7 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     sp_poses = sapien_side.bodies_from_links(sp_links, sapien_side.body_link_rows(result, model.nbody))
     sapien_side.set_state(result, qpos0, qvel0)
     bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
-    mj_final, sp_final, own = _settled(run.body_pose), _settled(sp_poses), _settled(other.body_pose)
+    mj_final, sp_final, own = settled(run.body_pose), settled(sp_poses), settled(other.body_pose)
     band = np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1)
     spread = np.linalg.norm(own[bodies] - mj_final[bodies], axis=1)
     roots = floating_roots(model)

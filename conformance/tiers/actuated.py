@@ -1,0 +1,272 @@
+"""Tier 7: both simulators receive the same MuJoCo `ctrl` sequence every step (the loader's actuator mapping).
+
+`actuated_contact` (run first): the hold and step below with contact on, judged statistically like `contact`
+(final-pose band, rest height of floating roots; chaotic when MuJoCo's own settled pose moves under a
+perturbation of the start). `actuated` (contact-free): seeded ctrl holding at the keyframe (or at the start), stepping to random targets,
+then moving smoothly inside ctrlrange; judged like `dynamics`: a one-step velocity error along MuJoCo's
+trajectory and the open-loop rollout error on the horizon MuJoCo's own 1e-6 sensitivity allows.
+
+MuJoCo keeps actuation on (a reference copy separate from the dynamics tiers') and integrates with implicitfast,
+whatever the model says (recorded in the settings), since the loader's drives are exact against it. SAPIEN's
+actuators are enabled for the tier (`result.disable_actuators(False)`) and disabled again after; collision groups
+stay off after `actuated` (run `actuated_contact` first) and the state is put back at the start. Models with an unmapped actuator are skipped with its name.
+Deviations from the held ctrl shrink by halves until no force-limited actuator saturates in MuJoCo (PhysX clamps
+the whole drive, MuJoCo the actuator force: saturation is a known gap, noted when it cannot be avoided)."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import mujoco
+import numpy as np
+
+from .. import chaos, commands, reference, sapien_side
+from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped
+from ..tolerances import Tolerances
+from .contact import floating_roots, settled
+from .dynamics import disable_contacts, is_floating, settings_mismatches
+
+
+def unmapped_reason(result, model: mujoco.MjModel, tier: str) -> TierReport | None:
+    """A skip report when the tier has nothing to judge or an actuator is not mapped, else None."""
+    if model.nv == 0:
+        return skipped(tier, "the model has no degrees of freedom")
+    if model.nu == 0:
+        return skipped(tier, "the model has no actuators")
+    if model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION):
+        return skipped(tier, "the model disables actuation (<flag actuation='disable'/>)")
+    unmapped = [a.name for a in result.actuators if not a.mapped]
+    if unmapped:
+        return skipped(tier, f"{len(unmapped)} of {model.nu} actuators not mapped by the loader: "
+                             + ", ".join(unmapped))
+    return None
+
+
+@contextmanager
+def actuated_scene(result, qpos0, qvel0, contacts: bool):
+    """SAPIEN actuators on (and contacts off unless asked) inside; on exit actuators off and the start state
+    restored. Contacts stay off after a contact-free run, as after `dynamics`: turning collision groups back on
+    once PhysX has stepped without them crashes PhysX (segmentation fault on the next step, manipulator)."""
+    result.disable_actuators(False)
+    if not contacts:
+        disable_contacts(result)
+    try:
+        yield
+    finally:
+        result.disable_actuators(True)
+        sapien_side.set_state(result, qpos0, qvel0)
+
+
+class ForceLaw:
+    """Actuator-space force of every actuator from a MuJoCo-layout state, with the loader's parameters
+    (`result.model` gains and biases, `result.actuators` gears and tendon terms): see `report.ActuatorTrace`."""
+
+    def __init__(self, result):
+        model = result.model
+        self.gain = model.actuator_gainprm[:, 0].copy()
+        affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+        self.bias = np.where(affine[:, None], model.actuator_biasprm[:, :3], 0.0)
+        self.lo = np.where(model.actuator_forcelimited, model.actuator_forcerange[:, 0], -np.inf)
+        self.hi = np.where(model.actuator_forcelimited, model.actuator_forcerange[:, 1], np.inf)
+        self.length = np.zeros((model.nu, model.nq))  # actuator length = length @ qpos
+        self.speed = np.zeros((model.nu, model.nv))
+        for a, actuator in enumerate(result.actuators):
+            if actuator.joint is not None:
+                joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, actuator.joint)
+                terms = [(joint, 1.0)] if joint >= 0 else []
+            elif actuator.tendon is not None:
+                from loader.tendon import fixed_tendon_terms
+
+                terms = fixed_tendon_terms(model, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON,
+                                                                    actuator.tendon))
+            else:
+                terms = []
+            for joint, coefficient in terms:
+                self.length[a, model.jnt_qposadr[joint]] += actuator.gear * coefficient
+                self.speed[a, model.jnt_dofadr[joint]] += actuator.gear * coefficient
+
+    def __call__(self, ctrl, qpos, qvel) -> np.ndarray:
+        force = self.gain * ctrl + self.bias[:, 0] + self.bias[:, 1] * (self.length @ qpos) \
+            + self.bias[:, 2] * (self.speed @ qvel)
+        return np.clip(force, self.lo, self.hi)
+
+
+def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.ndarray):
+    """Replay `ctrl` (steps, nu) on SAPIEN through `result.set_ctrl` from (qpos0, qvel0).
+
+    Returns qpos (T+1, nq), every link's pose (T+1, L, 7) and the actuator force law on SAPIEN's state (T, nu)."""
+    steps = ctrl.shape[0]
+    law = ForceLaw(result)
+    clipped = commands.clip_ctrl(model, ctrl)
+    sapien_side.set_state(result, qpos0, qvel0)
+    qpos = np.zeros((steps + 1, model.nq))
+    poses = np.zeros((steps + 1, len(sapien_side.links(result)), 7))
+    force = np.zeros((steps, model.nu))
+    qpos[0] = sapien_side.get_state(result)[0]
+    poses[0] = sapien_side.link_poses(result)
+    for t in range(steps):
+        q, v = sapien_side.get_state(result)
+        force[t] = law(clipped[t], q, v)
+        result.set_ctrl(ctrl[t])
+        result.scene.step()
+        qpos[t + 1] = sapien_side.get_state(result)[0]
+        poses[t + 1] = sapien_side.link_poses(result)
+    return qpos, poses, force
+
+
+def one_step_qvel(result, run: reference.Rollout, every: int) -> np.ndarray:
+    """Every `every` steps: MuJoCo's state into SAPIEN, the same ctrl, one step; |SAPIEN - MuJoCo| velocity."""
+    out = []
+    for t in range(0, run.ctrl.shape[0], every):
+        sapien_side.set_state(result, run.qpos[t], run.qvel[t])
+        result.set_ctrl(run.ctrl[t])
+        result.scene.step()
+        out.append(np.abs(sapien_side.get_state(result)[1] - run.qvel[t + 1]))
+    return np.array(out)
+
+
+def saturated_steps(model: mujoco.MjModel, force: np.ndarray) -> int:
+    """Steps at which some force-limited actuator sits on its forcerange bound in MuJoCo."""
+    limited = model.actuator_forcelimited.astype(bool)
+    if not limited.any():
+        return 0
+    lo, hi = model.actuator_forcerange[limited].T
+    f = force[:, limited]
+    tight = 1e-9 * np.maximum(1.0, np.abs(model.actuator_forcerange[limited]).max(axis=1))
+    return int(np.any((f <= lo + tight) | (f >= hi - tight), axis=1).sum())
+
+
+def limit_steps(model: mujoco.MjModel, qpos: np.ndarray) -> int:
+    """Steps at which some limited hinge or slide is at or past its range in MuJoCo (soft there, hard in PhysX)."""
+    hit = np.zeros(qpos.shape[0], dtype=bool)
+    for j, adr, lo, hi in reference.limited_dofs(model):
+        margin = float(model.jnt_margin[j])
+        hit |= (qpos[:, adr] <= lo + margin) | (qpos[:, adr] >= hi - margin)
+    return int(hit.sum())
+
+
+def gentle_run(ref: mujoco.MjModel, qpos0, qvel0, steps: int, seed: int, tolerances: Tolerances,
+               smooth: bool) -> tuple[reference.Rollout, float, dict[str, int]]:
+    """The MuJoCo run under the seeded ctrl, its deviations from the held ctrl halved (at most `max_halvings`
+    times) until no forcerange saturates and, for the contact-free run (`smooth`), no joint reaches a limit
+    (with contact, bodies land and fold into their limits whatever the ctrl): there MuJoCo and PhysX part for
+    reasons that are not the actuators' (actuator vs whole-drive force clamp; soft vs hard limits). Returns the run, the
+    scale used and the steps still saturated / at a limit."""
+    def s(name: str):
+        return tolerances.setting("actuated", name)
+
+    hold = commands.hold_ctrl(ref, qpos0, qvel0)
+    phases = (s("hold_fraction"), s("step_until") if smooth else 1.0)
+    scale = 1.0
+    for _ in range(int(s("max_halvings")) + 1):
+        ctrl = commands.ctrl_sequence(ref, hold, steps, seed, s("step_fraction"), s("smooth_fraction"), phases, scale)
+        run = reference.rollout(ref, qpos0, qvel0, steps, None, ctrl)
+        left = {"saturated": saturated_steps(ref, run.actuator_force), "at_limit": limit_steps(ref, run.qpos)}
+        if not left["saturated"] and not (smooth and left["at_limit"]):
+            break
+        scale /= 2
+    return run, scale, left
+
+
+def _ctrl_notes(scale: float, left: dict[str, int], steps: int, smooth: bool = True) -> list[str]:
+    notes = []
+    if scale < 1.0:
+        notes.append(f"ctrl deviations scaled by {scale:g} so that no forcerange saturates and no joint reaches a "
+                     "limit in MuJoCo")
+    if left["saturated"]:
+        notes.append(f"forcerange saturated in MuJoCo on {left['saturated']} of {steps} steps even at the held "
+                     "ctrl: PhysX clamps the whole drive, MuJoCo the actuator force (known gap)")
+    if left["at_limit"] and smooth:
+        notes.append(f"a joint is at its limit in MuJoCo on {left['at_limit']} of {steps} steps even at the held "
+                     "ctrl: MuJoCo's limits are soft, PhysX's hard (known gap)")
+    return notes
+
+
+def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    skip = unmapped_reason(result, model, "actuated")
+    if skip is not None:
+        return skip
+    ref, matched = reference.matched(model, contact=False, actuation=True)
+    kind = "floating" if is_floating(model) else "fixed"
+    dt = ref.opt.timestep
+    steps = tolerances.horizon_steps("actuated", dt)
+    qpos0, qvel0, start = reference.initial_state(model)
+    run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=True)
+    gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
+                      tolerances.setting("chaos", "amplification_limit"))
+    every = int(tolerances.setting("actuated", "one_step_every"))
+    mismatched = settings_mismatches(result, ref)
+    with actuated_scene(result, qpos0, qvel0, contacts=False):
+        one_step = one_step_qvel(result, run, every)
+        sp_qpos, sp_links, sp_force = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
+    err = reference.qpos_difference(ref, run.qpos, sp_qpos)
+    metrics: list[Metric] = [
+        Metric("settings_mismatches", float(len(mismatched)), float(len(mismatched)), 0.0, "count", 3),
+        metric("one_step_qvel", one_step, tolerances[f"actuated.one_step_qvel_{kind}"], "rad/s or m/s"),
+        metric("rollout_qpos", err[: gate.judged_steps + 1], tolerances[f"actuated.rollout_qpos_{kind}"],
+               "rad or m"),
+    ]
+    notes = list(mismatched) + _ctrl_notes(scale, left, steps)
+    if gate.chaotic:
+        notes.append(f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
+                     f"{gate.judged_steps} of {steps}; the rollout is judged on the first {gate.judged_steps} steps")
+    rows = sapien_side.body_link_rows(result, model.nbody)
+    time = np.arange(steps + 1) * dt
+    trace = Trace("actuated", time, run.qpos, sp_qpos, err, np.zeros((steps + 1, model.nv)), run.body_pose,
+                  sapien_side.bodies_from_links(sp_links, rows), sp_links)
+    actuators = ActuatorTrace([a.name for a in result.actuators], time[:-1], commands.clip_ctrl(ref, run.ctrl),
+                              run.actuator_force, sp_force)
+    failed = not all(m.passed for m in metrics)
+    status = "fail" if failed else ("chaotic" if gate.chaotic else "pass")
+    return TierReport("actuated", status, metrics, notes,
+                      settings={**matched, "steps": steps, "base": kind, "start": start, "chaos": gate.to_dict(),
+                                "ctrl_scale": scale, "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "one_step_every": every},
+                      series={"rollout_qpos": np.abs(err).max(axis=1), "chaos_amplification": gate.amplification,
+                              "one_step_qvel": one_step.max(axis=1) if one_step.size else one_step},
+                      traces=[trace], actuators=actuators)
+
+
+def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    skip = unmapped_reason(result, model, "actuated_contact")
+    if skip is not None:
+        return skip
+    if reference.contacts_disabled(model):
+        return skipped("actuated_contact", "the model disables contact (contact or constraint flag)")
+    if not sapien_side.contacts_enabled(result):
+        return skipped("actuated_contact", "the SAPIEN scene has its contacts turned off (run before dynamics)")
+    ref, matched = reference.matched(model, contact=True, actuation=True)
+    dt = ref.opt.timestep
+    steps = tolerances.horizon_steps("actuated_contact", dt)
+    qpos0, qvel0, start = reference.initial_state(model)
+    run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=False)
+    size = tolerances.setting("contact", "perturbation")
+    other = reference.rollout(ref, chaos.perturbed(ref, qpos0, size, seed), qvel0, steps, None, run.ctrl)
+    with actuated_scene(result, qpos0, qvel0, contacts=True):
+        _, sp_links, sp_force = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
+    sp_poses = sapien_side.bodies_from_links(sp_links, sapien_side.body_link_rows(result, model.nbody))
+    bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
+    mj_final, sp_final, own = settled(run.body_pose), settled(sp_poses), settled(other.body_pose)
+    band = np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1)
+    spread = np.linalg.norm(own[bodies] - mj_final[bodies], axis=1)
+    roots = floating_roots(model)
+    metrics = [
+        metric("final_pose_band", band, tolerances["actuated_contact.final_pose_band"], "m"),
+        metric("rest_height", np.abs(sp_final[roots, 2] - mj_final[roots, 2]),
+               tolerances["actuated_contact.rest_height"], "m"),
+    ]
+    notes = _ctrl_notes(scale, left, steps, smooth=False)
+    limit = tolerances.setting("contact", "spread_fraction") * tolerances["actuated_contact.final_pose_band"]
+    chaotic = bool(spread.size and spread.max() > limit)
+    if chaotic:
+        notes.append(f"MuJoCo's own settled pose moves {spread.max():.3g} m under a {size:g} perturbation of the "
+                     "start: outcome not predictable")
+    failed = not all(m.passed for m in metrics)
+    status = "fail" if failed else ("chaotic" if chaotic else "pass")
+    time = np.arange(steps + 1) * dt
+    return TierReport("actuated_contact", status, metrics, notes,
+                      settings={**matched, "steps": steps, "start": start, "ctrl_scale": scale,
+                                "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "mujoco_self_spread": float(spread.max(initial=0.0))},
+                      series={"final_pose_band": np.nanmax(np.linalg.norm(
+                          sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)},
+                      actuators=ActuatorTrace([a.name for a in result.actuators], time[:-1],
+                                              commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp_force))
