@@ -66,6 +66,10 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
         notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
                    "scales with the joint reaction force, MuJoCo's is a constant torque")
     if jtype == FREE:
+        for value, what in ((damping, "damping"), (armature, "armature"), (stiffness, "stiffness")):
+            if value > 0:
+                notes.drop("joint", name, f"free joint {what} {value:g} dropped: a PhysX floating root has no "
+                           "joint to carry it")
         return []
     if jtype in (HINGE, SLIDE):
         limited = bool(model.jnt_limited[j]) and not limits_disabled(model)
@@ -89,6 +93,8 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     # ball: three revolutes about x, y, z of the body frame at the anchor
     if model.jnt_limited[j]:
         notes.drop("joint", name, "ball joint cone limit not mapped: three revolutes cannot express a cone")
+    notes.approximate("joint", name, "ball joint as three revolutes integrated in Euler angles: MuJoCo integrates "
+                      "the body-frame angular velocity, so velocities agree to O(timestep x speed^2)")
     if stiffness > 0:
         notes.drop("joint", name, "ball joint stiffness not mapped")
     if damping > 0 or armature > 0:

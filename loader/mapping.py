@@ -98,9 +98,9 @@ class Mapping:
                 q[a][target.dofs[0]] = qpos[adr]
                 v[a][target.dofs[0]] = qvel[dof]
         for art, qa, va in zip(articulations, q, v):
-            if art.dof:
-                art.set_qpos(qa.astype(np.float32))
-                art.set_qvel(va.astype(np.float32))
+            # also for a tree without DoF: setting qpos is what updates its links' poses
+            art.set_qpos(qa.astype(np.float32))
+            art.set_qvel(va.astype(np.float32))
 
     def _set_root(self, art, body: int, qpos7, qvel6) -> None:
         rotation = quat_to_mat(qpos7[3:])
