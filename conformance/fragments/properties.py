@@ -37,7 +37,8 @@ DYNAMICS_NOTE_KINDS = ("joint",)
 # the distances a generated model spans (slide ranges of 90 m in degree-unit documents, row 19). 1e-6 of the
 # extent is about 8 float32 ulps; the harness's own (larger) tolerance stays the floor.
 FLOAT32_RELATIVE = 1e-6
-EXTENT_SCALED = ("kinematics.position", "inertia.com", "collision.position", "structure.anchor")
+EXTENT_SCALED = ("kinematics.position", "inertia.com", "collision.position", "structure.anchor",
+                 "dynamics.one_step_qpos_fixed", "dynamics.one_step_qpos_floating")  # slide q of 21 m: float32
 _FREE_SPAN = 0.5  # m: how far the kinematics tier moves a free joint (conformance.sampling)
 _SLIDE_SPAN = 0.2  # m: its span for an unlimited slide
 

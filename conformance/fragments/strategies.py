@@ -6,7 +6,8 @@ one element of each kind per class), small meshes, and a body/frame tree whose e
 error parity. `broken_documents()` adds one deliberate mistake from a list MuJoCo is known to reject.
 `kinematic_trees()` draws class-free chains with random orientations and joint axes.
 
-Every number is drawn as a small integer and written as a short decimal, so shrinking gives readable files.
+Every number is drawn as a small integer and written as a short decimal, and every optional attribute is left
+out when its draw shrinks to 0, so shrunk counterexamples are short, readable files.
 """
 
 from __future__ import annotations
@@ -99,17 +100,18 @@ def geom_attrs(draw, ctx: _Context, in_default: bool, world: bool = False) -> At
     if draw(st.booleans()):
         attrs["type"] = draw(st.sampled_from(kinds))
     kind = attrs.get("type")
-    if kind == "mesh" or (kind is None and ctx.meshes and draw(st.integers(0, 4)) == 0):
+    if kind == "mesh" or (kind is None and ctx.meshes and draw(st.integers(0, 4)) == 4):
         attrs["mesh"] = draw(st.sampled_from(ctx.meshes))  # without type: a primitive fitted to the mesh
     if draw(st.booleans()) or not (in_default or ctx.main_size):
         full = not (in_default or ctx.main_size)
         attrs["size"] = " ".join(draw(st.lists(SIZE, min_size=3 if full else 1, max_size=3)))
-    if draw(st.integers(0, 5 if in_default else 1)) == 0:  # a default pos clashes with an element's fromto
+    rare = 5 if in_default else 1  # a default pos clashes with every fromto of the class's geoms
+    if draw(st.integers(0, rare)) == rare:
         attrs["pos"] = draw(POS)
-    if kind in FROMTO_TYPES and draw(st.integers(0, 3)) == 0:
+    if kind in FROMTO_TYPES and draw(st.integers(0, 3)) == 3:
         attrs.pop("pos", None)
         attrs["fromto"] = draw(_vec(6, -20, 20, 0.01).filter(lambda v: v.split()[:3] != v.split()[3:]))
-    elif draw(st.integers(0, 2)) == 0:
+    elif draw(st.integers(0, 2)) == 2:
         a = angle(ctx.unit)
         attrs.update(draw(st.one_of(st.tuples(a, a, a).map(lambda t: {"euler": " ".join(t)}),
                                     st.tuples(DIRECTION, a).map(lambda t: {"axisangle": f"{t[0]} {t[1]}"}))))
@@ -147,13 +149,13 @@ def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
             attrs["range"] = (f"{lo} {hi}" if ctx.unit == "degree"
                               else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}")
     limited = ["true", "false", "auto"] if "range" in attrs else ["false", "auto"]
-    _optional(draw, attrs, "limited", st.sampled_from(limited), p=draw(st.integers(0, 3)) == 0)
+    _optional(draw, attrs, "limited", st.sampled_from(limited), p=draw(st.integers(0, 3)) == 3)
     _optional(draw, attrs, "damping", _dec(0, 20, 0.05))
     _optional(draw, attrs, "armature", _dec(0, 20, 0.01))
-    _optional(draw, attrs, "ref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 0)
-    _optional(draw, attrs, "stiffness", _dec(0, 20, 0.5), p=draw(st.integers(0, 3)) == 0)
-    _optional(draw, attrs, "springref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 0)
-    _optional(draw, attrs, "frictionloss", _dec(0, 10, 0.01), p=draw(st.integers(0, 7)) == 0)
+    _optional(draw, attrs, "ref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
+    _optional(draw, attrs, "stiffness", _dec(0, 20, 0.5), p=draw(st.integers(0, 3)) == 3)
+    _optional(draw, attrs, "springref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
+    _optional(draw, attrs, "frictionloss", _dec(0, 10, 0.01), p=draw(st.integers(0, 7)) == 7)
     if not in_default and ctx.classes and draw(st.booleans()):
         attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
     return attrs
@@ -181,7 +183,7 @@ def actuator_attrs(draw, ctx: _Context, tag: str) -> Attrs:
         lo, hi = draw(st.integers(-30, -1)), draw(st.integers(1, 30))
         attrs["ctrlrange"] = f"{lo / 10:g} {hi / 10:g}"
     _optional(draw, attrs, "forcerange", st.integers(1, 50).map(lambda f: f"-{f} {f}"),
-              p=draw(st.integers(0, 3)) == 0)
+              p=draw(st.integers(0, 3)) == 3)
     if tag == "position":
         _optional(draw, attrs, "kp", _dec(1, 100, 1.0))
         _optional(draw, attrs, "kv", _dec(0, 20, 0.5))
@@ -206,11 +208,11 @@ def default_class(draw, ctx: _Context, name: str | None, depth: int) -> DefaultC
             cls.geom["size"] = " ".join(draw(st.lists(SIZE, min_size=3, max_size=3)))
     if draw(st.booleans()):
         cls.joint = draw(joint_attrs(ctx, in_default=True))
-    if draw(st.integers(0, 2)) == 0:
+    if draw(st.integers(0, 2)) == 2:
         cls.site = draw(site_attrs(ctx, in_default=True))
-    if draw(st.integers(0, 2)) == 0:
+    if draw(st.integers(0, 2)) == 2:
         cls.mesh = {"scale": draw(_vec(3, 5, 30, 0.1))}
-    if name is None and ctx.materials and draw(st.integers(0, 3)) == 0:
+    if name is None and ctx.materials and draw(st.integers(0, 3)) == 3:
         cls.material = {"rgba": draw(_vec(4, 0, 10, 0.1)), "specular": draw(_dec(0, 10, 0.1))}
     if draw(st.booleans()):
         tag = draw(st.sampled_from(SHORTCUTS))
@@ -247,9 +249,9 @@ def mesh_asset(draw, ctx: _Context, name: str) -> MeshAsset:
         vertices = [tuple(c + o for c, o in zip(v, offset)) for v in base]
         faces = TETRA_FACES
     attrs: Attrs = {}
-    if ctx.classes and draw(st.integers(0, 2)) == 0:
+    if ctx.classes and draw(st.integers(0, 2)) == 2:
         attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
-    if draw(st.integers(0, 3)) == 0:
+    if draw(st.integers(0, 3)) == 3:
         attrs["scale"] = draw(_vec(3, 5, 20, 0.1))
     return MeshAsset(name, vertices, faces, attrs)
 
@@ -257,7 +259,7 @@ def mesh_asset(draw, ctx: _Context, name: str) -> MeshAsset:
 @st.composite
 def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) -> Body:
     """A body (or a frame holding bodies) with joints, geoms and sites that pick classes."""
-    if draw(st.integers(0, 4)) == 0 and depth < max_depth:
+    if draw(st.integers(0, 4)) == 4 and depth < max_depth:
         frame = Body("frame", {})
         _optional(draw, frame.attrs, "pos", POS)
         frame.attrs.update(draw(orientation(ctx.unit)))
@@ -271,9 +273,9 @@ def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) ->
     body = Body("body", {"name": ctx.name("b")})
     _optional(draw, body.attrs, "pos", POS)
     body.attrs.update(draw(orientation(ctx.unit)))
-    if ctx.classes and draw(st.integers(0, 2)) == 0:
+    if ctx.classes and draw(st.integers(0, 2)) == 2:
         body.attrs["childclass"] = draw(st.sampled_from(["main", *ctx.classes]))
-    if top and draw(st.integers(0, 3)) == 0:
+    if top and draw(st.integers(0, 3)) == 3:
         name = ctx.name("j")
         if draw(st.booleans()):
             body.elements.append(Element("freejoint", {"name": name}))
@@ -287,7 +289,7 @@ def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) ->
             body.elements.append(Element("joint", {"name": name, **draw(joint_attrs(ctx, False))}))
     for _ in range(draw(st.integers(1, 2))):
         body.elements.append(Element("geom", {"name": ctx.name("g"), **draw(geom_attrs(ctx, False))}))
-    if draw(st.integers(0, 3)) == 0:
+    if draw(st.integers(0, 3)) == 3:
         body.elements.append(Element("site", {"name": ctx.name("s"), **draw(site_attrs(ctx, False))}))
     if depth < max_depth:
         count = draw(st.integers(0, 2 if max_depth <= 3 else 1))
@@ -305,7 +307,7 @@ def compiler_attrs(draw) -> Attrs:
     attrs: Attrs = {}
     _optional(draw, attrs, "angle", st.sampled_from(["degree", "radian"]))
     _optional(draw, attrs, "eulerseq", st.sampled_from(EULERSEQS))
-    _optional(draw, attrs, "autolimits", st.sampled_from(["true", "false"]), p=draw(st.integers(0, 4)) == 0)
+    _optional(draw, attrs, "autolimits", st.sampled_from(["true", "false"]), p=draw(st.integers(0, 4)) == 4)
     return attrs
 
 
@@ -333,7 +335,7 @@ def documents(draw, max_bodies: int = 3) -> Document:
                 attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
             attrs.update(draw(actuator_attrs(ctx, tag)) if draw(st.booleans()) else {})
             actuators.append((tag, attrs))
-    return Document(compiler, defaults, bool(defaults) and draw(st.integers(0, 4)) == 0, meshes, materials,
+    return Document(compiler, defaults, bool(defaults) and draw(st.integers(0, 4)) == 4, meshes, materials,
                     world, bodies, actuators)
 
 
