@@ -45,3 +45,19 @@ def test_a_file_the_loader_rejects_is_that_models_error(tmp_path):
     model = ModelEntry(id="broken", source=str(broken))
     result = evaluate(Job(model, str(broken), str(tmp_path), 0, model.tiers, record=False))
     assert result["status"] == "error" and "load failed" in result["reason"]
+
+
+def test_actuated_tiers_run_in_order_before_dynamics_and_leave_it_a_clean_scene(tmp_path):
+    from test_tiers_actuated import ARM
+
+    arm = tmp_path / "arm.xml"
+    arm.write_text(ARM)
+    model = ModelEntry(id="arm", source=str(arm), tiers=("dynamics", "actuated", "actuated_contact", "contact"))
+    result = evaluate(Job(model, str(arm), str(tmp_path), 0, model.tiers, record=False))
+    json.dumps(result, allow_nan=False)
+    assert list(result["tiers"]) == ["contact", "actuated_contact", "actuated", "dynamics"]
+    assert {t: r["status"] for t, r in result["tiers"].items()} == {
+        "contact": "pass", "actuated_contact": "pass", "actuated": "pass", "dynamics": "pass"}
+    actuated = result["tiers"]["actuated"]["settings"]
+    assert actuated["integrator_reference"] == "mjINT_IMPLICITFAST" and actuated["actuators"] is True
+    assert result["tiers"]["dynamics"]["settings"]["actuators"] is False  # its reference disables actuation

@@ -1,0 +1,76 @@
+"""The actuated tiers' series in the .rrd, read back: ctrl and both sides' actuator force per actuator and step,
+and the tier's error series; MuJoCo's forces are checked against MuJoCo itself, not against the harness."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from test_rerun_recording import read_rrd
+from test_tiers_actuated import ARM, _session
+
+from conformance import recording, tolerances
+from conformance.tiers import TIERS
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("rrd")
+    path = folder / "arm.xml"
+    path.write_text(ARM)
+    session = _session(path)
+    tol = tolerances.load()
+    reports = {name: tier(session.result, session.model, 3, tol) for name, tier in TIERS.items()}
+    rrd = folder / "arm.rrd"
+    recording.write_recording(rrd, session, reports, {"model": "arm", "seed": 3,
+                                                      "versions": {"mujoco": mujoco.__version__}})
+    return session, reports, read_rrd(rrd)
+
+
+def _scalars(rrd, entity: str) -> np.ndarray:
+    return np.array([v[0] for v in rrd[entity]["Scalars:scalars"]])
+
+
+@pytest.mark.parametrize("tier", ["actuated", "actuated_contact"])
+def test_ctrl_and_forces_per_actuator_are_recorded(recorded, tier):
+    _, reports, rrd = recorded
+    trace = reports[tier].actuators
+    assert trace.names == ["servo", "torque", "coupled"]
+    for a, name in enumerate(trace.names):
+        base = f"/actuators/{tier}/{name}"
+        np.testing.assert_array_equal(_scalars(rrd, f"{base}/ctrl"), trace.ctrl[:, a])
+        np.testing.assert_array_equal(_scalars(rrd, f"{base}/mujoco_force"), trace.mujoco_force[:, a])
+        np.testing.assert_array_equal(_scalars(rrd, f"{base}/sapien_force"), trace.sapien_force[:, a])
+        np.testing.assert_array_equal(rrd[f"{base}/ctrl"]["step"], np.arange(trace.time.size))
+        assert np.ptp(trace.ctrl[:, a]) > 0, "every actuator's ctrl moves (the hold, then a step)"
+
+
+def test_recorded_force_is_what_mujoco_computes_for_the_recorded_ctrl(recorded):
+    """Replay the recorded ctrl on a fresh MuJoCo (implicitfast, contact off, from qpos0 at rest)."""
+    session, _, rrd = recorded
+    names = ("servo", "torque", "coupled")
+    ctrl = np.stack([_scalars(rrd, f"/actuators/actuated/{n}/ctrl") for n in names], axis=1)
+    force = np.stack([_scalars(rrd, f"/actuators/actuated/{n}/mujoco_force") for n in names], axis=1)
+    model = mujoco.MjModel.from_xml_path(session.path)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    data = mujoco.MjData(model)
+    replayed = np.zeros_like(force)
+    for step in range(ctrl.shape[0]):
+        data.ctrl[:] = ctrl[step]
+        mujoco.mj_step(model, data)
+        replayed[step] = data.actuator_force
+    np.testing.assert_allclose(force, replayed, rtol=0, atol=1e-12)
+    # and SAPIEN's force law on SAPIEN's state follows it (the states agree to 1e-6 rad on this arm)
+    sapien = np.stack([_scalars(rrd, f"/actuators/actuated/{n}/sapien_force") for n in names], axis=1)
+    np.testing.assert_allclose(sapien, force, atol=1e-4)
+
+
+def test_actuated_error_series_are_recorded(recorded):
+    _, reports, rrd = recorded
+    report = reports["actuated"]
+    for name in ("rollout_qpos", "one_step_qvel"):
+        np.testing.assert_allclose(_scalars(rrd, f"/tiers/actuated/{name}"), report.series[name])
+    steps = rrd["/tiers/actuated/one_step_qvel"]["step"]
+    every = report.settings["one_step_every"]
+    np.testing.assert_array_equal(steps, np.arange(len(steps)) * every)
