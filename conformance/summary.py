@@ -108,6 +108,34 @@ def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dic
     return {**run, "models": models, "worse_than_expected": worse, "better_than_expected": better, "ok": not worse}
 
 
+ACTUATED_TIERS = ("actuated", "actuated_contact")
+
+
+def _actuation_lines(summary: dict) -> list[str]:
+    """Per model and actuated tier that ran: the integrator switch, ctrl scaling and any saturation or limit
+    contact that scaling could not avoid (known gaps: PhysX clamps whole drives and has hard limits)."""
+    lines = []
+    for m in summary["models"]:
+        for tier in ACTUATED_TIERS:
+            v = m["verdicts"].get(tier)
+            settings = (v or {}).get("settings", {})
+            if "ctrl_scale" not in settings:
+                continue
+            parts = []
+            if settings.get("integrator_authored") != settings.get("integrator_reference"):
+                parts.append(f"MuJoCo {settings.get('integrator_reference')} instead of the authored "
+                             f"{settings.get('integrator_authored')}")
+            if settings["ctrl_scale"] < 1:
+                parts.append(f"ctrl deviations scaled by {settings['ctrl_scale']:g}")
+            if settings.get("saturated_steps"):
+                parts.append(f"forcerange saturated on {settings['saturated_steps']} steps (known gap)")
+            if tier == "actuated" and settings.get("limit_steps"):
+                parts.append(f"a joint at its limit on {settings['limit_steps']} steps (known gap)")
+            if parts:
+                lines.append(f"- {m['id']}/{tier}: " + "; ".join(parts))
+    return lines
+
+
 def markdown(summary: dict, tiers: list[str]) -> str:
     """summary.md: a model x tier table (worst metric max/tolerance per cell), then the failures."""
     lines = [f"# Conformance run {summary['run']}", "",
@@ -138,6 +166,9 @@ def markdown(summary: dict, tiers: list[str]) -> str:
     notes = [(m["id"], m["status"], m["reason"]) for m in summary["models"] if m["reason"]]
     if notes:
         lines += ["", "## Model notes", ""] + [f"- {i} ({s}): {r}" for i, s, r in notes]
+    actuation = _actuation_lines(summary)
+    if actuation:
+        lines += ["", "## Actuated tiers: what the ctrl and MuJoCo's integrator were", ""] + actuation
     gaps = [(m["id"], t, v["raw"], v["expected_reason"]) for m in summary["models"]
             for t, v in m["verdicts"].items() if v["expected_reason"]]
     if gaps:

@@ -89,3 +89,19 @@ def test_latest_points_at_the_newest_run(tmp_path):
         (tmp_path / name).mkdir()
         summary.point_latest(tmp_path, tmp_path / name)
     assert os.readlink(tmp_path / "latest") == "run2"
+
+
+def test_summary_lists_integrator_switch_ctrl_scaling_and_saturation_of_the_actuated_tiers():
+    entry = ModelEntry(id="arm", source="x", tiers=("actuated", "actuated_contact"))
+    settings = {"integrator_authored": "mjINT_EULER", "integrator_reference": "mjINT_IMPLICITFAST",
+                "ctrl_scale": 0.25, "saturated_steps": 3, "limit_steps": 0}
+    result = {"status": "ok", "tiers": {
+        "actuated": {"status": "pass", "metrics": [], "notes": [], "settings": settings},
+        "actuated_contact": {"status": "pass", "metrics": [], "notes": [],
+                             "settings": {**settings, "integrator_authored": "mjINT_IMPLICITFAST",
+                                          "ctrl_scale": 1.0, "saturated_steps": 0}}}}
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"arm": result})
+    text = summary.markdown(doc, ["actuated", "actuated_contact"])
+    assert ("- arm/actuated: MuJoCo mjINT_IMPLICITFAST instead of the authored mjINT_EULER; ctrl deviations "
+            "scaled by 0.25; forcerange saturated on 3 steps (known gap)") in text
+    assert "- arm/actuated_contact" not in text  # nothing to say: same integrator, no scaling
