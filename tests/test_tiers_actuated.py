@@ -221,3 +221,15 @@ def test_spot_standing_on_its_servos(mutation, tier, metric):
         assert report.status == "pass", report.to_dict()
     else:
         assert report.status == "fail" and metric in _failed(report), report.to_dict()
+
+
+def test_the_manifest_can_take_unmapped_actuators_out_of_both_sides(tmp_path):
+    text = ARM.replace('<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
+                       '<general name="filtered" joint="elbow" dyntype="filter" dynprm="0.1" ctrlrange="-1 1"/>')
+    session = _session(_write(tmp_path, text))
+    removed = TOL.with_overrides(settings={"actuated": {"unmapped": "remove"}})
+    report = TIERS["actuated"](session.result, session.model, 0, removed)
+    assert report.status == "pass", report.to_dict()
+    assert report.settings["actuators_removed"] == ["filtered"] and "filtered" in report.notes[0]
+    assert np.all(report.actuators.mujoco_force[:, 1] == 0) and np.all(report.actuators.sapien_force[:, 1] == 0)
+    assert TIERS["actuated"](session.result, session.model, 0, TOL).status == "skipped"  # the default

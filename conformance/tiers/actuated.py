@@ -1,17 +1,22 @@
 """Tier 7: both simulators receive the same MuJoCo `ctrl` sequence every step (the loader's actuator mapping).
 
-`actuated_contact` (run first): the hold and step below with contact on, judged statistically like `contact`
-(final-pose band, rest height of floating roots; chaotic when MuJoCo's own settled pose moves under a
-perturbation of the start). `actuated` (contact-free): seeded ctrl holding at the keyframe (or at the start), stepping to random targets,
-then moving smoothly inside ctrlrange; judged like `dynamics`: a one-step velocity error along MuJoCo's
-trajectory and the open-loop rollout error on the horizon MuJoCo's own 1e-6 sensitivity allows.
+`actuated_contact` (run first): ctrl held at the keyframe's (or at the one that holds the start), then a step
+to a seeded target, contact on; judged statistically like `contact` (final-pose band, rest height of floating
+roots; chaotic when MuJoCo's own settled pose moves under a perturbation of the start).
+`actuated` (contact-free): the hold, the step, then smooth random targets inside ctrlrange; judged like
+`dynamics`: a one-step velocity error along MuJoCo's trajectory and the open-loop rollout error on the horizon
+MuJoCo's own 1e-6 sensitivity allows.
 
-MuJoCo keeps actuation on (a reference copy separate from the dynamics tiers') and integrates with implicitfast,
-whatever the model says (recorded in the settings), since the loader's drives are exact against it. SAPIEN's
-actuators are enabled for the tier (`result.disable_actuators(False)`) and disabled again after; collision groups
-stay off after `actuated` (run `actuated_contact` first) and the state is put back at the start. Models with an unmapped actuator are skipped with its name.
+MuJoCo keeps actuation on (a reference copy separate from the dynamics tiers') and integrates with implicitfast
+whatever the model says (recorded in the settings): the loader's drives are exact against it. SAPIEN's actuators
+are enabled for the tier (`result.disable_actuators(False)`) and disabled again after, and the state is put back
+at the start; contacts stay off after `actuated`, as after `dynamics`.
 Deviations from the held ctrl shrink by halves until no force-limited actuator saturates in MuJoCo (PhysX clamps
-the whole drive, MuJoCo the actuator force: saturation is a known gap, noted when it cannot be avoided)."""
+the whole drive, MuJoCo the actuator force) and, contact-free, no joint reaches a limit (soft in MuJoCo, hard in
+PhysX); what scaling cannot avoid is noted as a known gap.
+A model with an unmapped actuator is skipped with its name, unless the manifest sets
+`actuated.unmapped = "remove"`: then the unmapped actuators get zero gain and bias in MuJoCo too (noted), as
+they apply nothing in SAPIEN."""
 
 from __future__ import annotations
 
@@ -27,19 +32,37 @@ from .contact import floating_roots, settled
 from .dynamics import disable_contacts, is_floating, settings_mismatches
 
 
-def unmapped_reason(result, model: mujoco.MjModel, tier: str) -> TierReport | None:
-    """A skip report when the tier has nothing to judge or an actuator is not mapped, else None."""
+def unmapped(result) -> list[int]:
+    """Indices of the actuators the loader did not map."""
+    return [a for a, actuator in enumerate(result.actuators) if not actuator.mapped]
+
+
+def unmapped_reason(result, model: mujoco.MjModel, tier: str, tolerances: Tolerances) -> TierReport | None:
+    """A skip report when the tier has nothing to judge, or when an actuator is not mapped and the manifest
+    does not ask (setting `actuated.unmapped = "remove"`) to take the unmapped ones out of MuJoCo too."""
     if model.nv == 0:
         return skipped(tier, "the model has no degrees of freedom")
     if model.nu == 0:
         return skipped(tier, "the model has no actuators")
     if model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION):
         return skipped(tier, "the model disables actuation (<flag actuation='disable'/>)")
-    unmapped = [a.name for a in result.actuators if not a.mapped]
-    if unmapped:
-        return skipped(tier, f"{len(unmapped)} of {model.nu} actuators not mapped by the loader: "
-                             + ", ".join(unmapped))
+    names = [result.actuators[a].name for a in unmapped(result)]
+    if names and tolerances.setting("actuated", "unmapped") != "remove":
+        return skipped(tier, f"{len(names)} of {model.nu} actuators not mapped by the loader: " + ", ".join(names))
     return None
+
+
+def reference_model(result, model: mujoco.MjModel, contact: bool) -> tuple[mujoco.MjModel, dict, list[str]]:
+    """MuJoCo's copy with actuation on; unmapped actuators (only when the manifest asks) get zero gain and bias,
+    so that they apply no force in MuJoCo either. Returns the copy, its settings and notes."""
+    ref, matched = reference.matched(model, contact=contact, actuation=True)
+    removed = unmapped(result)
+    for a in removed:
+        ref.actuator_gainprm[a] = 0.0
+        ref.actuator_biasprm[a] = 0.0
+    notes = ["unmapped actuators taken out of MuJoCo as well (manifest setting): "
+             + ", ".join(result.actuators[a].name for a in removed)] if removed else []
+    return ref, {**matched, "actuators_removed": [result.actuators[a].name for a in removed]}, notes
 
 
 @contextmanager
@@ -71,6 +94,9 @@ class ForceLaw:
         self.length = np.zeros((model.nu, model.nq))  # actuator length = length @ qpos
         self.speed = np.zeros((model.nu, model.nv))
         for a, actuator in enumerate(result.actuators):
+            if not actuator.mapped:  # SAPIEN applies nothing for it
+                self.gain[a], self.bias[a] = 0.0, 0.0
+                continue
             if actuator.joint is not None:
                 joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, actuator.joint)
                 terms = [(joint, 1.0)] if joint >= 0 else []
@@ -183,10 +209,10 @@ def _ctrl_notes(scale: float, left: dict[str, int], steps: int, smooth: bool = T
 
 
 def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    skip = unmapped_reason(result, model, "actuated")
+    skip = unmapped_reason(result, model, "actuated", tolerances)
     if skip is not None:
         return skip
-    ref, matched = reference.matched(model, contact=False, actuation=True)
+    ref, matched, removal = reference_model(result, model, contact=False)
     kind = "floating" if is_floating(model) else "fixed"
     dt = ref.opt.timestep
     steps = tolerances.horizon_steps("actuated", dt)
@@ -206,7 +232,7 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
         metric("rollout_qpos", err[: gate.judged_steps + 1], tolerances[f"actuated.rollout_qpos_{kind}"],
                "rad or m"),
     ]
-    notes = list(mismatched) + _ctrl_notes(scale, left, steps)
+    notes = removal + list(mismatched) + _ctrl_notes(scale, left, steps)
     if gate.chaotic:
         notes.append(f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
                      f"{gate.judged_steps} of {steps}; the rollout is judged on the first {gate.judged_steps} steps")
@@ -227,14 +253,14 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
 
 
 def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    skip = unmapped_reason(result, model, "actuated_contact")
+    skip = unmapped_reason(result, model, "actuated_contact", tolerances)
     if skip is not None:
         return skip
     if reference.contacts_disabled(model):
         return skipped("actuated_contact", "the model disables contact (contact or constraint flag)")
     if not sapien_side.contacts_enabled(result):
         return skipped("actuated_contact", "the SAPIEN scene has its contacts turned off (run before dynamics)")
-    ref, matched = reference.matched(model, contact=True, actuation=True)
+    ref, matched, removal = reference_model(result, model, contact=True)
     dt = ref.opt.timestep
     steps = tolerances.horizon_steps("actuated_contact", dt)
     qpos0, qvel0, start = reference.initial_state(model)
@@ -254,7 +280,7 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
         metric("rest_height", np.abs(sp_final[roots, 2] - mj_final[roots, 2]),
                tolerances["actuated_contact.rest_height"], "m"),
     ]
-    notes = _ctrl_notes(scale, left, steps, smooth=False)
+    notes = removal + _ctrl_notes(scale, left, steps, smooth=False)
     limit = tolerances.setting("contact", "spread_fraction") * tolerances["actuated_contact.final_pose_band"]
     chaotic = bool(spread.size and spread.max() > limit)
     if chaotic:
