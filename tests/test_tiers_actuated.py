@@ -233,3 +233,20 @@ def test_the_manifest_can_take_unmapped_actuators_out_of_both_sides(tmp_path):
     assert report.settings["actuators_removed"] == ["filtered"] and "filtered" in report.notes[0]
     assert np.all(report.actuators.mujoco_force[:, 1] == 0) and np.all(report.actuators.sapien_force[:, 1] == 0)
     assert TIERS["actuated"](session.result, session.model, 0, TOL).status == "skipped"  # the default
+
+
+def test_an_inverted_equality_coupling_stands_far_above_the_soft_equality_gap(tmp_path):
+    """The loader's equality fixture (follower = 2 x driver) fails the tier even when correct: MuJoCo's equality
+    is soft, PhysX's tendon spring is not the same law (one-step qvel 1.3e-3, rollout 7.9e-5, as the panda's finger
+    in the manifest). Inverting the ratio in SAPIEN's copy must still stand out by two orders of magnitude."""
+    fixture = Path(__file__).resolve().parent / "fixtures" / "coupled_joints.xml"
+    text = fixture.read_text()
+    edit = ('polycoef="0 2 0 0 0"', 'polycoef="0 0.5 0 0 0"')
+    assert edit[0] in text
+    clean = _tier(_session(fixture), "actuated")
+    mutated = _tier(_session(_write(tmp_path, text.replace(*edit), "inverted.xml")), "actuated",
+                    model=_session(fixture).model)
+    for name in ("one_step_qvel", "rollout_qpos"):
+        before = next(m.max for m in clean.metrics if m.name == name)
+        after = next(m.max for m in mutated.metrics if m.name == name)
+        assert after > 50 * before, (name, before, after)
