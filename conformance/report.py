@@ -69,10 +69,12 @@ class Trace:
 class ActuatorTrace:
     """Per-actuator series of an actuated rollout (T steps): the ctrl both sides received (after MuJoCo's
     ctrlrange clamp) and each side's actuator-space force at that step. MuJoCo: `data.actuator_force`. SAPIEN: the
-    loader's force law gain*ctrl + b0 + b1*length + b2*velocity (for a joint actuator equal to
-    (gear*(gain*ctrl + b0) - stiffness*q - damping*qdot) / gear with the loader's drive gains) evaluated on the
-    state read back from SAPIEN before the step, clamped to forcerange; PhysX applies it implicitly (through the
-    drive, with the velocity after the step), as MuJoCo's implicitfast does."""
+    force law gain*ctrl + b0 + b1*length + b2*velocity, with the loaded model's gain and bias and the loader's
+    gear and tendon coefficients (`result.actuators`), evaluated on the state read back from SAPIEN before the
+    step and clamped to forcerange; for a joint actuator that is (gear*(gain*ctrl + b0) - stiffness*q -
+    damping*qdot) / gear with the ActuatorMap's stiffness = -b1*gear^2 and damping = -b2*gear^2. It is not read
+    back from PhysX: PhysX applies the drive implicitly (with the velocity after the step), as MuJoCo's
+    implicitfast does for kv."""
 
     names: list[str]
     time: np.ndarray  # (T,)

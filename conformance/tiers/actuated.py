@@ -25,6 +25,8 @@ from contextlib import contextmanager
 import mujoco
 import numpy as np
 
+from loader.tendon import fixed_tendon_terms
+
 from .. import chaos, commands, reference, sapien_side
 from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped
 from ..tolerances import Tolerances
@@ -101,8 +103,6 @@ class ForceLaw:
                 joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, actuator.joint)
                 terms = [(joint, 1.0)] if joint >= 0 else []
             elif actuator.tendon is not None:
-                from loader.tendon import fixed_tendon_terms
-
                 terms = fixed_tendon_terms(model, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON,
                                                                     actuator.tendon))
             else:
