@@ -39,8 +39,16 @@ class ActuatorMap:
     forcerange: tuple[float, float] | None
     stiffness: float = 0.0
     damping: float = 0.0
+    # MuJoCo's force law in actuator space: gain * ctrl + bias[0] + bias[1] * length + bias[2] * velocity
+    gain: float = 0.0
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
     mapped: bool = True
     reason: str = ""
+
+    def force(self, ctrl: float, length: float, velocity: float) -> float:
+        """The actuator force (before gear) this mapping applies, clamped to forcerange."""
+        force = self.gain * ctrl + self.bias[0] + self.bias[1] * length + self.bias[2] * velocity
+        return float(np.clip(force, *self.forcerange)) if self.forcerange is not None else float(force)
 
 
 def _kind(model: mujoco.MjModel, a: int) -> str:
@@ -77,19 +85,16 @@ class Actuation:
         for a, actuator in enumerate(self.actuators):
             if not actuator.mapped or not self.enabled:
                 continue
-            gain, bias = model.actuator_gainprm[a][0], model.actuator_biasprm[a]
             if actuator.joint is not None:
                 key = (actuator.articulation, actuator.dofs[0])
-                constants[key] += actuator.gear * (gain * ctrl[a] + bias[0])
+                constants[key] += actuator.gear * (actuator.gain * ctrl[a] + actuator.bias[0])
                 continue
             q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
             v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
             terms = self.tendon_terms[a]
-            length = sum(c * q[art][dof] for art, dof, c in terms)
-            speed = sum(c * v[art][dof] for art, dof, c in terms)
-            force = gain * ctrl[a] + bias[0] + bias[1] * actuator.gear * length + bias[2] * actuator.gear * speed
-            if model.actuator_forcelimited[a]:
-                force = np.clip(force, *model.actuator_forcerange[a])
+            length = actuator.gear * sum(c * q[art][dof] for art, dof, c in terms)
+            speed = actuator.gear * sum(c * v[art][dof] for art, dof, c in terms)
+            force = actuator.force(ctrl[a], length, speed)
             for art, dof, c in terms:
                 forces[art][dof] += actuator.gear * c * force
         timestep = float(model.opt.timestep)
@@ -153,6 +158,8 @@ def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
             int(BIAS.mjBIAS_NONE), int(BIAS.mjBIAS_AFFINE)):
         return ActuatorMap(**base, mapped=False, reason="gain or bias is not affine (muscle or user)")
     bias = model.actuator_biasprm[a] if int(model.actuator_biastype[a]) == int(BIAS.mjBIAS_AFFINE) else np.zeros(3)
+    base["gain"] = float(model.actuator_gainprm[a][0])
+    base["bias"] = (float(bias[0]), float(bias[1]), float(bias[2]))
     if trn == int(TRN.mjTRN_JOINT):
         joint = mapping.joints[target]
         if joint.kind not in ("hinge", "slide"):

@@ -114,6 +114,7 @@ class MJCFArticulationBuilder(ArticulationBuilder):
         self.floating = False
         self.name = ""
         self.timestep = 0.002  # the model's, set by the loader: drives compensate MuJoCo's explicit terms
+        self.solver_iterations: tuple[int, int] | None = None  # (position, velocity); None keeps PhysX's
 
     def create_link_builder(self, parent: MJCFLinkBuilder | None = None) -> MJCFLinkBuilder:
         if self.link_builders:
@@ -133,4 +134,6 @@ class MJCFArticulationBuilder(ArticulationBuilder):
         articulation = super().build(fix_root_link=fix_root_link, build_mimic_joints=build_mimic_joints)
         articulation.name = self.name
         physx.apply_articulation_settings(articulation, [b.plan for b in self.link_builders], self.timestep)
+        if self.solver_iterations is not None:
+            articulation.solver_position_iterations, articulation.solver_velocity_iterations = self.solver_iterations
         return articulation

@@ -106,6 +106,9 @@ class MJCFLoader:
     `ignore_classes`: geoms whose default class is listed are skipped entirely (ManiSkill's default: "motor").
     `visual_groups`: geom groups that become visual shapes where a render device exists (ManiSkill's: 0 and 2).
     `fix_root_link`: trees whose root has no free joint are fixed to the world (a free joint always floats).
+    `solver_iterations`: (position, velocity) PhysX solver iterations per articulation; None keeps SAPIEN's
+    (10, 1), which leaves strongly coupled drives unconverged (measured on dm_control finger: 9e-5 rad/s
+    one-step error at 10, 2.4e-7 at 50) at a 1.5-3x lower step rate for 50.
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -113,6 +116,7 @@ class MJCFLoader:
         self.visual_groups = list(visual_groups if visual_groups is not None else [0, 2])
         self.scene: sapien.Scene | None = None
         self.fix_root_link = True
+        self.solver_iterations: tuple[int, int] | None = None
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -187,6 +191,7 @@ class MJCFLoader:
             builder.floating = art.floating
             builder.name = art.name
             builder.timestep = float(model.opt.timestep)
+            builder.solver_iterations = self.solver_iterations
             link_builders = []
             for link in art.links:
                 lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)

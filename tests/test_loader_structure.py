@@ -117,3 +117,13 @@ def test_included_robot_with_frame_and_replicate_arrives_whole(load, rng):
     assert model.nbody == 5 and model.njnt == 4  # world, base, three replicated segments
     assert [art.dof for art in result.articulations] == [4]
     assert max(link_pose_errors(result, rng, random_configurations=10)) < POSE_TOLERANCE
+
+
+def test_solver_iterations_reach_every_articulation():
+    loader = MJCFLoader()
+    loader.solver_iterations = (50, 4)
+    result = loader.load(suite_path("finger"))
+    assert [(a.solver_position_iterations, a.solver_velocity_iterations) for a in result.articulations] == [
+        (50, 4)] * len(result.articulations)
+    default = MJCFLoader().load(suite_path("finger"))
+    assert all(a.solver_position_iterations == 10 for a in default.articulations)
