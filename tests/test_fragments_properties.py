@@ -35,6 +35,7 @@ def test_generated_documents_conform_to_mujoco():
     assert delta.get("rejected by MuJoCo", 0) >= 10, delta  # error parity on what the generator gets wrong
     for tier in ("structure", "kinematics", "inertia", "collision", "dynamics"):
         assert delta.get(f"tier {tier} pass", 0) >= 20, (tier, delta)
+    assert delta.get("tier actuated pass", 0) >= 5, delta  # the same ctrl on both sides
     assert delta.get("actuators checked", 0) >= 10, delta
     assert delta.get("drive gains checked (dofs)", 0) >= 50, delta
 

@@ -27,7 +27,10 @@ from .known_bugs import known_bug
 
 STATIC_TIERS = ("structure", "kinematics", "inertia", "collision")
 # A short contact-free run is enough to see joint damping/armature/inertia mistakes in the one-step error.
-DYNAMICS_SETTINGS = {"dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2}}
+DYNAMICS_SETTINGS = {"dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2},
+                     "actuated": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2}}
+# Contact-free rollouts, with MuJoCo as the reference: passive (generalized forces) and under the same ctrl.
+DYNAMIC_TIERS = ("actuated", "dynamics")
 # Loader notes about joints change joint dynamics (frictionloss dropped, springs implicit, ball damping per
 # angle): the dynamics tier is skipped (and counted) on documents that carry one.
 DYNAMICS_NOTE_KINDS = ("joint",)
@@ -112,15 +115,20 @@ def limit_reached(model: mujoco.MjModel, steps: int) -> bool:
     return False
 
 
-def mujoco_unstable(model: mujoco.MjModel, steps: int) -> bool:
-    """MuJoCo itself blows up (bad qacc) within the dynamics horizon under zero command: nothing to compare."""
+def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
+    """Why MuJoCo's own dynamics are no reference (None when they are): a singular joint-space inertia (two
+    hinges on one axis: only their sum is determined), or a blow-up (bad qacc) within the horizon."""
     from ..reference import matched
 
     ref, _ = matched(model, contact=False)
     data = mujoco.MjData(ref)
     for _ in range(steps):
         mujoco.mj_step(ref, data)
-    return bool(data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number) or not np.all(np.isfinite(data.qpos))
+    if data.warning[int(mujoco.mjtWarning.mjWARN_INERTIA)].number:
+        return "MuJoCo's joint-space inertia is singular (mjWARN_INERTIA)"
+    if data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number or not np.all(np.isfinite(data.qpos)):
+        return "MuJoCo itself is unstable on the model (bad qacc)"
+    return None
 
 
 def compile_with_mujoco(path: Path) -> tuple[mujoco.MjModel | None, str | None]:
@@ -188,11 +196,11 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
         joint_notes = [e for e in [*result.unsupported, *result.approximations] if e.kind in DYNAMICS_NOTE_KINDS
                        and not _about_limits(e)]
         if joint_notes:
-            skipped.append(f"dynamics: loader notes on joints ({_reason(joint_notes[0])})")
-        elif model.nv and mujoco_unstable(model, tol.horizon_steps("dynamics", model.opt.timestep)):
-            skipped.append("dynamics: MuJoCo itself is unstable on the model (bad qacc)")
+            skipped.append(f"dynamics and actuated: loader notes on joints ({_reason(joint_notes[0])})")
+        elif model.nv and (ill := mujoco_ill_posed(model, tol.horizon_steps("dynamics", model.opt.timestep))):
+            skipped.append(f"dynamics and actuated: {ill}")
         else:
-            names.append("dynamics")
+            names += [tier for tier in DYNAMIC_TIERS if tier in TIERS]
     for name in names:
         try:
             report = TIERS[name](result, model, seed, tol)
@@ -208,7 +216,7 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
                 excused.append(f"{name}: " + "; ".join(report.notes))
             elif bug is not None:
                 excused.append(f"{name}: known bug {bug}")
-            elif name == "dynamics" and any(_about_limits(e) for e in result.approximations + result.unsupported) \
+            elif name in DYNAMIC_TIERS and any(_about_limits(e) for e in result.approximations + result.unsupported) \
                     and limit_reached(model, tol.horizon_steps("dynamics", model.opt.timestep)):
                 excused.append(f"{name}: joint limits the loader lists as approximated (hard vs soft) are reached")
             else:

@@ -150,8 +150,10 @@ def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
                               else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}")
     limited = ["true", "false", "auto"] if "range" in attrs else ["false", "auto"]
     _optional(draw, attrs, "limited", st.sampled_from(limited), p=draw(st.integers(0, 3)) == 3)
-    _optional(draw, attrs, "damping", _dec(0, 20, 0.05))
-    _optional(draw, attrs, "armature", _dec(0, 20, 0.01))
+    # elements write damping/armature less often than classes: most values then come from a default class
+    sparse = None if in_default else draw(st.integers(0, 3)) == 3
+    _optional(draw, attrs, "damping", _dec(0, 20, 0.05), p=sparse)
+    _optional(draw, attrs, "armature", _dec(0, 20, 0.01), p=sparse)
     _optional(draw, attrs, "ref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
     _optional(draw, attrs, "stiffness", _dec(0, 20, 0.5), p=draw(st.integers(0, 3)) == 3)
     _optional(draw, attrs, "springref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
@@ -327,8 +329,8 @@ def documents(draw, max_bodies: int = 3) -> Document:
              for _ in range(draw(st.integers(0, 2)))]
     bodies = [draw(body_tree(ctx, 0, True)) for _ in range(draw(st.integers(1, max_bodies)))]
     actuators = []
-    if ctx.joints and draw(st.booleans()):
-        for _ in range(draw(st.integers(1, 3))):
+    if ctx.joints:
+        for _ in range(draw(st.integers(0, 3))):
             tag = draw(st.sampled_from(SHORTCUTS))
             attrs = {"name": ctx.name("a"), "joint": draw(st.sampled_from(ctx.joints))}
             if ctx.classes and draw(st.booleans()):
