@@ -1,8 +1,10 @@
 """Properties of a loader on one MJCF document, with MuJoCo as the oracle.
 
-- MuJoCo compiles it: the loader loads it, and the harness's own tiers (structure, kinematics, inertia,
-  collision, and a short contact-free dynamics run) pass. Failures confined to elements the loader itself
-  lists in `result.unsupported` / `result.approximations` are excused, and every excuse and skip is counted.
+- MuJoCo compiles it: the loader loads it; its actuators and joint drives hold the gains MuJoCo compiled
+  (`actuators.py`); and the harness's own tiers pass (structure, kinematics, inertia, collision, and short
+  contact-free `actuated` and `dynamics` runs). Failures confined to elements the loader itself lists in
+  `result.unsupported` / `result.approximations`, or explained by an open bug on record (`known_bugs.py`), are
+  excused; every excuse and skip is counted in `TALLY`.
 - MuJoCo rejects it: the loader raises `MJCFError` carrying MuJoCo's message (`MissingAssetError` for a missing
   file), never another exception, and never a model.
 """
@@ -31,8 +33,9 @@ DYNAMICS_SETTINGS = {"dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_
                      "actuated": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2}}
 # Contact-free rollouts, with MuJoCo as the reference: passive (generalized forces) and under the same ctrl.
 DYNAMIC_TIERS = ("actuated", "dynamics")
-# Loader notes about joints change joint dynamics (frictionloss dropped, springs implicit, ball damping per
-# angle): the dynamics tier is skipped (and counted) on documents that carry one.
+# Loader notes about joints change joint dynamics (frictionloss dropped, springs implicit, ball joints as Euler
+# angles): the dynamic tiers are skipped (and counted) on documents that carry one. Notes on joint limits are
+# not (limits matter only once reached; a failure then is excused when MuJoCo reaches one).
 DYNAMICS_NOTE_KINDS = ("joint",)
 
 
@@ -42,6 +45,13 @@ DYNAMICS_NOTE_KINDS = ("joint",)
 FLOAT32_RELATIVE = 1e-6
 EXTENT_SCALED = ("kinematics.position", "inertia.com", "collision.position", "structure.anchor",
                  "dynamics.one_step_qpos_fixed", "dynamics.one_step_qpos_floating")  # slide q of 21 m: float32
+# Likewise the one-step acceleration tolerances are absolute, measured where accelerations are tens of rad/s^2;
+# a 0.1 kg sphere on two hinges accelerates at 1100 rad/s^2 and float32 alone gives 2e-6 of that. 1e-5 of the
+# largest acceleration MuJoCo computes at the start (and that times dt for velocities) is the floor here.
+ACCEL_RELATIVE = 1e-5
+ACCEL_SCALED = ("dynamics.one_step_qacc_fixed", "dynamics.one_step_qacc_floating")
+VELOCITY_SCALED = ("dynamics.one_step_qvel_fixed", "dynamics.one_step_qvel_floating",
+                   "actuated.one_step_qvel_fixed", "actuated.one_step_qvel_floating")
 _FREE_SPAN = 0.5  # m: how far the kinematics tier moves a free joint (conformance.sampling)
 _SLIDE_SPAN = 0.2  # m: its span for an unlimited slide
 
@@ -92,12 +102,33 @@ def extent(model: mujoco.MjModel) -> float:
     return reach
 
 
+def start_acceleration(model: mujoco.MjModel) -> float:
+    """Largest |qacc| MuJoCo computes at the tiers' initial state (contact-free reference), 0 without DoF."""
+    if model.nv == 0:
+        return 0.0
+    from ..reference import initial_state, matched
+
+    ref, _ = matched(model, contact=False)
+    data = mujoco.MjData(ref)
+    data.qpos[:], data.qvel[:], _ = initial_state(model)
+    mujoco.mj_forward(ref, data)
+    qacc = np.abs(data.qacc)
+    return float(qacc.max()) if np.all(np.isfinite(qacc)) else 0.0
+
+
 def scaled_tolerances(model: mujoco.MjModel, base: Tolerances | None = None) -> Tolerances:
-    """`base` with the absolute position tolerances raised to FLOAT32_RELATIVE times the model's extent."""
+    """`base` with absolute tolerances raised to what float32 allows on this model: positions to
+    FLOAT32_RELATIVE times its extent, one-step accelerations (velocities) to ACCEL_RELATIVE times its largest
+    start acceleration (times dt)."""
     base = base or tolerances()
     reach = extent(model)
-    raised = {key: FLOAT32_RELATIVE * reach for key in EXTENT_SCALED if FLOAT32_RELATIVE * reach > base[key]}
-    return base.with_overrides(raised, why=f"float32 poses over a {reach:.3g} m extent") if raised else base
+    accel = ACCEL_RELATIVE * start_acceleration(model)
+    floors = {**{key: FLOAT32_RELATIVE * reach for key in EXTENT_SCALED},
+              **{key: accel for key in ACCEL_SCALED},
+              **{key: accel * float(model.opt.timestep) for key in VELOCITY_SCALED}}
+    raised = {key: value for key, value in floors.items() if key in base.entries and value > base[key]}
+    why = f"float32 over a {reach:.3g} m extent and {accel / ACCEL_RELATIVE:.3g} rad/s^2 accelerations"
+    return base.with_overrides(raised, why=why) if raised else base
 
 
 def limit_reached(model: mujoco.MjModel, steps: int) -> bool:
