@@ -71,6 +71,7 @@ class Actuation:
     passive: dict[tuple[int, int], DofDrive] = field(default_factory=dict)  # the same without actuators
     tendon_terms: dict[int, list[tuple[int, int, float]]] = field(default_factory=dict)  # actuator -> (a, dof, coef)
     enabled: bool = True
+    limited: list[str] = field(default_factory=list)  # joint actuators whose forcerange is a drive force limit
 
     def set_ctrl(self, articulations, ctrl) -> None:
         model = self.model
@@ -133,6 +134,10 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         else:
             notes.approximate("actuator", entry.name, "tendon actuator force evaluated from the state at "
                               "set_ctrl (explicit)")
+    for name in actuation.limited:
+        notes.approximate("actuator", name, "forcerange as the PhysX drive's force limit: PhysX clamps the implicit "
+                          "drive force, which can bind before MuJoCo's actuator force reaches the range (measured "
+                          "1e-5 rad in 10 steps) and also clamps the joint's passive spring-damper")
     for key, dof_drive in actuation.drives.items():
         if not dof_drive.exact(float(model.opt.timestep)):
             notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
@@ -171,6 +176,7 @@ def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
         dof_drive.damping += damping
         if forcerange is not None:
             dof_drive.force_limit = min(dof_drive.force_limit, abs(gear) * max(abs(x) for x in forcerange))
+            actuation.limited.append(name)
         base.update(joint=model.joint(target).name or f"joint{target}", articulation=joint.articulation,
                     dofs=joint.dofs)
         return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping))
