@@ -27,24 +27,25 @@ def _force_limited_actuator(result, model: mujoco.MjModel) -> bool:
                enumerate(getattr(result, "actuators", [])))
 
 
-LIGHT_DOF = 1e-4  # kg m^2: joint-space inertia below which one-step accelerations were seen 0.1-0.3 % off
+ILL_CONDITIONED = 50.0  # condition number of MuJoCo's joint-space inertia at qpos0 beyond which one-step
+# accelerations were seen 0.1-0.3 % off (fuzz finds at 128, 335 and 363; 70 agreed to 2e-6)
 
 
-def _light_dof(result, model: mujoco.MjModel) -> bool:
-    if model.nv == 0:
+def _ill_conditioned(result, model: mujoco.MjModel) -> bool:
+    if model.nv < 2:
         return False
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
-    return bool(np.diag(full).min() < LIGHT_DOF)
+    return bool(np.linalg.cond(full) > ILL_CONDITIONED)
 
 
 # fixed in the loader: free_joint_class_damping_armature.xml (now listed as unsupported) and
 # zero_dof_tree_child_pose.xml (set_state updates joint-less trees); their files stay as regressions
 KNOWN_BUGS: list[KnownBug] = [
     KnownBug("velocity_actuator_unreached_forcerange.xml", ("actuated",), _force_limited_actuator),
-    KnownBug("light_dof_two_hinges.xml", ("dynamics", "actuated"), _light_dof),
+    KnownBug("ill_conditioned_two_hinges.xml", ("dynamics", "actuated"), _ill_conditioned),
 ]
 
 
