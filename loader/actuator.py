@@ -26,7 +26,9 @@ TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtB
 
 @dataclass(frozen=True)
 class ActuatorMap:
-    """One MuJoCo actuator in SAPIEN. `stiffness`/`damping` are its joint-space PhysX drive gains."""
+    """One MuJoCo actuator in SAPIEN. `stiffness` / `damping` are the joint-space gains it adds (gear² kp and
+    gear² kv, MuJoCo's terms); the PhysX drive of a DoF sums them with the joint's passive terms and takes
+    damping - stiffness x timestep as its damping (`drive.py`)."""
 
     name: str
     kind: str  # "motor", "position", "velocity", "general"
