@@ -37,7 +37,9 @@ def dof_inertia(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
-    return 1.0 / np.diag(np.linalg.inv(full))
+    # the pseudo-inverse: redundant DoFs (two hinges on one axis) make M singular, and MuJoCo accepts them
+    compliance = np.diag(np.linalg.pinv(full))
+    return 1.0 / np.maximum(compliance, np.finfo(float).tiny)
 
 
 def smooth_signal(gen: np.random.Generator, steps: int, dt: float, channels: int,
