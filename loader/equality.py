@@ -114,20 +114,16 @@ def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
         reason = "couples joints of two articulations"
         notes.drop("equality", name, reason)
         return EqualityLink(name, "", False, reason)
-    offset = float(c0)
+    # MuJoCo couples displacements from qpos0 (tendon_length0): y - y0 = c0 + c1 (x - x0), x absent for one object
     if etype == int(EQ.mjEQ_JOINT):
-        # MuJoCo's joint equality is about q - qpos0 of each joint when both are given: fold the offsets in
-        j1 = objects[0]
-        q1 = model.qpos0[model.jnt_qposadr[j1]]
-        q2 = model.qpos0[model.jnt_qposadr[objects[1]]] if len(objects) > 1 else 0.0
-        offset = float(c0) + q1 - float(c1) * q2 if len(objects) > 1 else float(c0)
+        reference = [float(model.qpos0[model.jnt_qposadr[obj]]) for obj in objects]
     else:
-        offset = float(c0) + float(model.tendon_length0[objects[0]]) - float(c1) * (
-            float(model.tendon_length0[objects[1]]) if len(objects) > 1 else 0.0)
+        reference = [float(model.tendon_length0[obj]) for obj in objects]
+    offset = float(c0) + reference[0] - (float(c1) * reference[1] if len(objects) > 1 else 0.0)
+    mujoco_dof = {target: i for i, target in enumerate(mapping.dofs)}
     jacobian = np.zeros(model.nv)
-    for (a, dof), coefficient in terms.items():
-        mujoco_dof = next(i for i, (aa, dd) in enumerate(mapping.dofs) if aa == a and dd == dof)
-        jacobian[mujoco_dof] = coefficient
+    for key, coefficient in terms.items():
+        jacobian[mujoco_dof[key]] = coefficient
     stiffness, damping = soft_gains(model, e, jacobian)
     articulation = next(iter(terms))[0]
     create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in terms.items()}, offset,

@@ -156,3 +156,17 @@ def test_every_menagerie_actuator_is_mapped_or_listed_with_its_reason(relative):
     dropped = {e.name: e.reason for e in result.unsupported if e.kind == "actuator"}
     for actuator in result.actuators:
         assert actuator.mapped or dropped[actuator.name] == actuator.reason
+
+
+def test_single_joint_equality_holds_the_joint_at_qpos0_plus_c0(tmp_path):
+    """MuJoCo's joint equality couples displacements from qpos0: alone, it holds q at qpos0 + c0 (ref = 30 deg)."""
+    (tmp_path / "held.xml").write_text(
+        '<mujoco><compiler angle="degree"/><option gravity="0 0 0"/><worldbody><body>'
+        '<joint name="a" axis="0 0 1" ref="30"/><geom size=".1" pos=".2 0 0"/></body></worldbody>'
+        '<equality><joint joint1="a" polycoef="0.2 0 0 0 0"/></equality></mujoco>'
+    )
+    result, model = _contact_free(tmp_path / "held.xml")
+    for _ in range(2000):
+        result.scene.step()
+    qpos, _ = result.mapping.get_state(result.articulations)
+    assert qpos[0] == pytest.approx(model.qpos0[0] + 0.2, abs=1e-3)
