@@ -85,6 +85,9 @@ class Actuation:
         drives = self.drives if self.enabled else self.passive
         constants = {key: d.constant for key, d in drives.items()}
         forces = [np.zeros(art.dof) for art in articulations]
+        if self.enabled and self.tendon_terms:  # tendon actuators read the state once per call
+            q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
+            v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         for a, actuator in enumerate(self.actuators):
             if not actuator.mapped or not self.enabled:
                 continue
@@ -92,8 +95,6 @@ class Actuation:
                 key = (actuator.articulation, actuator.dofs[0])
                 constants[key] += actuator.gear * (actuator.gain * ctrl[a] + actuator.bias[0])
                 continue
-            q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
-            v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
             terms = self.tendon_terms[a]
             length = actuator.gear * sum(c * q[art][dof] for art, dof, c in terms)
             speed = actuator.gear * sum(c * v[art][dof] for art, dof, c in terms)

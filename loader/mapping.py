@@ -15,7 +15,7 @@ import numpy as np
 import sapien
 
 from .frames import euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
-from .joint import BALL, FREE, KIND
+from .joint import BALL, FREE
 
 
 @dataclass(frozen=True)
@@ -158,6 +158,3 @@ class Mapping:
                 out[a][target.dofs[0]] = qfrc[dof]
         return out
 
-
-def joint_kind(model: mujoco.MjModel, j: int) -> str:
-    return KIND[int(model.jnt_type[j])]
