@@ -26,6 +26,7 @@ from .features import find_unmapped
 from .geom import collides, plan_shape
 from .joint import FREE, KIND
 from .mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .solver import tune_iterations
 from .tendon import map_tendons
 from .texture import MJCFTexture, textures
 from .tree import TreePlan, plan_tree
@@ -106,9 +107,9 @@ class MJCFLoader:
     `ignore_classes`: geoms whose default class is listed are skipped entirely (ManiSkill's default: "motor").
     `visual_groups`: geom groups that become visual shapes where a render device exists (ManiSkill's: 0 and 2).
     `fix_root_link`: trees whose root has no free joint are fixed to the world (a free joint always floats).
-    `solver_iterations`: (position, velocity) PhysX solver iterations per articulation; None keeps SAPIEN's
-    (10, 1), which leaves strongly coupled drives unconverged (measured on dm_control finger: 9e-5 rad/s
-    one-step error at 10, 2.4e-7 at 50) at a 1.5-3x lower step rate for 50.
+    `solver_iterations`: "auto" (default) raises an articulation's PhysX position iterations until its joint
+    drives converge (`solver.py`: dm_control finger gets 20, where SAPIEN's 10 leave a 9e-5 rad/s one-step
+    error); a (position, velocity) pair sets them; None keeps SAPIEN's (10, 1).
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -116,7 +117,7 @@ class MJCFLoader:
         self.visual_groups = list(visual_groups if visual_groups is not None else [0, 2])
         self.scene: sapien.Scene | None = None
         self.fix_root_link = True
-        self.solver_iterations: tuple[int, int] | None = None
+        self.solver_iterations: tuple[int, int] | str | None = "auto"
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -138,6 +139,8 @@ class MJCFLoader:
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
         mapping = _mapping(model, parsed, articulations)
         actuation = plan_actuation(model, mapping, parsed.notes)
+        if self.solver_iterations == "auto":
+            tune_iterations(articulations, model, actuation, mapping, parsed.notes)
         equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
         map_tendons(model, articulations, mapping, parsed.notes)
         result = LoadResult(
@@ -191,7 +194,7 @@ class MJCFLoader:
             builder.floating = art.floating
             builder.name = art.name
             builder.timestep = float(model.opt.timestep)
-            builder.solver_iterations = self.solver_iterations
+            builder.solver_iterations = None if self.solver_iterations == "auto" else self.solver_iterations
             link_builders = []
             for link in art.links:
                 lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)
