@@ -31,19 +31,24 @@ def _raise_for(path: Path, error: Exception) -> None:
     raise MJCFError(path, message, hint="correct the element MuJoCo names; the loader accepts what MuJoCo compiles") from None
 
 
-def compile_mjcf(mjcf_file: str | os.PathLike, package_dir: str | os.PathLike | None = None) -> CompiledModel:
-    """Parse and compile `mjcf_file` with MuJoCo.
+def compile_mjcf(mjcf_file: str | os.PathLike | mujoco.MjSpec,
+                 package_dir: str | os.PathLike | None = None) -> CompiledModel:
+    """Parse and compile `mjcf_file` with MuJoCo; an `MjSpec` (built or edited in Python) is compiled as it is.
 
     `package_dir`, when given, is where relative mesh and texture directories are looked up instead of the
     document's own folder.
     """
-    path = Path(mjcf_file)
-    if not path.is_file():
-        raise MJCFError(path, f"no such file: {path}", hint="pass the path of an MJCF .xml file")
-    try:
-        spec = mujoco.MjSpec.from_file(str(path))
-    except ValueError as error:
-        _raise_for(path, error)
+    if isinstance(mjcf_file, mujoco.MjSpec):
+        spec = mjcf_file
+        path = Path(spec.modelfiledir or ".") / f"{spec.modelname or 'spec'}.xml"
+    else:
+        path = Path(mjcf_file)
+        if not path.is_file():
+            raise MJCFError(path, f"no such file: {path}", hint="pass the path of an MJCF .xml file or an MjSpec")
+        try:
+            spec = mujoco.MjSpec.from_file(str(path))
+        except ValueError as error:
+            _raise_for(path, error)
     if package_dir is not None:
         for attribute in ("meshdir", "texturedir"):
             current = getattr(spec, attribute) or ""

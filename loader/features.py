@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import mujoco
+import numpy as np
 
 from .contact import contacts_disabled
 from .errors import Notes
@@ -27,9 +28,22 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
                               "mocap body loaded as a fixed link at its initial pose")
     if model.opt.density > 0 or model.opt.viscosity > 0:
         notes.drop("option", "density/viscosity", "fluid drag and lift (MuJoCo's fluid model) are not simulated")
+    for j in range(model.njnt):
+        dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + _dof_count(model, j))
+        if np.any(model.jnt_stiffnesspoly[j]) or any(np.any(model.dof_dampingpoly[d]) for d in dofs):
+            notes.drop("joint", _name(model.joint(j), j, "joint"),
+                       "nonlinear (polynomial) stiffness or damping: only the linear term is mapped")
+    for a in range(model.nu):
+        if model.actuator_damping[a] or np.any(model.actuator_dampingpoly[a]) or model.actuator_armature[a]:
+            notes.drop("actuator", _name(model.actuator(a), a, "actuator"),
+                       "actuator damping/armature (passive terms on the transmission) are not mapped")
     if any(model.jnt_limited) and not limits_disabled(model):
         notes.approximate("joint", "limits", "PhysX joint limits are hard; MuJoCo's are soft (solref/solimp)")
     if contacts_disabled(model):
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
     if limits_disabled(model):
         notes.approximate("option", "flag limit", "limits disabled in the model: every joint is unlimited")
+
+
+def _dof_count(model: mujoco.MjModel, j: int) -> int:
+    return {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(int(model.jnt_type[j]), 1)

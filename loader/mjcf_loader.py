@@ -123,15 +123,17 @@ class MJCFLoader:
         self.scene = scene
         return self
 
-    def parse(self, mjcf_file: str | os.PathLike, package_dir: str | os.PathLike | None = None):
-        """Builders for `mjcf_file`: (articulation_builders, actor_builders, cameras).
+    def parse(self, mjcf_file: str | os.PathLike | mujoco.MjSpec, package_dir: str | os.PathLike | None = None):
+        """Builders for `mjcf_file` (a path, or an `MjSpec` built or edited in Python): (articulation_builders,
+        actor_builders, cameras).
 
         Each builder builds on its own with `.build()`. Without a scene, one matched to the model is created.
         """
         parsed = self._parse(mjcf_file, package_dir)
         return parsed.articulation_builders, parsed.actor_builders, parsed.cameras
 
-    def load(self, mjcf_file: str | os.PathLike, package_dir: str | os.PathLike | None = None) -> LoadResult:
+    def load(self, mjcf_file: str | os.PathLike | mujoco.MjSpec,
+             package_dir: str | os.PathLike | None = None) -> LoadResult:
         """Build everything into `scene` and return it with the mapping and the unsupported features."""
         parsed = self._parse(mjcf_file, package_dir)
         model = parsed.compiled.model

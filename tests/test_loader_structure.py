@@ -61,6 +61,20 @@ def test_unsupported_features_are_listed_and_warned_once_each():
     assert len(ours) == len(result.unsupported) + len(result.approximations)
 
 
+def test_nonlinear_damping_and_actuator_passive_terms_are_listed_not_dropped_silently():
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><body><joint name="poly" damping="1 2" stiffness="3 4"/><geom size=".1"/></body>'
+        '<body pos="1 0 0"><joint name="plain" damping="1"/><geom size=".1"/></body></worldbody>'
+        '<actuator><position name="damped" joint="plain" kp="5" damping="0.3"/>'
+        '<position name="bare" joint="plain" kp="5"/></actuator></mujoco>')
+    result = MJCFLoader().load(spec)
+    listed = {(entry.kind, entry.name) for entry in result.unsupported}
+    assert {("joint", "poly"), ("actuator", "damped")} <= listed
+    assert not {("joint", "plain"), ("actuator", "bare")} & listed
+
+
 def test_keyframe_is_usable_as_the_initial_state(load):
     result = load(suite_path("dog"))
     qpos, _ = result.state(0)
@@ -125,3 +139,27 @@ def test_solver_iterations_reach_every_articulation():
     result = loader.load(suite_path("finger"))
     assert [(a.solver_position_iterations, a.solver_velocity_iterations) for a in result.articulations] == [
         (50, 4)] * len(result.articulations)
+
+
+def test_an_mjspec_edited_in_python_loads_as_compiled():
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(suite_path("cartpole")))
+    for joint in spec.joints:
+        joint.damping = [0.75, 0.0, 0.0]  # MjsJoint keeps a polynomial: the linear term first
+    result = MJCFLoader().load(spec)
+    assert np.allclose(result.model.dof_damping, 0.75)
+    joints = [j for art in result.articulations for j in art.active_joints]
+    assert len(joints) == 2 and all(np.isclose(j.damping, 0.75) for j in joints)
+
+
+def test_an_mjspec_built_from_scratch_loads():
+    import mujoco
+
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="pole", pos=[0, 0, 1])
+    body.add_joint(name="hinge", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.05, 0.3, 0], mass=1.0)
+    result = MJCFLoader().load(spec)
+    assert [art.dof for art in result.articulations] == [1]
+    assert np.isclose(sum(link.mass for link in result.articulations[0].links if link.mass > 1e-6), 1.0)
