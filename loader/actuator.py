@@ -6,6 +6,13 @@ joint's passive spring-damper in one PhysX drive (`drive.py`). That assumes MuJo
 treats kv implicitly as PhysX does; under Euler MuJoCo's kv is explicit (an O(timestep) difference).
 An actuator on a fixed tendon applies J^T f as a generalized force, its bias evaluated from the state when
 `set_ctrl` is called (call it every step). Activation dynamics, muscles and site/body transmissions are not mapped.
+
+Force limits are exact too. MuJoCo evaluates each actuator's force at the start of the step, clamps it to its
+`forcerange`, clamps the joint's sum to the joint's `actuatorfrcrange`, and then treats kv implicitly only for the
+actuators its forcerange did not clamp (measured: a saturated servo's kv drops out of the step; a joint-level clamp
+keeps it). On a step where a clamp binds, `set_ctrl` applies that clamped sum as a generalized force, plus
+kv * qdot for the actuators still implicit, and leaves the drive with the joint's passive terms and those kv:
+the step then equals MuJoCo's. Call `set_ctrl` every step for this (a drive alone clamps nothing).
 """
 
 from __future__ import annotations
@@ -73,7 +80,9 @@ class Actuation:
     passive: dict[tuple[int, int], DofDrive] = field(default_factory=dict)  # the same without actuators
     tendon_terms: dict[int, list[tuple[int, int, float]]] = field(default_factory=dict)  # actuator -> (a, dof, coef)
     enabled: bool = True
-    limited: list[str] = field(default_factory=list)  # joint actuators whose forcerange is a drive force limit
+    # DoFs whose actuator force MuJoCo can clamp (forcerange or actuatorfrcrange) -> their joint actuators
+    limited: dict[tuple[int, int], list[int]] = field(default_factory=dict)
+    joint_range: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
 
     def set_ctrl(self, articulations, ctrl) -> None:
         model = self.model
@@ -82,14 +91,23 @@ class Actuation:
         for a in range(model.nu):
             if clamp and model.actuator_ctrllimited[a]:
                 ctrl[a] = np.clip(ctrl[a], *model.actuator_ctrlrange[a])
-        drives = self.drives if self.enabled else self.passive
+        drives = dict(self.drives if self.enabled else self.passive)
         constants = {key: d.constant for key, d in drives.items()}
         forces = [np.zeros(art.dof) for art in articulations]
-        if self.enabled and self.tendon_terms:  # tendon actuators read the state once per call
+        if self.enabled and (self.tendon_terms or self.limited):  # state-dependent terms read the state once
             q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
             v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        clamped: set[int] = set()  # joint actuators applied explicitly this step
+        via_damping: dict[tuple[int, int], float] = {}
+        if self.enabled:
+            for key, members in self.limited.items():
+                step = self._clamped_step(key, members, ctrl, q[key[0]][key[1]], v[key[0]][key[1]])
+                if step is not None:
+                    drives[key], constants[key], force, via_damping[key] = step
+                    forces[key[0]][key[1]] += force
+                    clamped.update(members)
         for a, actuator in enumerate(self.actuators):
-            if not actuator.mapped or not self.enabled:
+            if not actuator.mapped or not self.enabled or a in clamped:
                 continue
             if actuator.joint is not None:
                 key = (actuator.articulation, actuator.dofs[0])
@@ -104,10 +122,38 @@ class Actuation:
         timestep = float(model.opt.timestep)
         for (art, dof), dof_drive in drives.items():
             joint = articulations[art].active_joints[dof]
-            forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep)
+            forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep,
+                                            via_damping.get((art, dof), 0.0))
         for art, qf in zip(articulations, forces):
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
+
+
+    def _clamped_step(self, key, members: list[int], ctrl, q: float, v: float):
+        """MuJoCo's actuator force on one DoF at the state (q, v) when a clamp binds there: (drive, constant,
+        clamped actuator force, kv * qdot of the actuators MuJoCo still treats implicitly) for this step, or None
+        when nothing clamps (the drive alone is exact)."""
+        total, binding, implicit_kv = 0.0, False, 0.0
+        for a in members:
+            actuator = self.actuators[a]
+            gear = actuator.gear
+            linear = actuator.gain * ctrl[a] + actuator.bias[0] + actuator.bias[1] * gear * q \
+                + actuator.bias[2] * gear * v
+            force = actuator.force(ctrl[a], gear * q, gear * v)
+            if force != linear:
+                binding = True
+            else:
+                implicit_kv += actuator.damping
+            total += gear * force
+        if key in self.joint_range:
+            low, high = self.joint_range[key]
+            binding = binding or not low <= total <= high
+            total = float(np.clip(total, low, high))
+        if not binding:
+            return None
+        passive = self.passive[key]
+        drive_now = DofDrive(passive.stiffness, passive.damping + implicit_kv, passive.constant)
+        return drive_now, passive.constant, total, implicit_kv * v
 
 
 def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Actuation:
@@ -137,10 +183,17 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         else:
             notes.approximate("actuator", entry.name, "tendon actuator force evaluated from the state at "
                               "set_ctrl (explicit)")
-    for name in actuation.limited:
-        notes.approximate("actuator", name, "forcerange as the PhysX drive's force limit: PhysX clamps the implicit "
-                          "drive force, which can bind before MuJoCo's actuator force reaches the range (measured "
-                          "1e-5 rad in 10 steps) and also clamps the joint's passive spring-damper")
+    members: dict[tuple[int, int], list[int]] = {}
+    for a, entry in enumerate(actuation.actuators):
+        if entry.mapped and entry.joint is not None:
+            members.setdefault((entry.articulation, entry.dofs[0]), []).append(a)
+    for j, target in enumerate(mapping.joints):  # <joint actuatorfrcrange>: MuJoCo clamps the joint's actuator sum
+        key = (target.articulation, target.dofs[0]) if target.kind in ("hinge", "slide") else None
+        if key in members and model.jnt_actfrclimited[j]:
+            actuation.joint_range[key] = tuple(float(x) for x in model.jnt_actfrcrange[j])
+    for key, indices in members.items():
+        if key in actuation.joint_range or any(actuation.actuators[a].forcerange for a in indices):
+            actuation.limited[key] = indices
     for key, dof_drive in actuation.drives.items():
         if not dof_drive.exact(float(model.opt.timestep)):
             notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
@@ -177,9 +230,6 @@ def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
         dof_drive = actuation.drives[key]
         dof_drive.stiffness += stiffness
         dof_drive.damping += damping
-        if forcerange is not None:
-            dof_drive.force_limit = min(dof_drive.force_limit, abs(gear) * max(abs(x) for x in forcerange))
-            actuation.limited.append(name)
         base.update(joint=model.joint(target).name or f"joint{target}", articulation=joint.articulation,
                     dofs=joint.dofs)
         return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping))

@@ -31,18 +31,20 @@ class DofDrive:
         return self.damping - self.stiffness * timestep >= 0.0
 
 
-def apply(joint, drive: DofDrive, constant: float, timestep: float) -> float:
+def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping: float = 0.0) -> float:
     """Configure `joint`'s drive for the force law with state-independent part `constant`; returns the
-    generalized force left to apply with `set_qf` (non-zero only for a DoF with neither stiffness nor damping)."""
+    generalized force left to apply with `set_qf` (non-zero only for a DoF with neither stiffness nor damping).
+    `via_damping` is a further constant force carried by the velocity target when the drive has damping (a
+    large explicit force cancelled by the implicit damping loses digits in PhysX's float32 `qf`)."""
     damping = drive.physx_damping(timestep)
     joint.set_drive_properties(drive.stiffness, damping, drive.force_limit, "force")
     if drive.stiffness > 0:
         joint.set_drive_target(constant / drive.stiffness)
-        joint.set_drive_velocity_target(0.0)
-        return 0.0
-    joint.set_drive_target(0.0)
+        constant = 0.0
+    else:
+        joint.set_drive_target(0.0)
     if damping > 0:
-        joint.set_drive_velocity_target(constant / damping)
+        joint.set_drive_velocity_target((constant + via_damping) / damping)
         return 0.0
     joint.set_drive_velocity_target(0.0)
-    return constant
+    return constant + via_damping

@@ -90,7 +90,14 @@ def actuator_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], list[
 
 
 def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
-    """Per hinge/slide DoF, the PhysX drive (actuators enabled, ctrl 0) against MuJoCo's compiled terms."""
+    """Per hinge/slide DoF, the PhysX drive (actuators enabled, ctrl 0) against MuJoCo's compiled terms.
+
+    Read at q = 0, qdot = 0, where no actuator force can sit on a forcerange or actuatorfrcrange bound (there the
+    loader applies the clamped force explicitly and the drive keeps the passive terms only)."""
+    for art in result.articulations:
+        art.set_qpos(np.zeros(art.dof, np.float32))
+        art.set_qvel(np.zeros(art.dof, np.float32))
+    result.set_ctrl(np.zeros(model.nu))
     stiffness = {}
     damping = {}
     for j, target in enumerate(result.mapping.joints):

@@ -262,9 +262,6 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
                 excused.append(f"{name}: " + "; ".join(report.notes))
             elif bug is not None:
                 excused.append(f"{name}: known bug {bug}")
-            elif name == "actuated" and any(e.kind == "actuator" and "forcerange" in e.reason
-                                            for e in result.approximations):
-                excused.append(f"{name}: actuator forcerange the loader lists as approximated (PhysX drive limit)")
             elif _qacc_only(report):
                 excused.append(f"{name}: one_step_qacc only; one_step_qvel (the same velocity increment, "
                                "not divided by dt) is within its tolerance")
@@ -334,7 +331,7 @@ def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators:
         TALLY[f"tier {name} {report.status}"] += 1
     for entry in excused:
         tier, why = entry.split(": ", 1)
-        listed = why.startswith(("known bug", "joint limits", "one_step_qacc only", "actuator forcerange"))
+        listed = why.startswith(("known bug", "joint limits", "one_step_qacc only"))
         TALLY[f"excused {tier}: {why if listed else 'element the loader lists'}"] += 1
     for entry in outcome.skipped:
         TALLY[f"skipped {entry}"] += 1
