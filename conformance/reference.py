@@ -95,6 +95,20 @@ def qpos_difference(model: mujoco.MjModel, qpos_a: np.ndarray, qpos_b: np.ndarra
     return out if np.ndim(qpos_a) == 2 else out[0]
 
 
+def position_scale(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """Per row and dof (T, nv): the size of the coordinate a dof integrates, |q| for hinges and slides and |x| for
+    a free joint's position, 1 for rotations kept as quaternions; float32 resolves it to about 6e-8 of that."""
+    qpos = np.atleast_2d(qpos)
+    out = np.ones((qpos.shape[0], model.nv))
+    for j in range(model.njnt):
+        adr, dof, kind = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), int(model.jnt_type[j])
+        if kind in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            out[:, dof] = np.abs(qpos[:, adr])
+        elif kind == int(mujoco.mjtJoint.mjJNT_FREE):
+            out[:, dof:dof + 3] = np.abs(qpos[:, adr:adr + 3])
+    return out
+
+
 def body_poses(data: mujoco.MjData) -> np.ndarray:
     """World pose of every body as (nbody, 7): x, y, z, qw, qx, qy, qz."""
     return np.concatenate([data.xpos, data.xquat], axis=1)

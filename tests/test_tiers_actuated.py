@@ -1,6 +1,6 @@
 """The actuated tiers: the same ctrl on both sides passes on a clean load, and each deliberate actuator mistake
 (a kp 5 % off, a wrong gear sign, an inverted coupling ratio, servo gains halved) makes them fail; the scene is
-left as the other tiers expect; unmapped actuators skip the tier by name; saturation is avoided by scaling."""
+left as the other tiers expect; unmapped actuators skip the tier by name; saturated servos are judged as they are."""
 
 from __future__ import annotations
 
@@ -158,15 +158,16 @@ def test_unmapped_actuators_skip_the_tier_by_name(tmp_path):
         assert "filtered" in report.notes[0] and "servo" not in report.notes[0]
 
 
-def test_a_saturating_step_is_scaled_until_no_forcerange_saturates(tmp_path):
-    # a stiff servo with a tight forcerange: a 5 % step of its 3 rad ctrlrange needs 600 N m, the limit is 5
+def test_a_saturating_servo_is_judged_unscaled_and_passes(tmp_path):
+    # a stiff servo with a tight forcerange: a 5 % step of its 3 rad ctrlrange needs 600 N m, the limit is 5;
+    # the loader clamps as MuJoCo does, so the tier needs no scaling and still passes
     text = ARM.replace('kp="40" kv="2"', 'kp="4000" kv="60" forcerange="-5 5"')
     session = _session(_write(tmp_path, text))
     report = _tier(session, "actuated")
-    assert report.settings["ctrl_scale"] < 1.0
-    assert report.settings["saturated_steps"] == 0
+    assert report.settings["ctrl_scale"] == 1.0
+    assert report.settings["saturated_steps"] > 10
     forcerange = session.model.actuator_forcerange[0]
-    assert np.abs(report.actuators.mujoco_force[:, 0]).max() < forcerange[1]
+    assert np.isclose(np.abs(report.actuators.mujoco_force[:, 0]).max(), forcerange[1])
     assert report.status == "pass", report.to_dict()
 
 
