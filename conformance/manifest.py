@@ -21,6 +21,8 @@ class Expectation:
     tier: str
     outcome: str
     reason: str
+    # gaps (conformance.isolation.GAPS) whose removal on both sides makes the tier pass: checked on every run
+    passes_without: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -75,7 +77,14 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
         if tier not in TIER_NAMES or outcome not in OUTCOME_RANK or not reason:
             raise ValueError(f"{where}: model {raw['id']!r} has a bad expectation {exp} "
                              f"(needs tier in {TIER_NAMES}, outcome in {list(OUTCOME_RANK)}, reason)")
-        expect[tier] = Expectation(tier, outcome, reason)
+        claimed = tuple(exp.get("passes_without", ()))
+        from .isolation import GAPS, ISOLATED_TIERS
+
+        unknown = [g for g in claimed if g not in GAPS]
+        if unknown or (claimed and (tier not in ISOLATED_TIERS or outcome != "fail")):
+            raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: passes_without {list(claimed)} needs "
+                             f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}")
+        expect[tier] = Expectation(tier, outcome, reason, claimed)
     fault = raw.get("fault")
     if fault is not None and fault not in FAULTS:
         raise ValueError(f"{where}: model {raw['id']!r} fault must be one of {FAULTS}")

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import tolerances as tolerances_mod
+from .isolation import ISOLATED_TIERS, isolate
 from .manifest import TIER_NAMES, ModelEntry
 from .report import TierReport
 from .summary import atomic_write_json
@@ -77,6 +78,12 @@ def evaluate(job: Job) -> dict:
         report.settings = {**report.settings, "seconds": round(time.perf_counter() - t0, 3)}
         reports[tier] = report
         result["tiers"][tier] = report.to_dict()
+        if report.status == "fail" and tier in ISOLATED_TIERS:
+            expectation = entry.expect.get(tier)
+            claimed = (expectation.passes_without,) if expectation and expectation.passes_without else ()
+            t0 = time.perf_counter()
+            result["tiers"][tier]["isolation"] = isolate(job.path, session.model, tier, job.seed, tol, claimed)
+            result["tiers"][tier]["settings"]["isolation_seconds"] = round(time.perf_counter() - t0, 3)
     result["status"] = "ok"
     if job.record:
         from .recording import write_recording

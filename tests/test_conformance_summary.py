@@ -103,5 +103,5 @@ def test_summary_lists_integrator_switch_ctrl_scaling_and_saturation_of_the_actu
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"arm": result})
     text = summary.markdown(doc, ["actuated", "actuated_contact"])
     assert ("- arm/actuated: MuJoCo mjINT_IMPLICITFAST instead of the authored mjINT_EULER; ctrl deviations "
-            "scaled by 0.25; forcerange saturated on 3 steps (known gap)") in text
+            "scaled by 0.25; forcerange reached on 3 steps (clamped on both sides)") in text
     assert "- arm/actuated_contact" not in text  # nothing to say: same integrator, no scaling

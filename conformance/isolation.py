@@ -1,0 +1,134 @@
+"""Isolation: a failing dynamics-type tier is run again with the model's known gaps taken out, on both sides.
+
+Each gap is an edit of the model's `MjSpec` (frictionloss zeroed, equalities or limits disabled, fluid off, the
+timestep halved); MuJoCo compiles the edited spec and the loader loads the same spec, so both simulators see the
+same change. The tier then runs as usual. Its numbers, gap by gap and all gaps together, say which gap the
+failure comes from: a model whose actuators are mapped right passes once the gaps PhysX cannot express are out,
+and a mapping error (a wrong kp, a flipped gear) survives every edit.
+The half timestep separates integrator differences from force errors: one-step velocity errors from a force
+mismatch halve with dt (order 1), an integration difference shrinks four times (order 2).
+A manifest expectation may claim `passes_without = [...]`: the run checks that the tier passes with exactly
+those gaps out, so the reason written there is measured on every run.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+
+ISOLATED_TIERS = ("dynamics", "actuated")
+FLAGS = mujoco.mjtDisableBit
+
+
+def _disabled(model: mujoco.MjModel, *bits) -> bool:
+    return bool(model.opt.disableflags & sum(int(b) for b in bits))
+
+
+def _zero_frictionloss(spec: mujoco.MjSpec) -> None:
+    for joint in spec.joints:
+        joint.frictionloss = 0.0
+
+
+def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
+    def edit(spec: mujoco.MjSpec) -> None:
+        spec.option.disableflags |= int(bit)
+    return edit
+
+
+def _no_fluid(spec: mujoco.MjSpec) -> None:
+    spec.option.density = 0.0
+    spec.option.viscosity = 0.0
+
+
+def _half_timestep(spec: mujoco.MjSpec) -> None:
+    spec.option.timestep /= 2
+
+
+@dataclass(frozen=True)
+class Gap:
+    name: str
+    what: str
+    present: Callable[[mujoco.MjModel], bool]
+    remove: Callable[[mujoco.MjSpec], None]
+
+
+GAPS = {gap.name: gap for gap in (
+    Gap("frictionloss", "joint frictionloss zeroed (PhysX has no constant-torque joint friction)",
+        lambda m: bool(m.dof_frictionloss.any()), _zero_frictionloss),
+    Gap("equality", "equality constraints disabled (MuJoCo's are soft; PhysX tendons and D6 joints are not)",
+        lambda m: bool(m.neq and m.eq_active0.any()) and not _disabled(m, FLAGS.mjDSBL_EQUALITY,
+                                                                         FLAGS.mjDSBL_CONSTRAINT),
+        _disable(FLAGS.mjDSBL_EQUALITY)),
+    Gap("limits", "joint limits disabled (MuJoCo's are soft, PhysX's hard)",
+        lambda m: bool(m.jnt_limited.any()) and not _disabled(m, FLAGS.mjDSBL_LIMIT, FLAGS.mjDSBL_CONSTRAINT),
+        _disable(FLAGS.mjDSBL_LIMIT)),
+    Gap("fluid", "fluid density and viscosity zeroed (PhysX has no fluid drag)",
+        lambda m: m.opt.density > 0 or m.opt.viscosity > 0, _no_fluid),
+    Gap("half_timestep", "timestep halved on both sides (integration differences shrink faster than force errors)",
+        lambda m: True, _half_timestep),
+)}
+
+
+def present_gaps(model: mujoco.MjModel) -> list[str]:
+    return [name for name, gap in GAPS.items() if gap.present(model)]
+
+
+def edited_spec(path: str, gaps: tuple[str, ...]) -> mujoco.MjSpec:
+    spec = mujoco.MjSpec.from_file(str(path))
+    for name in gaps:
+        GAPS[name].remove(spec)
+    return spec
+
+
+def _load(spec: mujoco.MjSpec):
+    from loader import MJCFLoader, NoRenderDeviceWarning, UnsupportedFeatureWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnsupportedFeatureWarning)
+        warnings.simplefilter("ignore", NoRenderDeviceWarning)
+        result = MJCFLoader(ignore_classes=[]).load(spec)
+    result.disable_actuators()
+    return result
+
+
+def run_without(path: str, tier: str, gaps: tuple[str, ...], seed: int, tolerances) -> dict:
+    """The tier on the model with `gaps` removed on both sides: outcome and metrics (or the error it raised)."""
+    from .tiers import TIERS
+
+    entry: dict = {"without": list(gaps)}
+    try:
+        result = _load(edited_spec(path, gaps))
+        report = TIERS[tier](result, result.model, seed, tolerances)
+    except Exception as exc:  # noqa: BLE001 - a failed isolation run is reported, it does not stop the model
+        return {**entry, "outcome": "error", "reason": f"{type(exc).__name__}: {exc}", "metrics": []}
+    return {**entry, "outcome": report.status,
+            "metrics": [{"name": m.name, "max": m.max, "tolerance": m.tolerance} for m in report.metrics
+                        if m.name != "settings_mismatches"]}
+
+
+def isolate(path: str, model: mujoco.MjModel, tier: str, seed: int, tolerances,
+            claimed: tuple[tuple[str, ...], ...] = ()) -> list[dict]:
+    """Runs of `tier` without each present gap, without all of them, and without each claimed combination."""
+    gaps = present_gaps(model)
+    physical = tuple(g for g in gaps if g != "half_timestep")
+    combos = [(g,) for g in gaps]
+    for combo in (physical, tuple(gaps), *claimed):
+        if combo and combo not in combos:
+            combos.append(combo)
+    return [run_without(path, tier, combo, seed, tolerances) for combo in combos]
+
+
+def order_in_timestep(full_dt_error: float, half_dt_error: float) -> float | None:
+    """Observed order p of a one-step velocity error in the timestep: error(dt) / error(dt/2) = 2^p."""
+    if not (full_dt_error > 0 and half_dt_error > 0):
+        return None
+    return math.log2(full_dt_error / half_dt_error)
+
+
+def claim_holds(runs: list[dict], claimed: tuple[str, ...]) -> bool:
+    """Whether the tier passed with exactly the claimed gaps removed."""
+    return any(set(r["without"]) == set(claimed) and r["outcome"] == "pass" for r in runs)

@@ -1,0 +1,83 @@
+"""Isolation reruns a failing tier with known gaps removed on both sides; it must explain a real gap (here a
+frictionloss PhysX cannot carry) and must not explain away a mapping error (a servo kp 5 % off in the loader).
+A manifest claim that the run cannot reproduce makes the run fail."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from test_tiers_actuated import ARM
+
+import loader.actuator
+from conformance import isolation, tolerances
+from conformance.manifest import load as load_manifest
+from conformance.summary import judge
+
+TOL = tolerances.load()
+# the actuated-tier arm with a frictionloss on the elbow: the loader drops it (listed), the tier fails on it
+FRICTION_ARM = ARM.replace('damping="0.02" range="-2 2"', 'damping="0.02" range="-2 2" frictionloss="0.05"')
+
+
+@pytest.fixture
+def friction_arm(tmp_path):
+    assert FRICTION_ARM != ARM
+    path = tmp_path / "friction_arm.xml"
+    path.write_text(FRICTION_ARM)
+    return str(path)
+
+
+def test_each_gap_is_removed_from_the_compiled_model(friction_arm):
+    base = mujoco.MjModel.from_xml_path(friction_arm)
+    assert isolation.present_gaps(base) == ["frictionloss", "limits", "half_timestep"]
+    edited = isolation.edited_spec(friction_arm, ("frictionloss", "limits", "half_timestep")).compile()
+    assert not edited.dof_frictionloss.any()
+    assert edited.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_LIMIT)
+    assert np.isclose(edited.opt.timestep, base.opt.timestep / 2)
+
+
+def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm):
+    full = isolation.run_without(friction_arm, "actuated", (), 0, TOL)
+    assert full["outcome"] == "fail"
+    without = isolation.run_without(friction_arm, "actuated", ("frictionloss",), 0, TOL)
+    assert without["outcome"] == "pass", without
+    assert isolation.claim_holds([full, without], ("frictionloss",))
+
+
+def test_a_kp_error_survives_every_isolation(friction_arm, monkeypatch):
+    """The mutation: the loader's servo stiffness 5 % high. Removing the friction no longer makes it pass."""
+    plan = loader.actuator.plan_actuation
+
+    def stiffer(model, mapping, notes):
+        actuation = plan(model, mapping, notes)
+        for drive in actuation.drives.values():
+            drive.stiffness *= 1.05 if drive.stiffness > 0 else 1.0
+        return actuation
+
+    monkeypatch.setattr(loader.mjcf_loader, "plan_actuation", stiffer)
+    runs = isolation.isolate(friction_arm, mujoco.MjModel.from_xml_path(friction_arm), "actuated", 0, TOL)
+    assert runs and all(r["outcome"] == "fail" for r in runs), runs
+    assert not isolation.claim_holds(runs, ("frictionloss",))
+
+
+def _manifest(tmp_path, claim: str) -> object:
+    path = tmp_path / "manifest.toml"
+    path.write_text(f'[[model]]\nid = "arm"\nsource = "arm.xml"\n[[model.expect]]\ntier = "actuated"\n'
+                    f'outcome = "fail"\nreason = "frictionloss"\npasses_without = {claim}\n')
+    return load_manifest(path)
+
+
+def test_a_claim_the_run_cannot_reproduce_is_worse_than_expected(tmp_path):
+    entry = _manifest(tmp_path, '["frictionloss"]').models[0]
+    failing = {"status": "fail", "metrics": [], "notes": [],
+               "isolation": [{"without": ["frictionloss"], "outcome": "fail", "metrics": []}]}
+    verdict = next(v for v in judge(entry, {"tiers": {"actuated": failing}}) if v.tier == "actuated")
+    assert verdict.worse and verdict.outcome == "fail"
+    holding = {**failing, "isolation": [{"without": ["frictionloss"], "outcome": "pass", "metrics": []}]}
+    verdict = next(v for v in judge(entry, {"tiers": {"actuated": holding}}) if v.tier == "actuated")
+    assert not verdict.worse and verdict.outcome == "expected-fail"
+
+
+def test_a_claim_naming_an_unknown_gap_is_rejected(tmp_path):
+    with pytest.raises(ValueError, match="passes_without"):
+        _manifest(tmp_path, '["gravity"]')
