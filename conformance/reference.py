@@ -83,7 +83,41 @@ def initial_state(model: mujoco.MjModel, margin: float = 0.05) -> tuple[np.ndarr
         if clipped != qpos[adr]:
             qpos[adr] = clipped
             origin += " (moved inside joint limits)" if "moved" not in origin else ""
+    settled, before, after = settle_equalities(model, qpos)
+    if after < before:
+        qpos = settled
+        origin += f" (settled onto its equality constraints: violation {before:.1e} -> {after:.1e})"
     return qpos, qvel, origin
+
+
+def equality_violation(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    rows = data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    return float(np.abs(data.efc_pos[: data.nefc][rows]).max()) if rows.any() else 0.0
+
+
+def settle_equalities(model: mujoco.MjModel, qpos: np.ndarray, steps: int = 2000) -> tuple[np.ndarray, float, float]:
+    """A start that satisfies the model's equality constraints: MuJoCo steps from `qpos` with gravity, actuation
+    and contact off and the velocity zeroed every step, so that only the constraints move it. A start that
+    violates a loop (robotiq 2f85: 2e-3 m after moving joints inside their limits) is pulled back on the first step
+    by MuJoCo's soft constraint and snapped by PhysX's rigid joint: the comparison would judge that, not the model.
+    Returns (qpos, violation before, violation after); no equalities: the start unchanged."""
+    flags = mujoco.mjtDisableBit
+    if not model.neq or model.opt.disableflags & (int(flags.mjDSBL_EQUALITY) | int(flags.mjDSBL_CONSTRAINT)):
+        return qpos, 0.0, 0.0
+    work = copy.copy(model)  # the caller's model keeps its options
+    work.opt.disableflags |= int(flags.mjDSBL_GRAVITY) | int(flags.mjDSBL_ACTUATION) | int(flags.mjDSBL_CONTACT)
+    data = mujoco.MjData(work)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(work, data)
+    before = equality_violation(work, data)
+    if before == 0.0:
+        return qpos, 0.0, 0.0
+    for _ in range(steps):
+        data.qvel[:] = 0.0
+        mujoco.mj_step(work, data)
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(work, data)
+    return data.qpos.copy(), before, equality_violation(work, data)
 
 
 def qpos_difference(model: mujoco.MjModel, qpos_a: np.ndarray, qpos_b: np.ndarray) -> np.ndarray:

@@ -82,3 +82,37 @@ def test_torques_are_sized_by_effective_inertia():
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
     np.testing.assert_allclose(commands.dof_inertia(model, model.qpos0), 1 / np.diag(np.linalg.inv(full)))
+
+
+LOOP = """<mujoco><compiler angle="radian"/><option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="left"><joint name="left" axis="0 1 0" range="-1 1"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -.5" size=".02"/></body>
+    <body name="right" pos=".3 0 0"><joint name="right" axis="0 1 0" range="-1 1"/>
+      <geom type="capsule" fromto="0 0 0 -.3 0 -.5" size=".02"/></body>
+  </worldbody>
+  <equality><connect body1="left" body2="right" anchor="0 0 -.5"/></equality>
+  <keyframe><key qpos="0.3 -0.2"/></keyframe>
+</mujoco>"""
+
+
+def _anchor_gap(model, qpos) -> float:
+    """World distance between the connect anchor seen from each body (independent of MuJoCo's efc rows)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    tip_left = data.xpos[1] + data.xmat[1].reshape(3, 3) @ np.array([0, 0, -0.5])
+    tip_right = data.xpos[2] + data.xmat[2].reshape(3, 3) @ model.eq_data[0][3:6]
+    return float(np.linalg.norm(tip_left - tip_right))
+
+
+def test_the_start_is_settled_onto_violated_equality_constraints():
+    model = mujoco.MjModel.from_xml_string(LOOP)
+    assert _anchor_gap(model, model.key_qpos[0]) > 1e-2  # the keyframe breaks the loop
+    qpos, _, origin = reference.initial_state(model)
+    assert _anchor_gap(model, qpos) < 1e-5 and "settled" in origin
+    free = mujoco.MjModel.from_xml_string(LOOP.replace('<equality><connect body1="left" body2="right" '
+                                                       'anchor="0 0 -.5"/></equality>', ""))
+    qpos, _, origin = reference.initial_state(free)
+    np.testing.assert_array_equal(qpos, free.key_qpos[0])
+    assert "settled" not in origin
