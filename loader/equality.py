@@ -6,8 +6,12 @@ k = 1 / (dmax^2 timeconst^2 dampratio^2) and b = 2 / (dmax timeconst), and the i
 with the unconstrained acceleration a0: the constraint accelerates as (1 - d) a0 + d (-b v - k r). A spring and
 damper on the constraint's effective mass m = 1 / (J M^-1 J^T) behave the same when their gains are
 m d / (1 - d) times k and b. The loader takes m at qpos0 and d at small violations (solimp's dmin).
-That equivalence is approximate in PhysX, whose tendon damping depends on the solver iterations (`tendon.py`):
-measured 4.4e-3 rad over 2 s on the coupled-joint fixture, one-step 1e-3 rad/s on the panda's fingers.
+That equivalence is approximate: a spring-damper does not take up the unconstrained acceleration a0 the way
+MuJoCo's constraint does (measured 4.4e-3 rad over 2 s on the coupled-joint fixture). An exact form exists (a
+tendon damping 1 / (dt R) with R MuJoCo's regularizer, stiffness K d / R, and an explicit force
+(1/dt - B) / R x rate every step), but it needs PhysX's iterative tendon solve to converge at strong gains: on
+dm_control manipulator it reaches one-step 4.5e-6 rad/s only at 200 position iterations, and with coupling
+ratio 2 (the fixture) PhysX's tendon solve diverges (`tendon.py`). Not used.
 """
 
 from __future__ import annotations
@@ -128,8 +132,12 @@ def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
         jacobian[mujoco_dof[key]] = coefficient
     stiffness, damping = soft_gains(model, e, jacobian)
     articulation = next(iter(terms))[0]
+    # the gains go to PhysX as they are, so PhysX spreads them over the tendon's joints (tendon.py): measured
+    # closer to MuJoCo than the whole gains on the coupled-joint fixture (4.4e-3 against 1.5e-2 rad) and on
+    # dm_control manipulator (one-step qacc 2.6e-2 against 6.8e-2), further on the panda's fingers (6.7e-2 against
+    # 1.9e-2): a spring cannot reproduce MuJoCo's impedance either way
     create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in terms.items()}, offset,
-                        stiffness, damping)
+                        stiffness, damping, whole_gains=False)
     notes.approximate("equality", name, "solref softness mapped to tendon stiffness/damping at qpos0's "
                       "effective mass")
     return EqualityLink(name, "fixed tendon", True)

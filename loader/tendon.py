@@ -5,12 +5,16 @@ A PhysX fixed tendon is a tree of links whose incoming joints carry coefficients
 sum(coefficient * q) and its spring force reaches each joint scaled by the joint's `recip_coefficient`. Setting
 that to the coefficient itself gives MuJoCo's J^T f (measured: two equal links coupled q_a - 0.5 q_b = 0.3 settle
 at 0.24 and -0.12, as J^T f predicts).
-A tendon's damping is not one implicit step: PhysX applies it once per position iteration and once more in the
-velocity iteration, each time implicitly over dt / N. Measured on one hinge (coefficient 1, x = Kd dt / I, N
-position iterations): the rate shrinks by (1 + x/N)^-(N+1) to 5 digits for N = 1..20, x = 0.1..2, where one
-implicit step would give 1 / (1 + x); with coefficient 2 it shrinks far more than x = Kd c^2 dt / I predicts
-(5.7e-6 against 1.6e-3). So a tendon's dynamics depend on the solver iterations, and MuJoCo's soft equality
-(`equality.py`) cannot be carried exactly by one.
+PhysX divides a tendon's stiffness and damping among the tendon's joints (every link below its root, those with
+coefficient 0 included): measured on 1-4 sibling hinges, the force is 1/n of the stated gains; the loader
+multiplies them by n. Then one step is implicit, f = -K (L + dt J v') - D J v' (J v' the rate after the step),
+to 1e-8 on two hinges with coefficients (1, -1), (1, 0.5), (-0.5, 1), (2, 3) at small gains. PhysX solves the
+tendon iteratively: with mixed-sign coefficients and strong gains (dt D J M^-1 J^T of 3 to 6) it needs about 50
+position iterations to reach 1e-5, and with coefficients (1, -2) at 12 it diverges.
+MuJoCo (implicit and implicitfast) treats a tendon's damping implicitly only through its diagonal D J_i^2 in the
+joint-space step (measured to 1e-16 on three hinges), where the PhysX tendon is implicit in the whole D J J^T:
+2.3e-3 rad over 1 s on the three-hinge fixture (tests/test_loader_actuators.py). The exact form would put D J_i^2
+into the joints' drives and the rest of the tendon force into explicit per-step forces.
 """
 
 from __future__ import annotations
@@ -30,9 +34,11 @@ def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, fl
 
 def create_fixed_tendon(
     articulation: sapien.physx.PhysxArticulation, dof_coefficients: dict[int, float], rest_length: float,
-    stiffness: float, damping: float, low: float = -np.inf, high: float = np.inf,
+    stiffness: float, damping: float, low: float = -np.inf, high: float = np.inf, whole_gains: bool = True,
 ) -> None:
-    """A PhysX fixed tendon over the DoFs (indices into `articulation.active_joints`) with these coefficients."""
+    """A PhysX fixed tendon over the DoFs (indices into `articulation.active_joints`) with these coefficients.
+    `whole_gains`: the tendon exerts `stiffness` and `damping` (PhysX's stated gains are multiplied by the number
+    of tendon joints it divides them among); False passes them to PhysX as they are."""
     joints = articulation.active_joints
     coefficient_of = {joints[d].child_link.name: c for d, c in dof_coefficients.items()}
     # the tendon's links: every link from the common ancestor down to each coupled joint's child link
@@ -56,9 +62,11 @@ def create_fixed_tendon(
                 seen.add(link.name)
     coefficients = [coefficient_of.get(link.name, 0.0) if i else 0.0 for i, link in enumerate(chain)]
     finite = float(np.finfo(np.float32).max)
+    joints_in_tendon = len(chain) - 1 if whole_gains else 1  # PhysX divides the gains among them (module notes)
     articulation.create_fixed_tendon(
-        chain, coefficients, coefficients, rest_length=rest_length, offset=0.0, stiffness=stiffness,
-        damping=damping, low=max(low, -finite), high=min(high, finite),
+        chain, coefficients, coefficients, rest_length=rest_length, offset=0.0,
+        stiffness=stiffness * joints_in_tendon, damping=damping * joints_in_tendon,
+        low=max(low, -finite), high=min(high, finite),
     )
 
 
@@ -90,6 +98,12 @@ def map_tendons(model: mujoco.MjModel, articulations, mapping, notes) -> None:
                 notes.drop("tendon", name, "spans two articulations")
                 continue
             articulation = next(iter(dofs))[0]
+            # PhysX's tendon spring is implicit, MuJoCo's explicit (its damper implicit): as for joint drives,
+            # damping less stiffness x timestep gives MuJoCo's step
+            timestep = float(model.opt.timestep)
             create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in dofs.items()}, float(low),
-                                stiffness, damping)
-            notes.approximate("tendon", name, "spring and damper are implicit in PhysX (MuJoCo: explicit spring)")
+                                stiffness, max(damping - stiffness * timestep, 0.0))
+            notes.approximate("tendon", name, "damping implicit through the whole tendon in PhysX, through its "
+                              "diagonal in MuJoCo (explicit under Euler)" + (
+                                  "; spring stiffer than its damping can absorb in one step: PhysX damping clamped "
+                                  "at 0, O(timestep)" if damping < stiffness * timestep else ""))
