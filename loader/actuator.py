@@ -54,10 +54,14 @@ class ActuatorMap:
     mapped: bool = True
     reason: str = ""
 
+    def unclamped(self, ctrl: float, length: float, velocity: float) -> float:
+        """MuJoCo's actuator force law (before gear and before the forcerange clamp)."""
+        return float(self.gain * ctrl + self.bias[0] + self.bias[1] * length + self.bias[2] * velocity)
+
     def force(self, ctrl: float, length: float, velocity: float) -> float:
         """The actuator force (before gear) this mapping applies, clamped to forcerange."""
-        force = self.gain * ctrl + self.bias[0] + self.bias[1] * length + self.bias[2] * velocity
-        return float(np.clip(force, *self.forcerange)) if self.forcerange is not None else float(force)
+        force = self.unclamped(ctrl, length, velocity)
+        return float(np.clip(force, *self.forcerange)) if self.forcerange is not None else force
 
 
 def _kind(model: mujoco.MjModel, a: int) -> str:
@@ -137,10 +141,8 @@ class Actuation:
         for a in members:
             actuator = self.actuators[a]
             gear = actuator.gear
-            linear = actuator.gain * ctrl[a] + actuator.bias[0] + actuator.bias[1] * gear * q \
-                + actuator.bias[2] * gear * v
             force = actuator.force(ctrl[a], gear * q, gear * v)
-            if force != linear:
+            if force != actuator.unclamped(ctrl[a], gear * q, gear * v):
                 binding = True
             else:
                 implicit_kv += actuator.damping
@@ -168,15 +170,12 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
             actuation.passive[(target.articulation, target.dofs[0])] = passive
             actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))
     disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)
-    actuated_dofs: dict[tuple[int, int], int] = {}
     for a in range(model.nu):
         entry = _plan_one(model, mapping, a, disabled, actuation)
         actuation.actuators.append(entry)
         if not entry.mapped:
             notes.drop("actuator", entry.name, entry.reason)
         elif entry.joint is not None:
-            key = (entry.articulation, entry.dofs[0])
-            actuated_dofs[key] = actuated_dofs.get(key, 0) + 1
             if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
                 notes.approximate("actuator", entry.name, "kv is implicit in PhysX (as in MuJoCo's implicitfast); "
                                   "this model integrates with Euler, where kv is explicit: O(timestep)")
