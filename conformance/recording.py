@@ -202,6 +202,12 @@ def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
         for m in report.metrics:
             lines.append(f"| {tier} | {report.status} | {m.name} | {m.max:.3g} | {m.rms:.3g} | "
                          f"{m.tolerance:.3g} {m.unit} | {m.margin:.3g} |")
+    isolation = {tier: runs for tier, runs in meta.get("isolation", {}).items() if runs}
+    if isolation:
+        from .summary import isolation_text
+
+        lines += ["", "## Isolation (the failing tier rerun with known gaps removed on both sides)", ""]
+        lines += [f"- {tier}: " + isolation_text(runs) for tier, runs in isolation.items()]
     lines += ["", f"seed: {meta.get('seed')}", "", "versions: " + ", ".join(
         f"{k} {v}" for k, v in meta.get("versions", {}).items()), "", "## Notes"]
     for tier, report in reports.items():

@@ -158,6 +158,11 @@ def _run_text(run: dict) -> str:
     return f"without {' + '.join(run['without'])}: {run['outcome']}{numbers}"
 
 
+def isolation_text(runs: list[dict]) -> str:
+    """One line for a tier's isolation runs: each removal, its outcome and its worst metric."""
+    return "; ".join(_run_text(r) for r in runs)
+
+
 def _timestep_order(metrics: list[dict], runs: list[dict]) -> float | None:
     """The order in dt of the one-step velocity error with every other gap out: the run without all physical gaps
     (or the tier itself when it has none) against the same run at half the timestep."""
@@ -183,7 +188,7 @@ def _isolation_lines(summary: dict) -> list[str]:
             runs = v.get("isolation") or []
             if not runs:
                 continue
-            parts = [_run_text(r) for r in runs]
+            parts = [isolation_text(runs)]
             order = _timestep_order(v["metrics"], runs)
             if order is not None:
                 parts.append(f"one-step velocity error order in dt, the other gaps removed: {order:.1f} "

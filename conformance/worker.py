@@ -90,9 +90,10 @@ def evaluate(job: Job) -> dict:
 
         rrd = Path(job.run_dir) / f"{entry.id}.rrd"
         try:
+            isolation = {t: r.get("isolation") for t, r in result["tiers"].items() if r.get("isolation")}
             write_recording(rrd, session, reports, {"model": entry.id, "seed": job.seed,
                                                       "versions": result["versions"],
-                                                      "settings": result["settings"]})
+                                                      "settings": result["settings"], "isolation": isolation})
             result["recording"] = rrd.name
         except Exception as exc:  # noqa: BLE001 - a failed recording is noted, the verdicts stand
             log.warning("model %s: recording failed: %s", entry.id, exc)

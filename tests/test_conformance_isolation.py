@@ -81,3 +81,19 @@ def test_a_claim_the_run_cannot_reproduce_is_worse_than_expected(tmp_path):
 def test_a_claim_naming_an_unknown_gap_is_rejected(tmp_path):
     with pytest.raises(ValueError, match="passes_without"):
         _manifest(tmp_path, '["gravity"]')
+
+
+def test_the_worker_records_the_isolation_in_the_result_and_the_recording(friction_arm, tmp_path):
+    from test_rerun_recording import read_rrd
+
+    from conformance.manifest import ModelEntry
+    from conformance.worker import Job, evaluate
+
+    entry = ModelEntry(id="friction_arm", source=friction_arm, tiers=("actuated",))
+    result = evaluate(Job(entry, friction_arm, str(tmp_path), 0, entry.tiers, record=True))
+    runs = result["tiers"]["actuated"]["isolation"]
+    assert result["tiers"]["actuated"]["status"] == "fail"
+    assert {"without": ["frictionloss"], "outcome": "pass"}.items() <= next(
+        r for r in runs if r["without"] == ["frictionloss"]).items()
+    text = read_rrd(tmp_path / "friction_arm.rrd")["/verdict"]["TextDocument:text"][-1][0]
+    assert "## Isolation" in text and "without frictionloss: pass" in text
