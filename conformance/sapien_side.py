@@ -93,10 +93,9 @@ def get_state(result) -> tuple[np.ndarray, np.ndarray]:
 
 
 def apply_generalized_force(result, qfrc: np.ndarray) -> None:
-    """Write the command on every articulation (set_qf persists, so this runs before every step)."""
-    for art, qf in zip(result.articulations, result.mapping.qfrc_to_sapien(np.asarray(qfrc, dtype=float),
-                                                                                 result.articulations)):
-        art.set_qf(np.asarray(qf, dtype=np.float32))
+    """Write the command through the loader (its per-step terms, passive tendons among them, stay in `qf`; set_qf
+    persists, so this runs before every step). The dynamics tiers run with the actuators off: ctrl is zero."""
+    result.set_ctrl(None, qfrc_applied=np.asarray(qfrc, dtype=float))
 
 
 def all_shapes(result):

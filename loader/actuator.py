@@ -87,8 +87,11 @@ class Actuation:
     # DoFs whose actuator force MuJoCo can clamp (forcerange or actuatorfrcrange) -> their joint actuators
     limited: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     joint_range: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
+    tendons: list = field(default_factory=list)  # passive fixed tendons (`tendon.PassiveTendon`), every step
 
-    def set_ctrl(self, articulations, ctrl) -> None:
+    def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None) -> None:
+        """Drive targets and `qf` for this ctrl, the passive tendons' forces, and `qfrc_applied` (per
+        articulation, SAPIEN's DoF order) on top."""
         model = self.model
         ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
         clamp = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
@@ -98,9 +101,14 @@ class Actuation:
         drives = dict(self.drives if self.enabled else self.passive)
         constants = {key: d.constant for key, d in drives.items()}
         forces = [np.zeros(art.dof) for art in articulations]
-        if self.enabled and (self.tendon_terms or self.limited):  # state-dependent terms read the state once
+        if qfrc_applied is not None:
+            forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
+        if (self.enabled and (self.tendon_terms or self.limited)) or self.tendons:  # read the state once
             q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
             v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        for tendon in self.tendons:
+            for art, dof, force in tendon.forces(q, v):
+                forces[art][dof] += force
         clamped: set[int] = set()  # joint actuators applied explicitly this step
         via_damping: dict[tuple[int, int], float] = {}
         if self.enabled:

@@ -74,14 +74,20 @@ class LoadResult:
         self.mapping.set_state(self.articulations, *self.state(key))
         self.set_ctrl(self.ctrl(key))
 
-    def set_ctrl(self, ctrl) -> None:
-        """Apply a MuJoCo control vector (size nu) to the SAPIEN articulations: drive targets and joint forces.
+    def set_ctrl(self, ctrl, qfrc_applied=None) -> None:
+        """Apply a MuJoCo control vector (size nu, or None for zeros) to the SAPIEN articulations: drive targets
+        and joint forces.
 
         Clamped to ctrlrange as MuJoCo does. It writes every articulation's `qf` (SAPIEN keeps it across steps);
-        tendon actuators depend on the state, so call it every step as a controller would.
+        force-limited and tendon actuators and passive tendons depend on the state, so call it before every step,
+        as MuJoCo reads `ctrl` every step. `qfrc_applied`: MuJoCo's generalized force (size nv) on top; write it
+        here rather than with `set_qf`, which would overwrite the loader's terms.
         """
         if self.actuation is not None:
-            self.actuation.set_ctrl(self.articulations, ctrl)
+            applied = None
+            if qfrc_applied is not None:
+                applied = self.mapping.qfrc_to_sapien(np.asarray(qfrc_applied, dtype=float), self.articulations)
+            self.actuation.set_ctrl(self.articulations, ctrl, applied)
 
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
@@ -141,10 +147,10 @@ class MJCFLoader:
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
         mapping = _mapping(model, parsed, articulations)
         actuation = plan_actuation(model, mapping, parsed.notes)
+        actuation.tendons = map_tendons(model, mapping, actuation, parsed.notes)
         if self.solver_iterations == "auto":
             tune_iterations(articulations, model, actuation, mapping, parsed.notes)
         equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
-        map_tendons(model, articulations, mapping, parsed.notes)
         result = LoadResult(
             path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=self.scene,
             articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),

@@ -1,5 +1,6 @@
-"""Fixed tendons: linear combinations of joint positions, MuJoCo's `<tendon><fixed>` and the linear part of
-joint and tendon equalities, as PhysX fixed tendons.
+"""Fixed tendons: linear combinations of joint positions. MuJoCo's passive `<tendon><fixed>` springs and dampers
+are applied as MuJoCo applies them (`PassiveTendon`, exact); the linear part of joint and tendon equalities becomes
+a PhysX fixed tendon (`create_fixed_tendon`, `equality.py`).
 
 A PhysX fixed tendon is a tree of links whose incoming joints carry coefficients; its length is
 sum(coefficient * q) and its spring force reaches each joint scaled by the joint's `recip_coefficient`. Setting
@@ -12,12 +13,13 @@ to 1e-8 on two hinges with coefficients (1, -1), (1, 0.5), (-0.5, 1), (2, 3) at 
 tendon iteratively: with mixed-sign coefficients and strong gains (dt D J M^-1 J^T of 3 to 6) it needs about 50
 position iterations to reach 1e-5, and with coefficients (1, -2) at 12 it diverges.
 MuJoCo (implicit and implicitfast) treats a tendon's damping implicitly only through its diagonal D J_i^2 in the
-joint-space step (measured to 1e-16 on three hinges), where the PhysX tendon is implicit in the whole D J J^T:
-2.3e-3 rad over 1 s on the three-hinge fixture (tests/test_loader_actuators.py). The exact form would put D J_i^2
-into the joints' drives and the rest of the tendon force into explicit per-step forces.
+joint-space step (measured to 1e-16 on three hinges), where a PhysX tendon is implicit in the whole D J J^T and in
+its spring: 2.3e-3 rad over 1 s on a three-hinge fixture, 4.2e-7 with `PassiveTendon`.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -70,8 +72,40 @@ def create_fixed_tendon(
     )
 
 
-def map_tendons(model: mujoco.MjModel, articulations, mapping, notes) -> None:
-    """Passive tendon properties: a fixed tendon's spring and damper become a PhysX fixed tendon."""
+@dataclass(frozen=True)
+class PassiveTendon:
+    """A fixed tendon's spring (dead band `low`..`high`) and damper as MuJoCo applies them, over (articulation,
+    dof, coefficient) terms: the force J^T f from the state, explicit, written by `set_ctrl` every step. Under
+    MuJoCo's implicit integrators the damper's diagonal D c_i^2 is implicit (it joins the joints' drives) and
+    `force` adds D c_i^2 qdot_i back, so that the step equals MuJoCo's."""
+
+    name: str
+    terms: tuple[tuple[int, int, float], ...]
+    stiffness: float
+    damping: float
+    low: float
+    high: float
+    diagonal: bool
+
+    def forces(self, q: list[np.ndarray], v: list[np.ndarray]):
+        length = sum(c * q[art][dof] for art, dof, c in self.terms)
+        rate = sum(c * v[art][dof] for art, dof, c in self.terms)
+        stretch = length - self.low if length < self.low else (length - self.high if length > self.high else 0.0)
+        pull = -self.stiffness * stretch - self.damping * rate
+        for art, dof, c in self.terms:
+            yield art, dof, c * pull + (self.damping * c * c * v[art][dof] if self.diagonal else 0.0)
+
+
+IMPLICIT = (int(mujoco.mjtIntegrator.mjINT_IMPLICIT), int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
+
+
+def map_tendons(model: mujoco.MjModel, mapping, actuation, notes) -> list[PassiveTendon]:
+    """Passive tendon properties: a fixed tendon's spring and damper, applied as MuJoCo does. MuJoCo's implicit
+    and implicitfast integrators treat a tendon's damping implicitly through its diagonal D c_i^2 only, Euler
+    explicitly (both measured to 1e-16 on three hinges); a PhysX fixed tendon would be implicit in the whole
+    D J J^T and in its spring (2.3e-3 rad over 1 s on that fixture)."""
+    out = []
+    diagonal = int(model.opt.integrator) in IMPLICIT
     for t in range(model.ntendon):
         name = model.tendon(t).name or f"tendon{t}"
         terms = fixed_tendon_terms(model, t)
@@ -83,27 +117,19 @@ def map_tendons(model: mujoco.MjModel, articulations, mapping, notes) -> None:
         stiffness, damping = float(model.tendon_stiffness[t]), float(model.tendon_damping[t])
         if stiffness == 0 and damping == 0:
             continue  # a transmission only: actuators and equalities read it
-        low, high = model.tendon_lengthspring[t]
-        if low != high:
-            notes.approximate("tendon", name, "spring dead band collapsed to its lower end")
-        dofs = {}
+        mapped = []
         for joint, coefficient in terms:
             target = mapping.joints[joint]
             if target.kind not in ("hinge", "slide"):
                 notes.drop("tendon", name, "crosses a ball or free joint")
                 break
-            dofs[(target.articulation, target.dofs[0])] = coefficient
+            mapped.append((target.articulation, target.dofs[0], coefficient))
         else:
-            if len({a for a, _ in dofs}) != 1:
-                notes.drop("tendon", name, "spans two articulations")
-                continue
-            articulation = next(iter(dofs))[0]
-            # PhysX's tendon spring is implicit, MuJoCo's explicit (its damper implicit): as for joint drives,
-            # damping less stiffness x timestep gives MuJoCo's step
-            timestep = float(model.opt.timestep)
-            create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in dofs.items()}, float(low),
-                                stiffness, max(damping - stiffness * timestep, 0.0))
-            notes.approximate("tendon", name, "damping implicit through the whole tendon in PhysX, through its "
-                              "diagonal in MuJoCo (explicit under Euler)" + (
-                                  "; spring stiffer than its damping can absorb in one step: PhysX damping clamped "
-                                  "at 0, O(timestep)" if damping < stiffness * timestep else ""))
+            low, high = (float(x) for x in model.tendon_lengthspring[t])
+            tendon = PassiveTendon(name, tuple(mapped), stiffness, damping, low, high, diagonal)
+            if diagonal:
+                for art, dof, c in mapped:
+                    for drives in (actuation.passive, actuation.drives):
+                        drives[(art, dof)].damping += damping * c * c
+            out.append(tendon)
+    return out

@@ -220,7 +220,7 @@ def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     assert _replay(unclamped, model, _clamping_ctrl, 1.0).max() > 100 * CLAMP_TOLERANCE
 
 
-PASSIVE_TENDON = """<mujoco><option timestep="0.002" gravity="0 0 0"/>
+PASSIVE_TENDON = """<mujoco><option timestep="0.002" gravity="0 0 0" integrator="{integrator}"/>
   <worldbody><body name="base">
     <body name="a"><joint name="a" axis="0 0 1" damping="0.01"/>
       <geom type="box" size=".1 .02 .02" pos=".1 0 0" mass=".5"/></body>
@@ -233,24 +233,29 @@ PASSIVE_TENDON = """<mujoco><option timestep="0.002" gravity="0 0 0"/>
     <joint joint="a" coef="1"/><joint joint="b" coef="-0.5"/><joint joint="c" coef="0.5"/></fixed></tendon>
   <keyframe><key qpos="0.4 -0.3 0.2" qvel="1 0 -2"/></keyframe>
 </mujoco>"""
-# rad over 1 s, measured 2.3e-3: MuJoCo (implicit, implicitfast) treats a tendon's damping implicitly through the
-# diagonal D J_i^2 only (measured exact), PhysX's tendon through the whole D J J^T; PhysX's stated gains: 0.13
-TENDON_TOLERANCE = 5e-3
+TENDON_TOLERANCE = 1e-5  # rad over 1 s, measured 4.2e-7 (implicitfast), 4.0e-7 (Euler); the mutations 2.3e-3
 
 
-def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch):
-    """A tendon spring-damper over three hinges (coefficients 1, -0.5, 0.5): PhysX divides a tendon's gains among
-    its joints, so the loader multiplies them back (without: 0.13 rad), and offsets the implicit spring as for
-    joint drives (without: 4.9e-3)."""
+@pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
+def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator):
+    """A tendon spring-damper over three hinges (coefficients 1, -0.5, 0.5): MuJoCo's implicit integrators treat
+    the tendon's damping implicitly through its diagonal only, Euler explicitly; the loader follows the model's
+    integrator. The mutation (the other treatment) must fail."""
     path = tmp_path / "tendon.xml"
-    path.write_text(PASSIVE_TENDON)
-    result, model = _contact_free(path)
+    path.write_text(PASSIVE_TENDON.format(integrator=integrator))
+
+    def load():
+        result, model = _contact_free(path)
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER if integrator == "Euler" else model.opt.integrator
+        return result, model
+
+    result, model = load()
+    assert len(result.actuation.tendons) == 1
     errors = _replay(result, model, lambda step, data: np.zeros(0), 1.0)
     assert errors.max() < TENDON_TOLERANCE, errors.max()
     import loader.tendon
 
-    create = loader.tendon.create_fixed_tendon  # the mutation: PhysX's stated gains, not the tendon's
-    monkeypatch.setattr(loader.tendon, "create_fixed_tendon",
-                        lambda *args, **kwargs: create(*args, **{**kwargs, "whole_gains": False}))
-    divided, model = _contact_free(path)
-    assert _replay(divided, model, lambda step, data: np.zeros(0), 1.0).max() > 10 * TENDON_TOLERANCE
+    implicit = (int(mujoco.mjtIntegrator.mjINT_EULER),) if integrator == "Euler" else ()
+    monkeypatch.setattr(loader.tendon, "IMPLICIT", implicit)
+    other, model = load()
+    assert _replay(other, model, lambda step, data: np.zeros(0), 1.0).max() > 10 * TENDON_TOLERANCE
