@@ -5,7 +5,9 @@ general PD form) is exact: its joint-space force gear*(gain*ctrl + b0) + gear^2*
 joint's passive spring-damper in one PhysX drive (`drive.py`). That assumes MuJoCo's implicitfast integrator, which
 treats kv implicitly as PhysX does; under Euler MuJoCo's kv is explicit (an O(timestep) difference).
 An actuator on a fixed tendon applies J^T f as a generalized force, its bias evaluated from the state when
-`set_ctrl` is called (call it every step). Activation dynamics, muscles and site/body transmissions are not mapped.
+`set_ctrl` is called (call it every step); MuJoCo's implicit step holds only the diagonal of its kv J^T J (measured
+exact), which joins the joints' drives, so this too is exact under implicitfast. Activation dynamics, muscles and
+site/body transmissions are not mapped.
 
 Force limits are exact too. MuJoCo evaluates each actuator's force at the start of the step, clamps it to its
 `forcerange`, clamps the joint's sum to the joint's `actuatorfrcrange`, and then treats kv implicitly only for the
@@ -17,6 +19,7 @@ the step then equals MuJoCo's. Call `set_ctrl` every step for this (a drive alon
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import mujoco
@@ -109,6 +112,7 @@ class Actuation:
         for tendon in self.tendons:
             for art, dof, force in tendon.forces(q, v):
                 forces[art][dof] += force
+        tendon_kv: dict[tuple[int, int], float] = {}  # implicit kv of tendon actuators this step, per DoF
         clamped: set[int] = set()  # joint actuators applied explicitly this step
         via_damping: dict[tuple[int, int], float] = {}
         if self.enabled:
@@ -129,10 +133,16 @@ class Actuation:
             length = actuator.gear * sum(c * q[art][dof] for art, dof, c in terms)
             speed = actuator.gear * sum(c * v[art][dof] for art, dof, c in terms)
             force = actuator.force(ctrl[a], length, speed)
+            implicit = self._implicit_tendon_kv(actuator, force != actuator.unclamped(ctrl[a], length, speed))
             for art, dof, c in terms:
-                forces[art][dof] += actuator.gear * c * force
+                # MuJoCo's implicit step holds the diagonal of kv J^T J only: it joins the drive, and the
+                # explicit force gets it back at the current rate (measured exact, as for passive tendons)
+                forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
+                tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
         for (art, dof), dof_drive in drives.items():
+            if (art, dof) in tendon_kv:
+                dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
             joint = articulations[art].active_joints[dof]
             forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep,
                                             via_damping.get((art, dof), 0.0))
@@ -140,6 +150,12 @@ class Actuation:
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
 
+
+    @staticmethod
+    def _implicit_tendon_kv(actuator: ActuatorMap, saturated: bool) -> float:
+        """A tendon actuator's joint-space kv (gear^2 kv) that MuJoCo's implicit step treats implicitly: none once
+        its forcerange clamps it (as for joint actuators)."""
+        return 0.0 if saturated else actuator.damping
 
     def _clamped_step(self, key, members: list[int], ctrl, q: float, v: float):
         """MuJoCo's actuator force on one DoF at the state (q, v) when a clamp binds there: (drive, constant,
@@ -187,9 +203,9 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
             if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
                 notes.approximate("actuator", entry.name, "kv is implicit in PhysX (as in MuJoCo's implicitfast); "
                                   "this model integrates with Euler, where kv is explicit: O(timestep)")
-        else:
-            notes.approximate("actuator", entry.name, "tendon actuator force evaluated from the state at "
-                              "set_ctrl (explicit)")
+        elif int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
+            notes.approximate("actuator", entry.name, "kv treated as MuJoCo's implicitfast does (its diagonal "
+                              "implicit); this model integrates with Euler, where kv is explicit: O(timestep)")
     members: dict[tuple[int, int], list[int]] = {}
     for a, entry in enumerate(actuation.actuators):
         if entry.mapped and entry.joint is not None:
