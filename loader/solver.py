@@ -53,9 +53,14 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
         if target.kind in ("hinge", "slide"):
             dof_of[(target.articulation, target.dofs[0])] = int(model.jnt_dofadr[j])
     timestep = float(model.opt.timestep)
+    tendon_kv: dict[tuple[int, int], float] = {}  # tendon actuators' kv diagonal joins the drives every step
+    for a, terms in actuation.tendon_terms.items():
+        for art, dof, c in terms:
+            tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + actuation.actuators[a].damping * c * c
     rows: dict[int, list[tuple[int, float]]] = {}
     for key, dof_drive in actuation.drives.items():
-        weight = timestep * (dof_drive.physx_damping(timestep) + timestep * dof_drive.stiffness)
+        damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
+        weight = timestep * (damping + timestep * dof_drive.stiffness)
         if weight > 0 and key in dof_of:
             rows.setdefault(key[0], []).append((dof_of[key], weight))
     radii = {}
