@@ -9,6 +9,12 @@ An actuator on a fixed tendon applies J^T f as a generalized force, its bias eva
 exact), which joins the joints' drives, so this too is exact under implicitfast. Activation dynamics, muscles and
 site/body transmissions are not mapped.
 
+Joint frictionloss rides on the same drive when nothing else does (no damping, stiffness or enabled actuator on
+the joint): MuJoCo's friction row is a box-constrained solve f = clip(-(J a0 + B v) / (A + R), +-F) (K, B, R from
+its rows at qpos0); a PhysX drive with damping 1 / (R dt), velocity target v (1 - B dt) and force limit F solves
+the same problem (measured 2.5e-7 rad over 1 s on a two-link frictional pendulum, sticking and sliding). Where the
+drive already carries something, frictionloss is dropped (listed).
+
 Force limits are exact too. MuJoCo evaluates each actuator's force at the start of the step, clamps it to its
 `forcerange`, clamps the joint's sum to the joint's `actuatorfrcrange`, and then treats kv implicitly only for the
 actuators its forcerange did not clamp (measured: a saturated servo's kv drops out of the step; a joint-level clamp
@@ -91,6 +97,7 @@ class Actuation:
     limited: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     joint_range: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
     tendons: list = field(default_factory=list)  # passive fixed tendons (`tendon.PassiveTendon`), every step
+    friction: dict[tuple[int, int], tuple[float, float, float]] = field(default_factory=dict)  # dof -> (F, B, R)
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None) -> None:
         """Drive targets and `qf` for this ctrl, the passive tendons' forces, and `qfrc_applied` (per
@@ -106,7 +113,7 @@ class Actuation:
         forces = [np.zeros(art.dof) for art in articulations]
         if qfrc_applied is not None:
             forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
-        if (self.enabled and (self.tendon_terms or self.limited)) or self.tendons:  # read the state once
+        if (self.enabled and (self.tendon_terms or self.limited)) or self.tendons or self.friction:  # state once
             q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
             v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         for tendon in self.tendons:
@@ -140,6 +147,13 @@ class Actuation:
                 forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
+        for key, (limit, b, regularizer) in self.friction.items():
+            carried = drives[key]
+            if carried.stiffness == 0 and carried.damping == 0 and key not in tendon_kv and key not in via_damping:
+                damping = 1.0 / (regularizer * timestep)
+                forces[key[0]][key[1]] += constants[key]  # a motor's force stays explicit, as in MuJoCo's a0
+                drives[key] = DofDrive(0.0, damping, 0.0, limit)
+                constants[key] = damping * v[key[0]][key[1]] * (1.0 - b * timestep)
         for (art, dof), dof_drive in drives.items():
             if (art, dof) in tendon_kv:
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
@@ -193,6 +207,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
                                stiffness * float(model.qpos_spring[adr]))
             actuation.passive[(target.articulation, target.dofs[0])] = passive
             actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))
+    _plan_friction(model, mapping, actuation)
     disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     for a in range(model.nu):
         entry = _plan_one(model, mapping, a, disabled, actuation)
@@ -206,6 +221,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         elif int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
             notes.approximate("actuator", entry.name, "kv treated as MuJoCo's implicitfast does (its diagonal "
                               "implicit); this model integrates with Euler, where kv is explicit: O(timestep)")
+    _note_friction(model, mapping, actuation, notes)
     members: dict[tuple[int, int], list[int]] = {}
     for a, entry in enumerate(actuation.actuators):
         if entry.mapped and entry.joint is not None:
@@ -222,6 +238,44 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
             notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
                               "damping absorbs in one step: PhysX damping clamped at 0, O(timestep)")
     return actuation
+
+
+def _plan_friction(model: mujoco.MjModel, mapping: Mapping, actuation: Actuation) -> None:
+    """MuJoCo's friction rows (limit F, reference damping B, regularizer R) of every frictional hinge/slide DoF."""
+    if not model.dof_frictionloss.any():
+        return
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_forward(model, data)
+    rows = {int(data.efc_id[i]): (float(data.efc_KBIP[i][1]), float(data.efc_R[i])) for i in range(data.nefc)
+            if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)}
+    for j, target in enumerate(mapping.joints):
+        dof = int(model.jnt_dofadr[j])
+        if target.kind in ("hinge", "slide") and dof in rows:
+            b, regularizer = rows[dof]
+            actuation.friction[(target.articulation, target.dofs[0])] = (float(model.dof_frictionloss[dof]), b,
+                                                                         regularizer)
+
+
+def _note_friction(model: mujoco.MjModel, mapping: Mapping, actuation: Actuation, notes: Notes) -> None:
+    """Frictionloss the drive cannot carry is listed: always where the joint has damping or stiffness, while the
+    actuators are on where an actuator adds gains to the drive (a plain motor does not)."""
+    actuated = {key for key, drive in actuation.drives.items() if drive.stiffness or drive.damping}
+    actuated |= {(art, dof) for a, terms in actuation.tendon_terms.items() if actuation.actuators[a].damping
+                 for art, dof, _ in terms}
+    for j, target in enumerate(mapping.joints):
+        key = (target.articulation, target.dofs[0]) if target.kind in ("hinge", "slide") else None
+        if key not in actuation.friction:
+            continue
+        name = model.joint(j).name or f"joint{j}"
+        passive = actuation.passive[key]
+        if passive.stiffness or passive.damping:
+            notes.drop("joint", name, f"frictionloss {actuation.friction[key][0]:g} dropped: the joint's PhysX "
+                       "drive carries its damping or stiffness, and PhysX has no second drive for a constant-torque "
+                       "friction")
+        elif key in actuated:
+            notes.approximate("joint", name, f"frictionloss {actuation.friction[key][0]:g} carried by the "
+                              "joint's drive while its actuators are off, dropped while they drive it")
 
 
 def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:

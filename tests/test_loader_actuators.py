@@ -8,6 +8,8 @@ Tolerances are measured: unsaturated panda servos agree to 3e-6 rad over 1 s; th
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -293,3 +295,63 @@ def test_a_tendon_servo_matches_mujoco(tmp_path, monkeypatch, forcerange):
     monkeypatch.setattr(Actuation, "_implicit_tendon_kv", staticmethod(lambda actuator, saturated: 0.0))
     explicit, model = _contact_free(path)
     assert _replay(explicit, model, square, 1.0).max() > 10 * SERVO_TOLERANCE
+
+
+FRICTIONAL = """<mujoco><option timestep="0.002" integrator="implicitfast"/>
+  <worldbody><body name="base">
+    <body name="upper" pos="0 0 1"><joint name="upper" axis="0 1 0" frictionloss="{upper}"/>
+      <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".5"/>
+      <body name="lower" pos=".3 0 0"><joint name="lower" axis="0 1 0" frictionloss="{lower}"/>
+        <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/></body></body>
+    <body name="damped" pos="0 1 0"><joint name="damped" axis="0 1 0" damping=".1" frictionloss=".1"/>
+      <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/></body>
+  </body></worldbody>
+  <keyframe><key qpos="0.3 -0.5 0"/></keyframe>
+</mujoco>"""
+FRICTION_TOLERANCE = 1e-5  # rad over 1 s; measured 1.3e-6 sliding, 3.6e-7 sticking (dropped: 0.93, 2.6)
+
+
+@pytest.mark.parametrize("friction", [{"upper": 0.3, "lower": 0.05}, {"upper": 2.0, "lower": 1.0}],
+                         ids=["sliding", "sticking"])
+def test_frictionloss_on_an_undriven_joint_matches_mujoco(tmp_path, monkeypatch, friction):
+    """A two-link pendulum falling against joint frictionloss (sliding, or mostly stuck): the joints carry nothing
+    else, so a PhysX drive (damping 1/(R dt), velocity target v (1 - B dt), force limit F) solves MuJoCo's friction
+    rows. A third joint with damping keeps its frictionloss dropped and listed. Mutation: friction dropped."""
+    path = tmp_path / "frictional.xml"
+    path.write_text(FRICTIONAL.format(**friction))
+    result, model = _contact_free(path)
+    listed = {(entry.kind, entry.name) for entry in result.unsupported}
+    assert ("joint", "damped") in listed and ("joint", "upper") not in listed
+    reference = copy.copy(model)  # MuJoCo without the frictionloss the loader lists as dropped
+    reference.dof_frictionloss[model.joint("damped").dofadr[0]] = 0.0
+    errors = _replay(result, model, lambda step, data: np.zeros(0), 1.0, reference=reference)
+    assert errors.max() < FRICTION_TOLERANCE, errors.max()
+    dropped, model = _contact_free(path)
+    dropped.actuation.friction.clear()
+    assert _replay(dropped, model, lambda step, data: np.zeros(0), 1.0,
+                   reference=reference).max() > 1e3 * FRICTION_TOLERANCE
+
+
+def test_frictionloss_on_an_actuated_joint_is_carried_only_while_the_actuators_are_off(tmp_path):
+    text = FRICTIONAL.format(upper=0.3, lower=0.05).replace(
+        "</worldbody>", '</worldbody><actuator><position joint="upper" kp="5"/></actuator>')
+    path = tmp_path / "actuated.xml"
+    path.write_text(text)
+    result, _ = _contact_free(path)
+    notes = {(entry.kind, entry.name): entry.reason for entry in result.approximations}
+    assert "while its actuators are off" in notes[("joint", "upper")]
+
+
+def test_a_motor_on_a_frictional_joint_keeps_its_force(tmp_path):
+    """A plain motor adds no gains, so the joint's drive still carries the frictionloss; the motor's force must
+    still reach the joint (explicit, as MuJoCo's a0 holds it)."""
+    text = FRICTIONAL.format(upper=0.3, lower=0.05).replace(
+        "</worldbody>", '</worldbody><actuator><motor joint="upper" gear="2" ctrlrange="-1 1"/></actuator>')
+    path = tmp_path / "motor.xml"
+    path.write_text(text)
+    result, model = _contact_free(path)
+    assert ("joint", "upper") not in {(e.kind, e.name) for e in result.unsupported + result.approximations}
+    reference = copy.copy(model)
+    reference.dof_frictionloss[model.joint("damped").dofadr[0]] = 0.0
+    errors = _replay(result, model, lambda step, data: np.array([np.sin(step * 0.02)]), 1.0, reference=reference)
+    assert errors.max() < FRICTION_TOLERANCE, errors.max()

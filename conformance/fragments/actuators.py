@@ -115,14 +115,33 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
             damping[key] += d
     out = []
     dt = float(model.opt.timestep)
+    friction = _friction_drives(result, model)
     for key, want_k in stiffness.items():
         joint = result.articulations[key[0]].active_joints[key[1]]
         want_d = max(damping[key] - want_k * dt, 0.0)
+        if want_k == 0 and want_d == 0 and key in friction:  # frictionloss rides on an otherwise empty drive
+            want_d = friction[key]
         got_k, got_d = float(joint.stiffness), float(joint.damping)
         if not (_close32(got_k, want_k) and _close32(got_d, want_d)):
             out.append(f"joint {joint.name!r}: PhysX drive stiffness {got_k:.7g} damping {got_d:.7g}, MuJoCo's "
                        f"terms give stiffness {want_k:.7g} damping {want_d:.7g} (dt {dt:g})")
     return out, len(stiffness)
+
+
+def _friction_drives(result, model: mujoco.MjModel) -> dict[tuple[int, int], float]:
+    """Per frictional hinge/slide DoF, the drive damping that carries MuJoCo's friction row: 1 / (R dt), R read
+    from MuJoCo's own constraint rows at qpos0."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_forward(model, data)
+    out = {}
+    for i in range(data.nefc):
+        if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF):
+            j = int(model.dof_jntid[int(data.efc_id[i])])
+            target = result.mapping.joints[j]
+            if target.kind in ("hinge", "slide"):
+                out[(target.articulation, target.dofs[0])] = 1.0 / (float(data.efc_R[i]) * float(model.opt.timestep))
+    return out
 
 
 def _close32(a: float, b: float) -> bool:
