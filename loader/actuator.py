@@ -9,11 +9,7 @@ An actuator on a fixed tendon applies J^T f as a generalized force, its bias eva
 exact), which joins the joints' drives, so this too is exact under implicitfast. Activation dynamics, muscles and
 site/body transmissions are not mapped.
 
-Joint frictionloss rides on the same drive when nothing else does (no damping, stiffness or enabled actuator on
-the joint): MuJoCo's friction row is a box-constrained solve f = clip(-(J a0 + B v) / (A + R), +-F) (K, B, R from
-its rows at qpos0); a PhysX drive with damping 1 / (R dt), velocity target v (1 - B dt) and force limit F solves
-the same problem (measured 2.5e-7 rad over 1 s on a two-link frictional pendulum, sticking and sliding). Where the
-drive already carries something, frictionloss is dropped (listed).
+Joint frictionloss rides on a drive that carries nothing else (`friction.py`).
 
 Force limits are exact too. MuJoCo evaluates each actuator's force at the start of the step, clamps it to its
 `forcerange`, clamps the joint's sum to the joint's `actuatorfrcrange`, and then treats kv implicitly only for the
@@ -34,6 +30,7 @@ import numpy as np
 from . import drive
 from .drive import DofDrive
 from .errors import Notes
+from .friction import FrictionRow, friction_rows, note_dropped_friction
 from .mapping import Mapping
 from .tendon import fixed_tendon_terms
 
@@ -97,7 +94,7 @@ class Actuation:
     limited: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     joint_range: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
     tendons: list = field(default_factory=list)  # passive fixed tendons (`tendon.PassiveTendon`), every step
-    friction: dict[tuple[int, int], tuple[float, float, float]] = field(default_factory=dict)  # dof -> (F, B, R)
+    friction: dict[tuple[int, int], FrictionRow] = field(default_factory=dict)  # frictional hinge/slide DoFs
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None) -> None:
         """Drive targets and `qf` for this ctrl, the passive tendons' forces, and `qfrc_applied` (per
@@ -147,13 +144,10 @@ class Actuation:
                 forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
-        for key, (limit, b, regularizer) in self.friction.items():
-            carried = drives[key]
-            if carried.stiffness == 0 and carried.damping == 0 and key not in tendon_kv and key not in via_damping:
-                damping = 1.0 / (regularizer * timestep)
+        for key, row in self.friction.items():
+            if drives[key].carries_nothing() and key not in tendon_kv and key not in via_damping:
                 forces[key[0]][key[1]] += constants[key]  # a motor's force stays explicit, as in MuJoCo's a0
-                drives[key] = DofDrive(0.0, damping, 0.0, limit)
-                constants[key] = damping * v[key[0]][key[1]] * (1.0 - b * timestep)
+                drives[key], constants[key] = row.drive(v[key[0]][key[1]], timestep)
         for (art, dof), dof_drive in drives.items():
             if (art, dof) in tendon_kv:
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
@@ -207,7 +201,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
                                stiffness * float(model.qpos_spring[adr]))
             actuation.passive[(target.articulation, target.dofs[0])] = passive
             actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))
-    _plan_friction(model, mapping, actuation)
+    actuation.friction = friction_rows(model, mapping)
     disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     for a in range(model.nu):
         entry = _plan_one(model, mapping, a, disabled, actuation)
@@ -221,7 +215,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         elif int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
             notes.approximate("actuator", entry.name, "kv treated as MuJoCo's implicitfast does (its diagonal "
                               "implicit); this model integrates with Euler, where kv is explicit: O(timestep)")
-    _note_friction(model, mapping, actuation, notes)
+    note_dropped_friction(model, mapping, actuation, notes)
     members: dict[tuple[int, int], list[int]] = {}
     for a, entry in enumerate(actuation.actuators):
         if entry.mapped and entry.joint is not None:
@@ -238,44 +232,6 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
             notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
                               "damping absorbs in one step: PhysX damping clamped at 0, O(timestep)")
     return actuation
-
-
-def _plan_friction(model: mujoco.MjModel, mapping: Mapping, actuation: Actuation) -> None:
-    """MuJoCo's friction rows (limit F, reference damping B, regularizer R) of every frictional hinge/slide DoF."""
-    if not model.dof_frictionloss.any():
-        return
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    mujoco.mj_forward(model, data)
-    rows = {int(data.efc_id[i]): (float(data.efc_KBIP[i][1]), float(data.efc_R[i])) for i in range(data.nefc)
-            if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)}
-    for j, target in enumerate(mapping.joints):
-        dof = int(model.jnt_dofadr[j])
-        if target.kind in ("hinge", "slide") and dof in rows:
-            b, regularizer = rows[dof]
-            actuation.friction[(target.articulation, target.dofs[0])] = (float(model.dof_frictionloss[dof]), b,
-                                                                         regularizer)
-
-
-def _note_friction(model: mujoco.MjModel, mapping: Mapping, actuation: Actuation, notes: Notes) -> None:
-    """Frictionloss the drive cannot carry is listed: always where the joint has damping or stiffness, while the
-    actuators are on where an actuator adds gains to the drive (a plain motor does not)."""
-    actuated = {key for key, drive in actuation.drives.items() if drive.stiffness or drive.damping}
-    actuated |= {(art, dof) for a, terms in actuation.tendon_terms.items() if actuation.actuators[a].damping
-                 for art, dof, _ in terms}
-    for j, target in enumerate(mapping.joints):
-        key = (target.articulation, target.dofs[0]) if target.kind in ("hinge", "slide") else None
-        if key not in actuation.friction:
-            continue
-        name = model.joint(j).name or f"joint{j}"
-        passive = actuation.passive[key]
-        if passive.stiffness or passive.damping:
-            notes.drop("joint", name, f"frictionloss {actuation.friction[key][0]:g} dropped: the joint's PhysX "
-                       "drive carries its damping or stiffness, and PhysX has no second drive for a constant-torque "
-                       "friction")
-        elif key in actuated:
-            notes.approximate("joint", name, f"frictionloss {actuation.friction[key][0]:g} carried by the "
-                              "joint's drive while its actuators are off, dropped while they drive it")
 
 
 def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:

@@ -62,7 +62,7 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
         damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
         weight = timestep * (damping + timestep * dof_drive.stiffness)
         if weight == 0 and key in actuation.friction:  # the frictionloss drive (compliance R)
-            weight = 1.0 / actuation.friction[key][2]
+            weight = 1.0 / actuation.friction[key].regularizer
         if weight > 0 and key in dof_of:
             rows.setdefault(key[0], []).append((dof_of[key], weight))
     radii = {}
