@@ -145,7 +145,7 @@ class Actuation:
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
         for key, row in self.friction.items():
-            if drives[key].carries_nothing() and key not in tendon_kv and key not in via_damping:
+            if drives[key].carries_nothing() and not tendon_kv.get(key):  # nothing else rides on the drive
                 forces[key[0]][key[1]] += constants[key]  # a motor's force stays explicit, as in MuJoCo's a0
                 drives[key], constants[key] = row.drive(v[key[0]][key[1]], timestep)
         for (art, dof), dof_drive in drives.items():

@@ -342,11 +342,14 @@ def test_frictionloss_on_an_actuated_joint_is_carried_only_while_the_actuators_a
     assert "while its actuators are off" in notes[("joint", "upper")]
 
 
-def test_a_motor_on_a_frictional_joint_keeps_its_force(tmp_path):
+@pytest.mark.parametrize("forcerange", ["", 'forcerange="-0.3 0.3"'], ids=["free", "saturating"])
+def test_a_motor_on_a_frictional_joint_keeps_its_force(tmp_path, forcerange):
     """A plain motor adds no gains, so the joint's drive still carries the frictionloss; the motor's force must
-    still reach the joint (explicit, as MuJoCo's a0 holds it)."""
+    still reach the joint (explicit, as MuJoCo's a0 holds it), clamped or not (the clamped steps once dropped the
+    friction: 0.73 rad)."""
     text = FRICTIONAL.format(upper=0.3, lower=0.05).replace(
-        "</worldbody>", '</worldbody><actuator><motor joint="upper" gear="2" ctrlrange="-1 1"/></actuator>')
+        "</worldbody>", f'</worldbody><actuator><motor joint="upper" gear="2" ctrlrange="-1 1" {forcerange}/>'
+        '</actuator>')
     path = tmp_path / "motor.xml"
     path.write_text(text)
     result, model = _contact_free(path)
