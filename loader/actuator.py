@@ -32,7 +32,7 @@ from .drive import DofDrive
 from .errors import Notes
 from .friction import FrictionRow, friction_rows, note_dropped_friction
 from .mapping import Mapping
-from .tendon import fixed_tendon_terms
+from .tendon import fixed_tendon_terms, tendon_state
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
 
@@ -134,8 +134,7 @@ class Actuation:
                 constants[key] += actuator.gear * (actuator.gain * ctrl[a] + actuator.bias[0])
                 continue
             terms = self.tendon_terms[a]
-            length = actuator.gear * sum(c * q[art][dof] for art, dof, c in terms)
-            speed = actuator.gear * sum(c * v[art][dof] for art, dof, c in terms)
+            length, speed = (actuator.gear * x for x in tendon_state(terms, q, v))
             force = actuator.force(ctrl[a], length, speed)
             implicit = self._implicit_tendon_kv(actuator, force != actuator.unclamped(ctrl[a], length, speed))
             for art, dof, c in terms:
@@ -157,7 +156,6 @@ class Actuation:
         for art, qf in zip(articulations, forces):
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
-
 
     @staticmethod
     def _implicit_tendon_kv(actuator: ActuatorMap, saturated: bool) -> float:

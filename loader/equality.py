@@ -133,11 +133,11 @@ def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
     stiffness, damping = soft_gains(model, e, jacobian)
     articulation = next(iter(terms))[0]
     # the gains go to PhysX as they are, so PhysX spreads them over the tendon's joints (tendon.py): measured
-    # closer to MuJoCo than the whole gains on the coupled-joint fixture (4.4e-3 against 1.5e-2 rad) and on
-    # dm_control manipulator (one-step qacc 2.6e-2 against 6.8e-2), further on the panda's fingers (6.7e-2 against
-    # 1.9e-2): a spring cannot reproduce MuJoCo's impedance either way
+    # closer to MuJoCo than the whole gains (times the joint count) on the coupled-joint fixture (4.4e-3 against
+    # 1.5e-2 rad) and on dm_control manipulator (one-step qacc 2.6e-2 against 6.8e-2), further on the panda's
+    # fingers (6.7e-2 against 1.9e-2): a spring cannot reproduce MuJoCo's impedance either way
     create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in terms.items()}, offset,
-                        stiffness, damping, whole_gains=False)
+                        stiffness, damping)
     notes.approximate("equality", name, "solref softness mapped to tendon stiffness/damping at qpos0's "
                       "effective mass")
     return EqualityLink(name, "fixed tendon", True)

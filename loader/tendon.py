@@ -7,8 +7,8 @@ sum(coefficient * q) and its spring force reaches each joint scaled by the joint
 that to the coefficient itself gives MuJoCo's J^T f (measured: two equal links coupled q_a - 0.5 q_b = 0.3 settle
 at 0.24 and -0.12, as J^T f predicts).
 PhysX divides a tendon's stiffness and damping among the tendon's joints (every link below its root, those with
-coefficient 0 included): measured on 1-4 sibling hinges, the force is 1/n of the stated gains; the loader
-multiplies them by n. Then one step is implicit, f = -K (L + dt J v') - D J v' (J v' the rate after the step),
+coefficient 0 included): measured on 1-4 sibling hinges, the force is 1/n of the stated gains. Times n, one step
+is implicit, f = -K (L + dt J v') - D J v' (J v' the rate after the step),
 to 1e-8 on two hinges with coefficients (1, -1), (1, 0.5), (-0.5, 1), (2, 3) at small gains. PhysX solves the
 tendon iteratively: with mixed-sign coefficients and strong gains (dt D J M^-1 J^T of 3 to 6) it needs about 50
 position iterations to reach 1e-5, and with coefficients (1, -2) at 12 it diverges.
@@ -36,11 +36,10 @@ def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, fl
 
 def create_fixed_tendon(
     articulation: sapien.physx.PhysxArticulation, dof_coefficients: dict[int, float], rest_length: float,
-    stiffness: float, damping: float, low: float = -np.inf, high: float = np.inf, whole_gains: bool = True,
+    stiffness: float, damping: float,
 ) -> None:
-    """A PhysX fixed tendon over the DoFs (indices into `articulation.active_joints`) with these coefficients.
-    `whole_gains`: the tendon exerts `stiffness` and `damping` (PhysX's stated gains are multiplied by the number
-    of tendon joints it divides them among); False passes them to PhysX as they are."""
+    """A PhysX fixed tendon over the DoFs (indices into `articulation.active_joints`) with these coefficients and
+    PhysX's stated gains, which PhysX divides among the tendon's joints (module notes)."""
     joints = articulation.active_joints
     coefficient_of = {joints[d].child_link.name: c for d, c in dof_coefficients.items()}
     # the tendon's links: every link from the common ancestor down to each coupled joint's child link
@@ -63,13 +62,14 @@ def create_fixed_tendon(
                 chain.append(link)
                 seen.add(link.name)
     coefficients = [coefficient_of.get(link.name, 0.0) if i else 0.0 for i, link in enumerate(chain)]
-    finite = float(np.finfo(np.float32).max)
-    joints_in_tendon = len(chain) - 1 if whole_gains else 1  # PhysX divides the gains among them (module notes)
     articulation.create_fixed_tendon(
-        chain, coefficients, coefficients, rest_length=rest_length, offset=0.0,
-        stiffness=stiffness * joints_in_tendon, damping=damping * joints_in_tendon,
-        low=max(low, -finite), high=min(high, finite),
+        chain, coefficients, coefficients, rest_length=rest_length, offset=0.0, stiffness=stiffness, damping=damping,
     )
+
+
+def tendon_state(terms, q: list[np.ndarray], v: list[np.ndarray]) -> tuple[float, float]:
+    """Length and rate, sum c q and sum c qdot, of a fixed tendon over (articulation, dof, coefficient) terms."""
+    return (sum(c * q[art][dof] for art, dof, c in terms), sum(c * v[art][dof] for art, dof, c in terms))
 
 
 @dataclass(frozen=True)
@@ -88,8 +88,7 @@ class PassiveTendon:
     diagonal: bool
 
     def forces(self, q: list[np.ndarray], v: list[np.ndarray]):
-        length = sum(c * q[art][dof] for art, dof, c in self.terms)
-        rate = sum(c * v[art][dof] for art, dof, c in self.terms)
+        length, rate = tendon_state(self.terms, q, v)
         stretch = length - self.low if length < self.low else (length - self.high if length > self.high else 0.0)
         pull = -self.stiffness * stretch - self.damping * rate
         for art, dof, c in self.terms:

@@ -158,9 +158,14 @@ def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
     _optional(draw, attrs, "stiffness", _dec(0, 20, 0.5), p=draw(st.integers(0, 3)) == 3)
     _optional(draw, attrs, "springref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
     _optional(draw, attrs, "frictionloss", _dec(0, 10, 0.01), p=draw(st.integers(0, 7)) == 7)
+    _element_class(draw, attrs, ctx, in_default)
+    return attrs
+
+
+def _element_class(draw, attrs: Attrs, ctx: _Context, in_default: bool) -> None:
+    """Half the elements outside defaults name a class (main or a declared one)."""
     if not in_default and ctx.classes and draw(st.booleans()):
         attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
-    return attrs
 
 
 @st.composite
@@ -171,8 +176,7 @@ def site_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
     _optional(draw, attrs, "pos", POS)
     _optional(draw, attrs, "rgba", _vec(4, 0, 10, 0.1))
     _optional(draw, attrs, "group", st.integers(0, 5).map(str))
-    if not in_default and ctx.classes and draw(st.booleans()):
-        attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
+    _element_class(draw, attrs, ctx, in_default)
     return attrs
 
 
