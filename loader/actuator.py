@@ -9,7 +9,8 @@ An actuator on a fixed tendon applies J^T f as a generalized force, its bias eva
 exact), which joins the joints' drives, so this too is exact under implicitfast. Activation dynamics, muscles and
 site/body transmissions are not mapped.
 
-Joint frictionloss rides on a drive that carries nothing else (`friction.py`).
+Joint frictionloss rides on the joint's drive; the joint's own damping and gains then leave the drive as armature
+and explicit forces (`friction.py`).
 
 Force limits are exact too. MuJoCo evaluates each actuator's force at the start of the step, clamps it to its
 `forcerange`, clamps the joint's sum to the joint's `actuatorfrcrange`, and then treats kv implicitly only for the
@@ -30,7 +31,7 @@ import numpy as np
 from . import drive
 from .drive import DofDrive
 from .errors import Notes
-from .friction import FrictionRow, friction_rows, note_dropped_friction
+from .friction import FrictionRow, friction_rows, note_coupled_friction
 from .mapping import Mapping
 from .tendon import fixed_tendon_terms, tendon_state
 
@@ -95,6 +96,7 @@ class Actuation:
     joint_range: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
     tendons: list = field(default_factory=list)  # passive fixed tendons (`tendon.PassiveTendon`), every step
     friction: dict[tuple[int, int], FrictionRow] = field(default_factory=dict)  # frictional hinge/slide DoFs
+    armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None) -> None:
         """Drive targets and `qf` for this ctrl, the passive tendons' forces, and `qfrc_applied` (per
@@ -143,10 +145,17 @@ class Actuation:
                 forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
-        for key, row in self.friction.items():
-            if drives[key].carries_nothing() and not tendon_kv.get(key):  # nothing else rides on the drive
-                forces[key[0]][key[1]] += constants[key]  # a motor's force stays explicit, as in MuJoCo's a0
-                drives[key], constants[key] = row.drive(v[key[0]][key[1]], timestep)
+        for key, row in self.friction.items():  # the drive carries the friction (`friction.py`)
+            art, dof = key
+            law = drives[key]
+            damping = law.damping + tendon_kv.pop(key, 0.0)  # implicit: armature dt D and explicit -D v
+            forces[art][dof] += (constants[key] + via_damping.pop(key, 0.0) - law.stiffness * q[art][dof]
+                                 - damping * v[art][dof])
+            armature = row.armature + timestep * damping
+            if self.armature.get(key) != armature:
+                articulations[art].active_joints[dof].set_armature(np.array([armature], np.float32))
+                self.armature[key] = armature
+            drives[key], constants[key] = row.drive(v[art][dof], timestep, row.scale(damping, timestep))
         for (art, dof), dof_drive in drives.items():
             if (art, dof) in tendon_kv:
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
@@ -213,7 +222,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         elif int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
             notes.approximate("actuator", entry.name, "kv treated as MuJoCo's implicitfast does (its diagonal "
                               "implicit); this model integrates with Euler, where kv is explicit: O(timestep)")
-    note_dropped_friction(model, mapping, actuation, notes)
+    note_coupled_friction(model, mapping, actuation, notes)
     members: dict[tuple[int, int], list[int]] = {}
     for a, entry in enumerate(actuation.actuators):
         if entry.mapped and entry.joint is not None:
@@ -226,7 +235,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         if key in actuation.joint_range or any(actuation.actuators[a].forcerange for a in indices):
             actuation.limited[key] = indices
     for key, dof_drive in actuation.drives.items():
-        if not dof_drive.exact(float(model.opt.timestep)):
+        if not dof_drive.exact(float(model.opt.timestep)) and key not in actuation.friction:  # explicit springs
             notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
                               "damping absorbs in one step: PhysX damping clamped at 0, O(timestep)")
     return actuation

@@ -5,11 +5,14 @@ while springs and actuator kp are explicit. A PhysX drive is implicit in both. W
 force over a step, K(p - q[t+1]) - D' v[t+1] = K(p - q[t]) - D v[t+1], is MuJoCo's. The state-independent part
 of the force (K*springref, gear*(gain*ctrl + bias0)) becomes the drive's position target (K > 0), its velocity
 target (K = 0, D' > 0), or a generalized force (neither).
-A limit measured, not removable here: a joint's implicit damping reaches the rest of the articulation differently
-in PhysX when the joint moves fast. A free box with one damped hinge arm spinning at 3 rad/s (damping 2,
-armature 0.01, dt 2 ms): the joint agrees with MuJoCo to 1.5e-7 after one step, the box's velocity differs by
-5.7e-4 (1.6e-4 at half the timestep; 1.1e-6 without the damping), whatever the solver iterations. PhysX's result
-sits closer to the Coriolis terms evaluated after the damping (9.5e-5) than MuJoCo's before it.
+A limit measured, not removable here: when a joint's velocity changes a lot in one step on a moving base,
+PhysX's base reacts differently from MuJoCo's semi-implicit Euler, at O(dt^2) per step. A free box with one hinge
+arm spinning at 3 rad/s (armature 0.01, dt 2 ms): with joint damping 2, the joint agrees with MuJoCo to 1.5e-7
+after one step and the box's velocity differs by 1.3e-4 (6.0e-4 after 1 s; 5.3e-6 without the damping), whatever
+the solver iterations. It is not the drive: the damping carried as armature dt D plus -D v (no drive row, exact
+inside MuJoCo) gives the same 1.3e-4, and so does an applied joint torque of -6 N m without any damping (1.5e-4;
+MuJoCo's own RK4 and Euler differ there by 1.2e-4): PhysX evaluates the velocity-product terms of the step
+differently from MuJoCo.
 """
 
 from __future__ import annotations

@@ -6,8 +6,18 @@ through M^-1 when several joints have friction). A PhysX drive with damping C, v
 F gives f = clip(C (v* - v'), -F, F) with v' = v + dt (a0 + A f), solved in the same Gauss-Seidel sweep: with
 C = 1 / (R dt) and v* = v (1 - B dt) the two problems are the same. Measured on a two-link pendulum falling
 against its frictionloss: 1.3e-6 rad over 1 s sliding, 3.6e-7 sticking (0.93 and 2.6 with friction dropped).
-A drive holds one law: where it already carries damping, stiffness or servo gains, frictionloss is dropped and
-listed (damped joints always; servo-driven joints while their actuators are on).
+A drive holds one law, so where a joint also has damping, a spring or servo gains, those leave the drive (the
+"armature form", `Actuation.set_ctrl`): springs and kp are explicit in MuJoCo and become generalized forces; the
+implicit damping D (passive damping, and kv under implicitfast) becomes armature dt*D plus the explicit force -D v,
+which is MuJoCo's implicit step (M + dt D) qacc = f exactly, with no solver row (measured to 1e-16 inside MuJoCo).
+MuJoCo still solves its friction rows with M alone, while PhysX solves the drive with M + dt D: with
+s = 1 + (M^-1)_ii dt D, damping s / (R dt) and target v (1 - B dt / s) make the two the same for one DoF. With
+several DoFs, MuJoCo's rows couple through the off-diagonal (M^-1)_ij dt D_j, which a per-DoF drive cannot see:
+an approximation, listed. It matters while a joint sticks, and where implicit damping outweighs the links' inertia
+(dt D (M^-1)_ii up to 14 on the Menagerie's leap hand): MuJoCo's friction then opposes an acceleration computed
+without that damping, whose sign differs from the step's velocity change on 12 % of the hand's DoF-steps.
+Measured: one damped servo hinge 3e-7 rad over 2 s (5e-4..7e-3 with s = 1); barkour's and go1's rollouts
+7e-3 -> 1.6e-4 and 4.2e-3 -> 7e-4 rad against friction dropped; the leap hand 5.6e-4 -> 7.6e-4 (worse).
 """
 
 from __future__ import annotations
@@ -15,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 
 from .drive import DofDrive
 from .errors import Notes
@@ -28,11 +39,17 @@ class FrictionRow:
     limit: float
     damping: float
     regularizer: float
+    inverse_inertia: float  # (M^-1)_ii at qpos0
+    armature: float  # the joint's own armature
 
-    def drive(self, velocity: float, timestep: float) -> tuple[DofDrive, float]:
-        """The drive (damping 1 / (R dt), force limit F) and its constant C v (1 - B dt) for this step."""
-        damping = 1.0 / (self.regularizer * timestep)
-        return DofDrive(0.0, damping, 0.0, self.limit), damping * velocity * (1.0 - self.damping * timestep)
+    def scale(self, implicit_damping: float, timestep: float) -> float:
+        """s = 1 + (M^-1)_ii dt D for a DoF whose implicit damping D is carried as armature."""
+        return 1.0 + self.inverse_inertia * timestep * implicit_damping
+
+    def drive(self, velocity: float, timestep: float, scale: float = 1.0) -> tuple[DofDrive, float]:
+        """The drive (damping s / (R dt), force limit F) and its constant C v (1 - B dt / s) for this step."""
+        damping = scale / (self.regularizer * timestep)
+        return DofDrive(0.0, damping, 0.0, self.limit), damping * velocity * (1.0 - self.damping * timestep / scale)
 
 
 def friction_rows(model: mujoco.MjModel, mapping: Mapping) -> dict[tuple[int, int], FrictionRow]:
@@ -44,31 +61,43 @@ def friction_rows(model: mujoco.MjModel, mapping: Mapping) -> dict[tuple[int, in
     mujoco.mj_forward(model, data)
     rows = {int(data.efc_id[i]): (float(data.efc_KBIP[i][1]), float(data.efc_R[i])) for i in range(data.nefc)
             if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)}
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    inverse = np.diag(np.linalg.pinv(inertia, hermitian=True))
     out = {}
     for j, target in enumerate(mapping.joints):
         dof = int(model.jnt_dofadr[j])
         if target.kind in ("hinge", "slide") and dof in rows:
             b, regularizer = rows[dof]
             out[(target.articulation, target.dofs[0])] = FrictionRow(float(model.dof_frictionloss[dof]), b,
-                                                                     regularizer)
+                                                                     regularizer, float(inverse[dof]),
+                                                                     float(model.dof_armature[dof]))
     return out
 
 
-def note_dropped_friction(model: mujoco.MjModel, mapping: Mapping, actuation, notes: Notes) -> None:
-    """List the frictionloss a drive cannot carry: always where the joint has damping or stiffness, while the
-    actuators are on where one adds gains to the drive (a plain motor does not)."""
-    served = {key for key, drive in actuation.drives.items() if not drive.carries_nothing()}
-    served |= {(art, dof) for a, terms in actuation.tendon_terms.items() if actuation.actuators[a].damping
+def _root_dof(model: mujoco.MjModel, dof: int) -> int:
+    while model.dof_parentid[dof] >= 0:
+        dof = int(model.dof_parentid[dof])
+    return dof
+
+
+def note_coupled_friction(model: mujoco.MjModel, mapping: Mapping, actuation, notes: Notes) -> None:
+    """List the frictionloss whose sticking phase is approximate: where another DoF moving with it (one root DoF,
+    so (M^-1)_ij can be non-zero) has implicit damping (passive, actuator kv), which MuJoCo's friction rows do not
+    see and PhysX's do."""
+    damped = {key for key, drive in actuation.drives.items() if drive.damping > 0}
+    damped |= {(art, dof) for a, terms in actuation.tendon_terms.items() if actuation.actuators[a].damping
                for art, dof, _ in terms}
+    dof_of = {(t.articulation, t.dofs[0]): int(model.jnt_dofadr[j]) for j, t in enumerate(mapping.joints)
+              if t.kind in ("hinge", "slide")}
     for j, target in enumerate(mapping.joints):
         key = (target.articulation, target.dofs[0]) if target.kind in ("hinge", "slide") else None
         if key not in actuation.friction:
             continue
-        name = model.joint(j).name or f"joint{j}"
-        limit = actuation.friction[key].limit
-        if not actuation.passive[key].carries_nothing():
-            notes.drop("joint", name, f"frictionloss {limit:g} dropped: the joint's PhysX drive carries its damping "
-                       "or stiffness, and PhysX has no second drive for a constant-torque friction")
-        elif key in served:
-            notes.approximate("joint", name, f"frictionloss {limit:g} carried by the joint's drive while its "
-                              "actuators are off, dropped while they drive it")
+        root = _root_dof(model, dof_of[key])
+        others = [k for k in damped if k != key and k in dof_of and _root_dof(model, dof_of[k]) == root]
+        if others:
+            name = model.joint(j).name or f"joint{j}"
+            notes.approximate("joint", name, f"frictionloss {actuation.friction[key].limit:g} exact while the joint "
+                              f"slides; while it sticks, MuJoCo's coupling through the implicit damping of "
+                              f"{len(others)} other DoF(s) moving with it is taken on the diagonal only")

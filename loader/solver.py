@@ -7,7 +7,8 @@ error after n sweeps, rho the spectral radius of its iteration matrix: stiff dri
 links (rho near 1) need many sweeps, weak drives or decoupled DoFs (rho near 0) converge in one.
 The loader raises an articulation's position iterations until rho^n <= RESIDUAL, at qpos0's inertia (MuJoCo's
 `mj_fullM`). Measured on dm_control finger (rho 0.49): one-step velocity error 9.1e-5 at SAPIEN's 10 sweeps,
-2.0e-7 at the 20 this rule picks. Equality and tendon rows are not counted.
+2.0e-7 at the 20 this rule picks. Equality and tendon rows are not counted; a frictional DoF counts its
+friction row only (its damping is armature there, `friction.py`).
 """
 
 from __future__ import annotations
@@ -61,8 +62,9 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
     for key, dof_drive in actuation.drives.items():
         damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
         weight = timestep * (damping + timestep * dof_drive.stiffness)
-        if weight == 0 and key in actuation.friction:  # the frictionloss drive (compliance R)
-            weight = 1.0 / actuation.friction[key].regularizer
+        if key in actuation.friction:  # the drive carries only the friction (compliance R / s)
+            row = actuation.friction[key]
+            weight = row.scale(dof_drive.damping + tendon_kv.get(key, 0.0), timestep) / row.regularizer
         if weight > 0 and key in dof_of:
             rows.setdefault(key[0], []).append((dof_of[key], weight))
     radii = {}

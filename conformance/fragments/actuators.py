@@ -119,8 +119,14 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     for key, want_k in stiffness.items():
         joint = result.articulations[key[0]].active_joints[key[1]]
         want_d = max(damping[key] - want_k * dt, 0.0)
-        if want_k == 0 and want_d == 0 and key in friction:  # frictionloss rides on an otherwise empty drive
-            want_d = friction[key]
+        if key in friction:  # the drive carries the friction row; damping rides as armature dt D, kp explicit
+            dof, regularizer, inverse_inertia = friction[key]
+            want_k, want_d = 0.0, (1.0 + inverse_inertia * dt * damping[key]) / (regularizer * dt)
+            want_armature = float(model.dof_armature[dof]) + dt * damping[key]
+            got_armature = float(np.asarray(joint.armature).ravel()[0])
+            if not _close32(got_armature, want_armature):
+                out.append(f"joint {joint.name!r}: PhysX armature {got_armature:.7g}, MuJoCo's armature + dt x "
+                           f"damping give {want_armature:.7g}")
         got_k, got_d = float(joint.stiffness), float(joint.damping)
         if not (_close32(got_k, want_k) and _close32(got_d, want_d)):
             out.append(f"joint {joint.name!r}: PhysX drive stiffness {got_k:.7g} damping {got_d:.7g}, MuJoCo's "
@@ -128,19 +134,22 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     return out, len(stiffness)
 
 
-def _friction_drives(result, model: mujoco.MjModel) -> dict[tuple[int, int], float]:
-    """Per frictional hinge/slide DoF, the drive damping that carries MuJoCo's friction row: 1 / (R dt), R read
-    from MuJoCo's own constraint rows at qpos0."""
+def _friction_drives(result, model: mujoco.MjModel) -> dict[tuple[int, int], tuple[int, float, float]]:
+    """Per frictional hinge/slide DoF, its MuJoCo DoF, MuJoCo's friction row regularizer R (its own constraint rows
+    at qpos0) and (M^-1)_ii there, from which the friction drive's damping is (1 + (M^-1)_ii dt D) / (R dt)."""
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
     mujoco.mj_forward(model, data)
     out = {}
     for i in range(data.nefc):
         if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF):
-            j = int(model.dof_jntid[int(data.efc_id[i])])
-            target = result.mapping.joints[j]
+            dof = int(data.efc_id[i])
+            target = result.mapping.joints[int(model.dof_jntid[dof])]
             if target.kind in ("hinge", "slide"):
-                out[(target.articulation, target.dofs[0])] = 1.0 / (float(data.efc_R[i]) * float(model.opt.timestep))
+                unit, response = np.zeros((1, model.nv)), np.zeros((1, model.nv))
+                unit[0, dof] = 1.0
+                mujoco.mj_solveM(model, data, response, unit)
+                out[(target.articulation, target.dofs[0])] = (dof, float(data.efc_R[i]), float(response[0, dof]))
     return out
 
 
