@@ -18,15 +18,13 @@ def matched(model: mujoco.MjModel, contact: bool, actuation: bool = False) -> tu
     """A copy of `model` whose integrator PhysX can match (and contacts off if asked); with the settings.
 
     Without `actuation` (the dynamics tiers command generalized forces) MuJoCo's actuators are disabled, as the
-    harness disables them in SAPIEN. With it (the actuated tiers) they stay on and MuJoCo integrates with
-    implicitfast whatever the model says: the loader's drive mapping is exact against implicitfast only
-    (actuator kv is implicit there, as in a PhysX drive; explicit under Euler)."""
+    harness disables them in SAPIEN. With it (the actuated tiers) they stay on. Either way MuJoCo integrates
+    with the model's own integrator, or the one PhysX can follow (RK4 -> Euler, implicit -> implicitfast): the
+    loader applies actuator kv implicitly under implicitfast and explicitly under Euler, as MuJoCo does."""
     ref = copy.deepcopy(model)
     authored = _INT(int(model.opt.integrator))
-    if actuation:
-        ref.opt.integrator = int(_INT.mjINT_IMPLICITFAST)
-    else:
-        ref.opt.integrator = int(_MATCHED_INTEGRATOR.get(authored, authored))
+    ref.opt.integrator = int(_MATCHED_INTEGRATOR.get(authored, authored))
+    if not actuation:
         ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     if not contact:
         ref.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)

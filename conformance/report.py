@@ -73,8 +73,8 @@ class ActuatorTrace:
     gear and tendon coefficients (`result.actuators`), evaluated on the state read back from SAPIEN before the
     step and clamped to forcerange; for a joint actuator that is (gear*(gain*ctrl + b0) - stiffness*q -
     damping*qdot) / gear with the ActuatorMap's stiffness = -b1*gear^2 and damping = -b2*gear^2. It is not read
-    back from PhysX: PhysX applies the drive implicitly (with the velocity after the step), as MuJoCo's
-    implicitfast does for kv."""
+    back from PhysX: PhysX applies a drive implicitly (with the velocity after the step), as MuJoCo's
+    implicitfast does for kv (under Euler the loader applies kv explicitly, as MuJoCo does)."""
 
     names: list[str]
     time: np.ndarray  # (T,)

@@ -2,8 +2,11 @@
 
 An actuator on a hinge or slide joint with a fixed gain and an affine bias (motor, position, velocity and the
 general PD form) is exact: its joint-space force gear*(gain*ctrl + b0) + gear^2*b1*q + gear^2*b2*qdot joins the
-joint's passive spring-damper in one PhysX drive (`drive.py`). That assumes MuJoCo's implicitfast integrator, which
-treats kv implicitly as PhysX does; under Euler MuJoCo's kv is explicit (an O(timestep) difference).
+joint's passive spring-damper in one PhysX drive (`drive.py`). MuJoCo's implicit integrators (implicitfast, and
+implicit's diagonal) treat kv implicitly, as a drive does; Euler treats it explicitly (RK4 too, which PhysX
+cannot follow and is taken as Euler): there `set_ctrl` applies -kv qdot as a generalized force and leaves the
+drive the joint's passive damping, with kp in the drive while that damping absorbs kp*dt (`drive.py`), else
+explicit too. The integrator is read from the loaded model's `opt.integrator` on every `set_ctrl`.
 An actuator on a fixed tendon applies J^T f as a generalized force, its bias evaluated from the state when
 `set_ctrl` is called (call it every step); MuJoCo's implicit step holds only the diagonal of its kv J^T J (measured
 exact), which joins the joints' drives, so this too is exact under implicitfast. Activation dynamics, muscles and
@@ -33,7 +36,7 @@ from .drive import DofDrive
 from .errors import Notes
 from .friction import FrictionRow, friction_rows, note_coupled_friction
 from .mapping import Mapping
-from .tendon import fixed_tendon_terms, tendon_state
+from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
 
@@ -112,9 +115,9 @@ class Actuation:
         forces = [np.zeros(art.dof) for art in articulations]
         if qfrc_applied is not None:
             forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
-        if (self.enabled and (self.tendon_terms or self.limited)) or self.tendons or self.friction:  # state once
-            q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
-            v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        explicit_kv = int(model.opt.integrator) not in IMPLICIT  # Euler, RK4
+        q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
+        v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         for tendon in self.tendons:
             for art, dof, force in tendon.forces(q, v):
                 forces[art][dof] += force
@@ -123,7 +126,7 @@ class Actuation:
         via_damping: dict[tuple[int, int], float] = {}
         if self.enabled:
             for key, members in self.limited.items():
-                step = self._clamped_step(key, members, ctrl, q[key[0]][key[1]], v[key[0]][key[1]])
+                step = self._clamped_step(key, members, ctrl, q[key[0]][key[1]], v[key[0]][key[1]], explicit_kv)
                 if step is not None:
                     drives[key], constants[key], force, via_damping[key] = step
                     forces[key[0]][key[1]] += force
@@ -138,13 +141,16 @@ class Actuation:
             terms = self.tendon_terms[a]
             length, speed = (actuator.gear * x for x in tendon_state(terms, q, v))
             force = actuator.force(ctrl[a], length, speed)
-            implicit = self._implicit_tendon_kv(actuator, force != actuator.unclamped(ctrl[a], length, speed))
+            saturated = force != actuator.unclamped(ctrl[a], length, speed)
+            implicit = 0.0 if explicit_kv else self._implicit_tendon_kv(actuator, saturated)
             for art, dof, c in terms:
                 # MuJoCo's implicit step holds the diagonal of kv J^T J only: it joins the drive, and the
                 # explicit force gets it back at the current rate (measured exact, as for passive tendons)
                 forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
+        if self.enabled:
+            self._explicit_terms(drives, constants, forces, clamped, q, v, timestep, explicit_kv)
         for key, row in self.friction.items():  # the drive carries the friction (`friction.py`)
             art, dof = key
             law = drives[key]
@@ -166,13 +172,32 @@ class Actuation:
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
 
+    def _explicit_terms(self, drives, constants, forces, clamped: set[int], q, v, timestep: float,
+                        explicit_kv: bool) -> None:
+        """On the DoFs of joint actuators: under Euler their kv leaves the drive as the explicit force -kv qdot; and
+        where the damping left in the drive cannot absorb kp*dt (`drive.py`), kp leaves it as the explicit force
+        (constant - kp q), which is what MuJoCo does with kp."""
+        kv: dict[tuple[int, int], float] = {}
+        for a, actuator in enumerate(self.actuators):
+            if actuator.mapped and actuator.joint is not None and a not in clamped:
+                key = (actuator.articulation, actuator.dofs[0])
+                kv[key] = kv.get(key, 0.0) + (actuator.damping if explicit_kv else 0.0)
+        for (art, dof), damping in kv.items():
+            law = dataclasses.replace(drives[(art, dof)], damping=drives[(art, dof)].damping - damping)
+            forces[art][dof] -= damping * v[art][dof]
+            if not law.exact(timestep):
+                forces[art][dof] += constants[(art, dof)] - law.stiffness * q[art][dof]
+                constants[(art, dof)] = 0.0
+                law = dataclasses.replace(law, stiffness=0.0)
+            drives[(art, dof)] = law
+
     @staticmethod
     def _implicit_tendon_kv(actuator: ActuatorMap, saturated: bool) -> float:
         """A tendon actuator's joint-space kv (gear^2 kv) that MuJoCo's implicit step treats implicitly: none once
         its forcerange clamps it (as for joint actuators)."""
         return 0.0 if saturated else actuator.damping
 
-    def _clamped_step(self, key, members: list[int], ctrl, q: float, v: float):
+    def _clamped_step(self, key, members: list[int], ctrl, q: float, v: float, explicit_kv: bool = False):
         """MuJoCo's actuator force on one DoF at the state (q, v) when a clamp binds there: (drive, constant,
         clamped actuator force, kv * qdot of the actuators MuJoCo still treats implicitly) for this step, or None
         when nothing clamps (the drive alone is exact)."""
@@ -183,7 +208,7 @@ class Actuation:
             force = actuator.force(ctrl[a], gear * q, gear * v)
             if force != actuator.unclamped(ctrl[a], gear * q, gear * v):
                 binding = True
-            else:
+            elif not explicit_kv:
                 implicit_kv += actuator.damping
             total += gear * force
         if key in self.joint_range:
@@ -215,13 +240,6 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
         actuation.actuators.append(entry)
         if not entry.mapped:
             notes.drop("actuator", entry.name, entry.reason)
-        elif entry.joint is not None:
-            if int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
-                notes.approximate("actuator", entry.name, "kv is implicit in PhysX (as in MuJoCo's implicitfast); "
-                                  "this model integrates with Euler, where kv is explicit: O(timestep)")
-        elif int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and entry.damping > 0:
-            notes.approximate("actuator", entry.name, "kv treated as MuJoCo's implicitfast does (its diagonal "
-                              "implicit); this model integrates with Euler, where kv is explicit: O(timestep)")
     note_coupled_friction(model, mapping, actuation, notes)
     members: dict[tuple[int, int], list[int]] = {}
     for a, entry in enumerate(actuation.actuators):
@@ -234,10 +252,6 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
     for key, indices in members.items():
         if key in actuation.joint_range or any(actuation.actuators[a].forcerange for a in indices):
             actuation.limited[key] = indices
-    for key, dof_drive in actuation.drives.items():
-        if not dof_drive.exact(float(model.opt.timestep)) and key not in actuation.friction:  # explicit springs
-            notes.approximate("joint", f"dof {key[1]} of articulation {key[0]}", "stiffness beyond what its "
-                              "damping absorbs in one step: PhysX damping clamped at 0, O(timestep)")
     return actuation
 
 

@@ -59,5 +59,5 @@ def test_actuated_tiers_run_in_order_before_dynamics_and_leave_it_a_clean_scene(
     assert {t: r["status"] for t, r in result["tiers"].items()} == {
         "contact": "pass", "actuated_contact": "pass", "actuated": "pass", "dynamics": "pass"}
     actuated = result["tiers"]["actuated"]["settings"]
-    assert actuated["integrator_reference"] == "mjINT_IMPLICITFAST" and actuated["actuators"] is True
+    assert actuated["integrator_reference"] == "mjINT_EULER" and actuated["actuators"] is True  # as authored
     assert result["tiers"]["dynamics"]["settings"]["actuators"] is False  # its reference disables actuation

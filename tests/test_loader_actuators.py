@@ -8,6 +8,8 @@ Tolerances are measured: unsaturated panda servos agree to 3e-6 rad over 1 s; th
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -370,3 +372,38 @@ def test_a_motor_on_a_frictional_joint_keeps_its_force(tmp_path, forcerange):
     assert ("joint", "upper") not in {(e.kind, e.name) for e in result.unsupported + result.approximations}
     errors = _replay(result, model, lambda step, data: np.array([np.sin(step * 0.02)]), 1.0)
     assert errors.max() < FRICTION_TOLERANCE, errors.max()
+
+
+SERVO_ARM = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
+  <worldbody><body name="upper" pos="0 0 1"><joint name="shoulder" axis="0 1 0" damping="{damping}"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".5"/>
+    <body name="lower" pos=".3 0 0"><joint name="elbow" axis="0 1 0" damping="0.05"/>
+      <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/></body></body></worldbody>
+  <actuator><position joint="shoulder" kp="{kp}" kv="{kv}" ctrlrange="-1 1"/>
+    <position joint="elbow" kp="5" kv="0.2" ctrlrange="-1 1"/></actuator>
+</mujoco>"""
+
+
+@pytest.mark.parametrize("integrator, damping, kp, kv", [
+    ("Euler", 0.1, 20, 0.5),  # kv explicit, kp in the drive (the passive damping absorbs kp dt)
+    ("Euler", 0.0, 20, 0.5),  # kv and kp explicit (no implicit damping left for kp)
+    ("implicitfast", 0.0, 200, 0.1),  # kv implicit, kp explicit: kv < kp dt
+], ids=["euler-kp-in-drive", "euler-kp-explicit", "implicitfast-kp-explicit"])
+def test_servo_gains_follow_the_models_integrator(tmp_path, integrator, damping, kp, kv):
+    """Under Euler MuJoCo applies kv explicitly, under implicitfast implicitly; kp is always explicit. The loader
+    follows the model's integrator (measured 5.6e-7, 8.9e-7, 1.9e-6 rad over 1 s). Mutation: the SAPIEN side told
+    the other integrator while MuJoCo keeps the model's (3.2e-2, 3.4e-2, 0.15)."""
+    path = tmp_path / "servo_arm.xml"
+    path.write_text(SERVO_ARM.format(integrator=integrator, damping=damping, kp=kp, kv=kv))
+    targets = np.random.default_rng(1).uniform(-1, 1, (10, 2))
+    result = MJCFLoader().load(path)
+    model = result.model
+    assert not result.approximations, result.approximations
+    errors = _replay(result, model, lambda step, data: targets[step // 50], 1.0)
+    assert errors.max() < SERVO_TOLERANCE, errors.max()
+    other = MJCFLoader().load(path)
+    reference = copy.deepcopy(other.model)
+    flipped = "IMPLICITFAST" if integrator == "Euler" else "EULER"
+    other.model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{flipped}")
+    assert _replay(other, other.model, lambda step, data: targets[step // 50], 1.0,
+                   reference=reference).max() > 10 * SERVO_TOLERANCE

@@ -93,7 +93,10 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     """Per hinge/slide DoF, the PhysX drive (actuators enabled, ctrl 0) against MuJoCo's compiled terms.
 
     Read at q = 0, qdot = 0, where no actuator force can sit on a forcerange or actuatorfrcrange bound (there the
-    loader applies the clamped force explicitly and the drive keeps the passive terms only)."""
+    loader applies the clamped force explicitly and the drive keeps the passive terms only). MuJoCo's rules: kv is
+    implicit under implicit/implicitfast and explicit under Euler and RK4, damping implicit, kp and springs
+    explicit; a drive is implicit in what it holds, so an actuated DoF whose implicit damping cannot absorb kp*dt
+    keeps kp out of its drive (explicit force), and a frictional DoF's drive holds only its friction row."""
     for art in result.articulations:
         art.set_qpos(np.zeros(art.dof, np.float32))
         art.set_qvel(np.zeros(art.dof, np.float32))
@@ -106,28 +109,36 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
             stiffness[key] = float(model.jnt_stiffness[j])
             damping[key] = float(model.dof_damping[model.jnt_dofadr[j]])
     enabled = not (model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION))
+    implicit_kv = int(model.opt.integrator) in (int(mujoco.mjtIntegrator.mjINT_IMPLICIT),
+                                                int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
+    actuated = set()
     for a in range(model.nu):
         if enabled and _mappable(model, a):
             target = result.mapping.joints[int(model.actuator_trnid[a][0])]
             key = (target.articulation, target.dofs[0])
             k, d = expected_gains(model, a)
             stiffness[key] += k
-            damping[key] += d
+            damping[key] += d if implicit_kv else 0.0
+            actuated.add(key)
     out = []
     dt = float(model.opt.timestep)
     friction = _friction_drives(result, model)
     for key, want_k in stiffness.items():
         joint = result.articulations[key[0]].active_joints[key[1]]
         want_d = max(damping[key] - want_k * dt, 0.0)
+        if key in actuated and damping[key] - want_k * dt < 0:  # kp explicit
+            want_k, want_d = 0.0, damping[key]
         if key in friction:  # the drive carries the friction row; damping rides as armature dt D, kp explicit
             dof, regularizer, inverse_inertia = friction[key]
-            want_k, want_d = 0.0, (1.0 + inverse_inertia * dt * damping[key]) / (regularizer * dt)
+            want_k = 0.0
+            want_d = (1.0 + inverse_inertia * dt * damping[key]) / (regularizer * dt) if inverse_inertia else None
             want_armature = float(model.dof_armature[dof]) + dt * damping[key]
             got_armature = float(np.asarray(joint.armature).ravel()[0])
             if not _close32(got_armature, want_armature):
                 out.append(f"joint {joint.name!r}: PhysX armature {got_armature:.7g}, MuJoCo's armature + dt x "
                            f"damping give {want_armature:.7g}")
         got_k, got_d = float(joint.stiffness), float(joint.damping)
+        want_d = got_d if want_d is None else want_d  # (M^-1)_ii undefined: M singular
         if not (_close32(got_k, want_k) and _close32(got_d, want_d)):
             out.append(f"joint {joint.name!r}: PhysX drive stiffness {got_k:.7g} damping {got_d:.7g}, MuJoCo's "
                        f"terms give stiffness {want_k:.7g} damping {want_d:.7g} (dt {dt:g})")
@@ -140,6 +151,9 @@ def _friction_drives(result, model: mujoco.MjModel) -> dict[tuple[int, int], tup
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
     mujoco.mj_forward(model, data)
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    singular = np.linalg.cond(inertia) > 1e10 if model.nv else False
     out = {}
     for i in range(data.nefc):
         if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF):
@@ -149,7 +163,8 @@ def _friction_drives(result, model: mujoco.MjModel) -> dict[tuple[int, int], tup
                 unit, response = np.zeros((1, model.nv)), np.zeros((1, model.nv))
                 unit[0, dof] = 1.0
                 mujoco.mj_solveM(model, data, response, unit)
-                out[(target.articulation, target.dofs[0])] = (dof, float(data.efc_R[i]), float(response[0, dof]))
+                out[(target.articulation, target.dofs[0])] = (dof, float(data.efc_R[i]),
+                                                              None if singular else float(response[0, dof]))
     return out
 
 

@@ -7,8 +7,9 @@ roots; chaotic when MuJoCo's own settled pose moves under a perturbation of the 
 `dynamics`: a one-step velocity error along MuJoCo's trajectory and the open-loop rollout error on the horizon
 MuJoCo's own 1e-6 sensitivity allows.
 
-MuJoCo keeps actuation on (a reference copy separate from the dynamics tiers') and integrates with implicitfast
-whatever the model says (recorded in the settings): the loader's drives are exact against it. SAPIEN's actuators
+MuJoCo keeps actuation on (a reference copy separate from the dynamics tiers') and integrates with the model's
+own integrator, or the one PhysX can follow (RK4 -> Euler, implicit -> implicitfast; recorded in the settings):
+the loader applies kv implicitly or explicitly as that integrator does. SAPIEN's actuators
 are enabled for the tier (`result.disable_actuators(False)`) and disabled again after, and the state is put back
 at the start; contacts stay off after `actuated`, as after `dynamics`.
 Contact-free, deviations from the held ctrl shrink by halves until no joint reaches a limit in MuJoCo (soft
