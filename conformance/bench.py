@@ -1,5 +1,6 @@
-"""`nox -s bench`: per model, the loader's time against MuJoCo's own compile of the same file, and the
-harness's simulated steps per second (SAPIEN and MuJoCo rollouts with the harness's state read-back)."""
+"""`nox -s bench`: per model, the loader's time against MuJoCo's own compile of the same file, the harness's
+simulated steps per second (SAPIEN and MuJoCo rollouts with the harness's state read-back), and the cost of the
+loader's per-step `set_ctrl` against PhysX's own step."""
 
 from __future__ import annotations
 
@@ -49,6 +50,7 @@ def bench_model(path: str, steps: int) -> dict:
     t0 = time.perf_counter()
     sapien_rollout(result, model, qpos0, qvel0, command)
     sapien_s = time.perf_counter() - t0
+    set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
     return {
         "mujoco_compile_s": compile_s,
         "loader_load_s": load_s,
@@ -56,8 +58,27 @@ def bench_model(path: str, steps: int) -> dict:
         "steps": steps,
         "harness_mujoco_steps_per_s": steps / mujoco_s,
         "harness_sapien_steps_per_s": steps / sapien_s,
+        "set_ctrl_us": 1e6 * set_ctrl_s / steps,
+        "physx_step_us": 1e6 * step_s / steps,
+        "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
         "nbody": model.nbody, "nv": model.nv, "ngeom": model.ngeom,
     }
+
+
+def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
+    """Seconds spent in `result.set_ctrl` (the loader's per-step work: clamps, tendons, friction drives) and in
+    PhysX's step, over `steps` actuated steps at zero ctrl."""
+    ctrl = np.zeros(result.model.nu)
+    result.disable_actuators(False)
+    set_ctrl_s = step_s = 0.0
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        result.set_ctrl(ctrl)
+        t1 = time.perf_counter()
+        result.scene.step()
+        set_ctrl_s, step_s = set_ctrl_s + t1 - t0, step_s + time.perf_counter() - t1
+    result.disable_actuators(True)
+    return set_ctrl_s, step_s
 
 
 def bench(entries: list[ModelEntry], out: Path, steps: int = 200) -> dict:

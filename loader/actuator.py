@@ -71,7 +71,7 @@ class ActuatorMap:
     def force(self, ctrl: float, length: float, velocity: float) -> float:
         """The actuator force (before gear) this mapping applies, clamped to forcerange."""
         force = self.unclamped(ctrl, length, velocity)
-        return float(np.clip(force, *self.forcerange)) if self.forcerange is not None else force
+        return min(max(force, self.forcerange[0]), self.forcerange[1]) if self.forcerange is not None else force
 
 
 def _kind(model: mujoco.MjModel, a: int) -> str:
@@ -100,6 +100,7 @@ class Actuation:
     tendons: list = field(default_factory=list)  # passive fixed tendons (`tendon.PassiveTendon`), every step
     friction: dict[tuple[int, int], FrictionRow] = field(default_factory=dict)  # frictional hinge/slide DoFs
     armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
+    applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None) -> None:
         """Drive targets and `qf` for this ctrl, the passive tendons' forces, and `qfrc_applied` (per
@@ -107,15 +108,16 @@ class Actuation:
         model = self.model
         ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
         clamp = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
-        for a in range(model.nu):
-            if clamp and model.actuator_ctrllimited[a]:
-                ctrl[a] = np.clip(ctrl[a], *model.actuator_ctrlrange[a])
+        if clamp and model.nu:
+            limited = model.actuator_ctrllimited.astype(bool)
+            ctrl[limited] = np.clip(ctrl[limited], *model.actuator_ctrlrange[limited].T)
         drives = dict(self.drives if self.enabled else self.passive)
         constants = {key: d.constant for key, d in drives.items()}
         forces = [np.zeros(art.dof) for art in articulations]
         if qfrc_applied is not None:
             forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
         explicit_kv = int(model.opt.integrator) not in IMPLICIT  # Euler, RK4
+        joints = [art.active_joints for art in articulations]  # the property builds a new list per call
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
         v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         for tendon in self.tendons:
@@ -159,15 +161,15 @@ class Actuation:
                                  - damping * v[art][dof])
             armature = row.armature + timestep * damping
             if self.armature.get(key) != armature:
-                articulations[art].active_joints[dof].set_armature(np.array([armature], np.float32))
+                joints[art][dof].set_armature(np.array([armature], np.float32))
                 self.armature[key] = armature
             drives[key], constants[key] = row.drive(v[art][dof], timestep, row.scale(damping, timestep))
         for (art, dof), dof_drive in drives.items():
             if (art, dof) in tendon_kv:
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
-            joint = articulations[art].active_joints[dof]
+            joint = joints[art][dof]
             forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep,
-                                            via_damping.get((art, dof), 0.0))
+                                            via_damping.get((art, dof), 0.0), self.applied, (art, dof))
         for art, qf in zip(articulations, forces):
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
@@ -183,8 +185,10 @@ class Actuation:
                 key = (actuator.articulation, actuator.dofs[0])
                 kv[key] = kv.get(key, 0.0) + (actuator.damping if explicit_kv else 0.0)
         for (art, dof), damping in kv.items():
-            law = dataclasses.replace(drives[(art, dof)], damping=drives[(art, dof)].damping - damping)
-            forces[art][dof] -= damping * v[art][dof]
+            law = drives[(art, dof)]
+            if damping:
+                law = dataclasses.replace(law, damping=law.damping - damping)
+                forces[art][dof] -= damping * v[art][dof]
             if not law.exact(timestep):
                 forces[art][dof] += constants[(art, dof)] - law.stiffness * q[art][dof]
                 constants[(art, dof)] = 0.0
@@ -214,7 +218,7 @@ class Actuation:
         if key in self.joint_range:
             low, high = self.joint_range[key]
             binding = binding or not low <= total <= high
-            total = float(np.clip(total, low, high))
+            total = min(max(total, low), high)
         if not binding:
             return None
         passive = self.passive[key]

@@ -42,20 +42,27 @@ class DofDrive:
         return self.damping - self.stiffness * timestep >= 0.0
 
 
-def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping: float = 0.0) -> float:
+def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping: float = 0.0,
+          written: dict | None = None, key=None) -> float:
     """Configure `joint`'s drive for the force law with state-independent part `constant`; returns the
     generalized force left to apply with `set_qf` (non-zero only for a DoF with neither stiffness nor damping).
     `via_damping` is a further constant force carried by the velocity target when the drive has damping (a
-    large explicit force cancelled by the implicit damping loses digits in PhysX's float32 `qf`)."""
+    large explicit force cancelled by the implicit damping loses digits in PhysX's float32 `qf`). `written`
+    remembers, by `key`, what was last written to the joint, so that unchanged settings are not written again
+    (the caller owns the drive: a change made to it elsewhere is not seen)."""
     damping = drive.physx_damping(timestep)
-    joint.set_drive_properties(drive.stiffness, damping, drive.force_limit, "force")
     if drive.stiffness > 0:
-        joint.set_drive_target(constant / drive.stiffness)
-        constant = 0.0
+        target, constant = constant / drive.stiffness, 0.0
     else:
-        joint.set_drive_target(0.0)
+        target = 0.0
+    velocity_target, left = 0.0, constant + via_damping
     if damping > 0:
-        joint.set_drive_velocity_target((constant + via_damping) / damping)
-        return 0.0
-    joint.set_drive_velocity_target(0.0)
-    return constant + via_damping
+        velocity_target, left = left / damping, 0.0
+    settings = (drive.stiffness, damping, drive.force_limit, target, velocity_target)
+    if written is None or written.get(key) != settings:
+        joint.set_drive_properties(drive.stiffness, damping, drive.force_limit, "force")
+        joint.set_drive_target(target)
+        joint.set_drive_velocity_target(velocity_target)
+        if written is not None:
+            written[key] = settings
+    return left
