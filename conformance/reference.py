@@ -157,6 +157,7 @@ class Rollout:
     body_pose: np.ndarray  # (T+1, nbody, 7)
     ctrl: np.ndarray | None = None  # (T, nu) as given
     actuator_force: np.ndarray | None = None  # (T, nu) actuator-space force of each step
+    act: np.ndarray | None = None  # (T+1, na) activations before each step (they start at zero)
 
 
 Policy = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
@@ -174,10 +175,11 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
     poses = np.zeros((steps + 1, model.nbody, 7))
     applied = np.zeros((steps, model.nv))
     force = np.zeros((steps, model.nu)) if ctrl is not None else None
+    act = np.zeros((steps + 1, model.na))
     for t in range(steps + 1):
         if t:  # mj_step leaves xpos/xquat at the state before the step: bring them to the new state
             mujoco.mj_kinematics(model, data)
-        qpos[t], qvel[t], poses[t] = data.qpos, data.qvel, body_poses(data)
+        qpos[t], qvel[t], poses[t], act[t] = data.qpos, data.qvel, body_poses(data), data.act
         if t == steps:
             break
         if command is None:
@@ -193,4 +195,4 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
         mujoco.mj_step(model, data)
         if force is not None:  # computed by mj_step from the state before the step
             force[t] = data.actuator_force
-    return Rollout(qpos, qvel, applied, poses, None if ctrl is None else np.asarray(ctrl), force)
+    return Rollout(qpos, qvel, applied, poses, None if ctrl is None else np.asarray(ctrl), force, act)

@@ -32,6 +32,8 @@ import mujoco
 import numpy as np
 
 from . import drive
+from .activation import MAPPED as MAPPED_DYNAMICS
+from .activation import Activation
 from .drive import DofDrive
 from .errors import Notes
 from .friction import FrictionRow, friction_rows, note_coupled_friction
@@ -63,6 +65,7 @@ class ActuatorMap:
     bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
     mapped: bool = True
     reason: str = ""
+    dynamics: str = "none"  # "filter", "filterexact", "integrator": the gain multiplies the activation
 
     def unclamped(self, ctrl: float, length: float, velocity: float) -> float:
         """MuJoCo's actuator force law (before gear and before the forcerange clamp)."""
@@ -101,16 +104,23 @@ class Actuation:
     friction: dict[tuple[int, int], FrictionRow] = field(default_factory=dict)  # frictional hinge/slide DoFs
     armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
     applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
+    activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
 
-    def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None) -> None:
+    def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
+                 advance: bool = True) -> None:
         """Drive targets and `qf` for this ctrl, the passive tendons' forces, and `qfrc_applied` (per
-        articulation, SAPIEN's DoF order) on top."""
+        articulation, SAPIEN's DoF order) on top. `advance`: take the activations one step (once per step)."""
         model = self.model
         ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
         clamp = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
         if clamp and model.nu:
             limited = model.actuator_ctrllimited.astype(bool)
             ctrl[limited] = np.clip(ctrl[limited], *model.actuator_ctrlrange[limited].T)
+        clamped_ctrl = ctrl
+        if self.activation is not None and self.enabled:
+            ctrl = self.activation.inputs(clamped_ctrl)  # what each gain multiplies: ctrl or act
+            if advance:
+                self.activation.advance(clamped_ctrl)
         drives = dict(self.drives if self.enabled else self.passive)
         constants = {key: d.constant for key, d in drives.items()}
         forces = [np.zeros(art.dof) for art in articulations]
@@ -238,6 +248,8 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
             actuation.passive[(target.articulation, target.dofs[0])] = passive
             actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))
     actuation.friction = friction_rows(model, mapping)
+    if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype):
+        actuation.activation = Activation(model)
     disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     for a in range(model.nu):
         entry = _plan_one(model, mapping, a, disabled, actuation)
@@ -270,14 +282,16 @@ def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
             "gear": gear, "ctrlrange": ctrlrange, "forcerange": forcerange}
     if disabled:
         return ActuatorMap(**base, mapped=False, reason="actuation disabled by the model's <flag actuation>")
-    if int(model.actuator_dyntype[a]) != int(DYN.mjDYN_NONE):
-        dyn = DYN(int(model.actuator_dyntype[a])).name.removeprefix("mjDYN_").lower()
-        return ActuatorMap(**base, mapped=False, reason=f"activation dynamics ({dyn}) have no PhysX equivalent")
+    dyntype = int(model.actuator_dyntype[a])
+    if dyntype != int(DYN.mjDYN_NONE) and dyntype not in MAPPED_DYNAMICS:
+        dyn = DYN(dyntype).name.removeprefix("mjDYN_").lower()
+        return ActuatorMap(**base, mapped=False, reason=f"activation dynamics ({dyn}) are not mapped")
     if int(model.actuator_gaintype[a]) != int(GAIN.mjGAIN_FIXED) or int(model.actuator_biastype[a]) not in (
             int(BIAS.mjBIAS_NONE), int(BIAS.mjBIAS_AFFINE)):
         return ActuatorMap(**base, mapped=False, reason="gain or bias is not affine (muscle or user)")
     bias = model.actuator_biasprm[a] if int(model.actuator_biastype[a]) == int(BIAS.mjBIAS_AFFINE) else np.zeros(3)
     base["gain"] = float(model.actuator_gainprm[a][0])
+    base["dynamics"] = MAPPED_DYNAMICS.get(dyntype, "none")
     base["bias"] = (float(bias[0]), float(bias[1]), float(bias[2]))
     if trn == int(TRN.mjTRN_JOINT):
         joint = mapping.joints[target]

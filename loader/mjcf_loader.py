@@ -70,31 +70,47 @@ class LoadResult:
         return np.zeros(self.model.nu) if key is None else self.model.keyframe(key).ctrl.copy()
 
     def reset(self, key: int | str | None = None) -> None:
-        """Put the SAPIEN scene into the state (and ctrl) of keyframe `key`, or qpos0 with zero ctrl."""
+        """Put the SAPIEN scene into the state (and ctrl and activation) of keyframe `key`, or qpos0 with zero
+        ctrl and activation."""
         self.mapping.set_state(self.articulations, *self.state(key))
-        self.set_ctrl(self.ctrl(key))
+        self.set_act(None if key is None else self.model.keyframe(key).act)
+        self.set_ctrl(self.ctrl(key), advance=False)
 
-    def set_ctrl(self, ctrl, qfrc_applied=None) -> None:
+    @property
+    def act(self) -> np.ndarray:
+        """MuJoCo's `data.act`: the activation of actuators with dynamics (size `model.na`)."""
+        activation = self.actuation.activation if self.actuation is not None else None
+        return activation.act.copy() if activation is not None else np.zeros(self.model.na)
+
+    def set_act(self, act) -> None:
+        """Set the activation (MuJoCo's `data.act`; None: zeros), as part of setting a MuJoCo state."""
+        if self.actuation is not None and self.actuation.activation is not None:
+            self.actuation.activation.reset(act)
+
+    def set_ctrl(self, ctrl, qfrc_applied=None, advance: bool = True) -> None:
         """Apply a MuJoCo control vector (size nu, or None for zeros) to the SAPIEN articulations: drive targets
         and joint forces.
 
         Clamped to ctrlrange as MuJoCo does. It writes every articulation's `qf` (SAPIEN keeps it across steps);
-        force-limited and tendon actuators and passive tendons depend on the state, so call it before every step,
-        as MuJoCo reads `ctrl` every step. `qfrc_applied`: MuJoCo's generalized force (size nv) on top; write it
-        here rather than with `set_qf`, which would overwrite the loader's terms.
+        force-limited and tendon actuators, passive tendons, frictional joints (whose damping it carries as
+        armature plus a force) and, under Euler, actuator kv depend on the state, so call it before every step,
+        as MuJoCo reads `ctrl` every step. It owns the joint drives: it rewrites only settings it changed.
+        Actuators with activation dynamics use the activation and take it one step further (`advance`): call it
+        once per step, or with `advance=False` to re-apply the same step. `qfrc_applied`: MuJoCo's generalized
+        force (size nv) on top; write it here rather than with `set_qf`, which would overwrite the loader's terms.
         """
         if self.actuation is not None:
             applied = None
             if qfrc_applied is not None:
                 applied = self.mapping.qfrc_to_sapien(np.asarray(qfrc_applied, dtype=float), self.articulations)
-            self.actuation.set_ctrl(self.articulations, ctrl, applied)
+            self.actuation.set_ctrl(self.articulations, ctrl, applied, advance)
 
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
         spring-damper drives and `qf` is cleared; `disable_actuators(False)` puts them back."""
         if self.actuation is not None:
             self.actuation.enabled = not disabled
-            self.actuation.set_ctrl(self.articulations, None)
+            self.actuation.set_ctrl(self.articulations, None, advance=False)
 
 
 @dataclass

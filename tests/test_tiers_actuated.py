@@ -150,7 +150,7 @@ def test_the_scene_is_left_as_the_other_tiers_expect(arm):
 
 def test_unmapped_actuators_skip_the_tier_by_name(tmp_path):
     text = ARM.replace('<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
-                       '<general name="filtered" joint="elbow" dyntype="filter" dynprm="0.1" ctrlrange="-1 1"/>')
+                       '<muscle name="filtered" joint="elbow" ctrlrange="0 1"/>')
     session = _session(_write(tmp_path, text))
     for tier in ("actuated", "actuated_contact"):
         report = _tier(session, tier)
@@ -228,7 +228,7 @@ def test_spot_standing_on_its_servos(mutation, tier, metric):
 
 def test_the_manifest_can_take_unmapped_actuators_out_of_both_sides(tmp_path):
     text = ARM.replace('<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
-                       '<general name="filtered" joint="elbow" dyntype="filter" dynprm="0.1" ctrlrange="-1 1"/>')
+                       '<muscle name="filtered" joint="elbow" ctrlrange="0 1"/>')
     session = _session(_write(tmp_path, text))
     removed = TOL.with_overrides(settings={"actuated": {"unmapped": "remove"}})
     report = TIERS["actuated"](session.result, session.model, 0, removed)

@@ -86,7 +86,8 @@ def actuated_scene(result, qpos0, qvel0, contacts: bool):
 
 class ForceLaw:
     """Actuator-space force of every actuator from a MuJoCo-layout state, with the loader's parameters
-    (`result.model` gains and biases, `result.actuators` gears and tendon terms): see `report.ActuatorTrace`."""
+    (`result.model` gains and biases, `result.actuators` gears and tendon terms): see `report.ActuatorTrace`.
+    Its input is what the gain multiplies: ctrl, or SAPIEN's activation for actuators with dynamics."""
 
     def __init__(self, result):
         model = result.model
@@ -132,9 +133,10 @@ def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.nd
     force = np.zeros((steps, model.nu))
     qpos[0] = sapien_side.get_state(result)[0]
     poses[0] = sapien_side.link_poses(result)
+    activation = result.actuation.activation if result.actuation is not None else None
     for t in range(steps):
         q, v = sapien_side.get_state(result)
-        force[t] = law(clipped[t], q, v)
+        force[t] = law(clipped[t] if activation is None else activation.inputs(clipped[t]), q, v)
         result.set_ctrl(ctrl[t])
         result.scene.step()
         qpos[t + 1] = sapien_side.get_state(result)[0]
@@ -149,7 +151,7 @@ def one_step_qvel(result, run: reference.Rollout, every: int, float32_relative: 
     1e-5 rad/s of rounding)."""
     out = []
     for t in range(0, run.ctrl.shape[0], every):
-        sapien_side.set_state(result, run.qpos[t], run.qvel[t])
+        sapien_side.set_state(result, run.qpos[t], run.qvel[t], run.act[t])
         result.set_ctrl(run.ctrl[t])
         result.scene.step()
         floor = float32_relative * np.maximum(np.abs(run.qvel[t]), np.abs(run.qvel[t + 1]))
