@@ -158,6 +158,15 @@ class Rollout:
     ctrl: np.ndarray | None = None  # (T, nu) as given
     actuator_force: np.ndarray | None = None  # (T, nu) actuator-space force of each step
     act: np.ndarray | None = None  # (T+1, na) activations before each step (they start at zero)
+    unstable_step: int | None = None  # the first step after which MuJoCo reported a blow-up (bad qacc)
+
+    def unstable(self, model: mujoco.MjModel) -> str | None:
+        """Why this run is no reference (None when it is one): MuJoCo blew up (and reset its state) on it."""
+        if self.unstable_step is None:
+            return None
+        integrator = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
+        return (f"MuJoCo's own rollout is unstable under {integrator} (bad qacc at step {self.unstable_step}): "
+                "no reference to compare")
 
 
 Policy = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
@@ -176,6 +185,8 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
     applied = np.zeros((steps, model.nv))
     force = np.zeros((steps, model.nu)) if ctrl is not None else None
     act = np.zeros((steps + 1, model.na))
+    unstable_step = None
+    bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
     for t in range(steps + 1):
         if t:  # mj_step leaves xpos/xquat at the state before the step: bring them to the new state
             mujoco.mj_kinematics(model, data)
@@ -195,4 +206,6 @@ def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: 
         mujoco.mj_step(model, data)
         if force is not None:  # computed by mj_step from the state before the step
             force[t] = data.actuator_force
-    return Rollout(qpos, qvel, applied, poses, None if ctrl is None else np.asarray(ctrl), force, act)
+        if unstable_step is None and (data.warning[bad].number or not np.all(np.isfinite(data.qacc))):
+            unstable_step = t
+    return Rollout(qpos, qvel, applied, poses, None if ctrl is None else np.asarray(ctrl), force, act, unstable_step)

@@ -27,13 +27,18 @@ def expected_gains(model: mujoco.MjModel, a: int) -> tuple[float, float]:
     return -float(bias[1]) * gear**2, -float(bias[2]) * gear**2
 
 
+_DYNAMICS = tuple(int(d) for d in (mujoco.mjtDyn.mjDYN_NONE, mujoco.mjtDyn.mjDYN_FILTER,
+                                   mujoco.mjtDyn.mjDYN_FILTEREXACT, mujoco.mjtDyn.mjDYN_INTEGRATOR))
+
+
 def _mappable(model: mujoco.MjModel, a: int) -> bool:
-    """A joint actuator on a hinge/slide with no activation dynamics and a fixed gain: exact as a drive."""
+    """A joint actuator on a hinge/slide with a fixed gain and no activation dynamics, or filter / integrator
+    dynamics (MuJoCo's activation replaces ctrl in the gain): exact as a drive."""
     if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT):
         return False
     joint = int(model.actuator_trnid[a][0])
     return (int(model.jnt_type[joint]) in (int(_JT.mjJNT_HINGE), int(_JT.mjJNT_SLIDE))
-            and int(model.actuator_dyntype[a]) == int(mujoco.mjtDyn.mjDYN_NONE)
+            and int(model.actuator_dyntype[a]) in _DYNAMICS
             and int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
             and int(model.actuator_biastype[a]) in (int(mujoco.mjtBias.mjBIAS_NONE),
                                                     int(mujoco.mjtBias.mjBIAS_AFFINE)))

@@ -202,6 +202,11 @@ def actuator_attrs(draw, ctx: _Context, tag: str) -> Attrs:
             kp, kv = draw(_dec(0, 100, 1.0)), draw(_dec(0, 20, 0.5))
             attrs["biasprm"] = f"0 -{kp} -{kv}"
             attrs["biastype"] = "affine"
+        if draw(st.integers(0, 3)) == 3:  # activation dynamics: the gain multiplies the activation
+            attrs["dyntype"] = draw(st.sampled_from(["filter", "filterexact", "integrator"]))
+            if attrs["dyntype"] != "integrator":
+                attrs["dynprm"] = draw(_dec(1, 20, 0.01))
+            _optional(draw, attrs, "actearly", st.sampled_from(["true", "false"]))
     return attrs
 
 

@@ -224,6 +224,8 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     steps = tolerances.horizon_steps("actuated", dt)
     qpos0, qvel0, start = reference.initial_state(model)
     run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=True)
+    if run.unstable(ref):
+        return skipped("actuated", run.unstable(ref))
     gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
                       tolerances.setting("chaos", "amplification_limit"))
     every = int(tolerances.setting("actuated", "one_step_every"))
@@ -274,6 +276,8 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     steps = tolerances.horizon_steps("actuated_contact", dt)
     qpos0, qvel0, start = reference.initial_state(model)
     run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=False)
+    if run.unstable(ref):
+        return skipped("actuated_contact", run.unstable(ref))
     size = tolerances.setting("contact", "perturbation")
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, size, seed), qvel0, steps, None, run.ctrl)
     with actuated_scene(result, qpos0, qvel0, contacts=True):

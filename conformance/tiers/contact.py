@@ -36,6 +36,8 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     steps = tolerances.horizon_steps("contact", dt)
     qpos0, qvel0, start = reference.initial_state(model)
     run = reference.rollout(ref, qpos0, qvel0, steps, None)
+    if run.unstable(ref):
+        return skipped("contact", run.unstable(ref))
     # MuJoCo against itself: the 1e-6 gate of every rollout (recorded; contact is judged by bands, below)
     gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
                       tolerances.setting("chaos", "amplification_limit"))

@@ -101,6 +101,8 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
 
     # (a) one-step error along the torque-driven MuJoCo trajectory
     torque_run = reference.rollout(ref, qpos0, qvel0, steps, torque)
+    if torque_run.unstable(ref):
+        return skipped("dynamics", torque_run.unstable(ref))
     errs = one_step(result, ref, torque_run, int(tolerances.setting("dynamics", "one_step_every")))
     for name, unit in (("qacc", "rad/s^2 or m/s^2"), ("qvel", "rad/s or m/s"), ("qpos", "rad or m")):
         metrics.append(metric(f"one_step_{name}", errs[name], tolerances[f"dynamics.one_step_{name}_{kind}"], unit))
@@ -112,6 +114,8 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     rows = sapien_side.body_link_rows(result, model.nbody)
     for name, command in (("zero", None), ("torque", torque), ("pd", pd)):
         run = torque_run if name == "torque" else reference.rollout(ref, qpos0, qvel0, steps, command)
+        if run.unstable(ref):
+            return skipped("dynamics", f"{name} command: {run.unstable(ref)}")
         gate = chaos.gate(ref, run, seed, perturbation, limit)
         gates[name] = gate.to_dict()
         sp_qpos, sp_links = sapien_rollout(result, model, qpos0, qvel0, run.command)
