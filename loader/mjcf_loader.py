@@ -105,6 +105,17 @@ class LoadResult:
                 applied = self.mapping.qfrc_to_sapien(np.asarray(qfrc_applied, dtype=float), self.articulations)
             self.actuation.set_ctrl(self.articulations, ctrl, applied, advance)
 
+    def step(self, ctrl=None, substeps: int = 1, qfrc_applied=None) -> None:
+        """`substeps` physics steps under one MuJoCo ctrl (None: the last one given), `set_ctrl` before each:
+        a controller running slower than the simulation keeps the state-dependent terms (friction, tendons,
+        force clamps, explicit gains, activations) of every step, as MuJoCo with the same ctrl held would."""
+        if ctrl is not None:
+            self._held_ctrl = np.asarray(ctrl, dtype=float).copy()
+        held = getattr(self, "_held_ctrl", None)
+        for _ in range(substeps):
+            self.set_ctrl(held, qfrc_applied)
+            self.scene.step()
+
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
         spring-damper drives and `qf` is cleared; `disable_actuators(False)` puts them back."""

@@ -450,3 +450,34 @@ def test_activation_dynamics_match_mujoco(tmp_path, monkeypatch, integrator):
     monkeypatch.setattr(Activation, "inputs", lambda self, ctrl: np.asarray(ctrl, dtype=float).copy())
     blind = MJCFLoader().load(path)
     assert _replay(blind, blind.model, lambda step, data: targets[step // 50], 1.0).max() > 10 * SERVO_TOLERANCE
+
+
+def test_step_holds_the_ctrl_over_substeps_with_every_step_s_terms(tmp_path):
+    """result.step(ctrl, substeps=n) equals MuJoCo with the ctrl held for n steps, on a damped frictional servo
+    hinge (whose kp and damping the loader writes as per-step forces): 4.5e-8 rad over 10 targets of 25 steps.
+    Mutation: set_ctrl once, then n bare scene.step() calls (the forces of the first step frozen): 220 rad."""
+    path = tmp_path / "servo_friction.xml"
+    path.write_text(SERVO_FRICTION.format(damping=0.1, kv=0.05, friction=0.05))
+    targets = np.random.default_rng(3).uniform(-1, 1, (10, 1))
+
+    def run(held: bool) -> float:
+        result = MJCFLoader().load(path)
+        model = result.model
+        data = mujoco.MjData(model)
+        result.reset()
+        worst = 0.0
+        for target in targets:
+            data.ctrl[:] = target
+            for _ in range(25):
+                mujoco.mj_step(model, data)
+            if held:
+                result.step(target, substeps=25)
+            else:
+                result.set_ctrl(target)
+                for _ in range(25):
+                    result.scene.step()
+            worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+        return worst
+
+    assert run(held=True) < FRICTION_TOLERANCE
+    assert run(held=False) > 10 * FRICTION_TOLERANCE
