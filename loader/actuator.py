@@ -184,6 +184,22 @@ class Actuation:
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
 
+    def release(self, articulations) -> None:
+        """Hand the joints to a caller that drives them itself (their own drive targets, no `set_ctrl`): every
+        DoF's drive gets the joint's passive spring-damper, frictional joints their own armature back (their
+        friction is then not carried), `qf` is cleared. The next `set_ctrl` takes them over again."""
+        joints = [art.active_joints for art in articulations]
+        timestep = float(self.model.opt.timestep)
+        for (art, dof), passive in self.passive.items():
+            drive.apply(joints[art][dof], passive, passive.constant, timestep)
+        for (art, dof), row in self.friction.items():
+            joints[art][dof].set_armature(np.array([row.armature], np.float32))
+        for art in articulations:
+            if art.dof:
+                art.set_qf(np.zeros(art.dof, np.float32))
+        self.applied.clear()
+        self.armature.clear()
+
     def _explicit_terms(self, drives, constants, forces, clamped: set[int], q, v, timestep: float,
                         explicit_kv: bool) -> None:
         """On the DoFs of joint actuators: under Euler their kv leaves the drive as the explicit force -kv qdot; and

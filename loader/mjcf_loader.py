@@ -116,6 +116,13 @@ class LoadResult:
             self.set_ctrl(held, qfrc_applied)
             self.scene.step()
 
+    def release(self) -> None:
+        """Leave the joints to a simulation that drives them with its own PhysX drive targets and never calls
+        `set_ctrl` (a ManiSkill controller): passive spring-damper drives, MuJoCo's armature, no joint forces.
+        What needs `set_ctrl` every step (frictionloss, tendons, clamps) is then not carried."""
+        if self.actuation is not None:
+            self.actuation.release(self.articulations)
+
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
         spring-damper drives and `qf` is cleared; `disable_actuators(False)` puts them back."""

@@ -481,3 +481,31 @@ def test_step_holds_the_ctrl_over_substeps_with_every_step_s_terms(tmp_path):
 
     assert run(held=True) < FRICTION_TOLERANCE
     assert run(held=False) > 10 * FRICTION_TOLERANCE
+
+
+def test_release_leaves_passive_drives_that_need_no_set_ctrl(tmp_path):
+    """After result.release(), bare scene.step() calls simulate the joints' passive spring-dampers exactly (MuJoCo
+    with its actuators off and without the frictionloss the drives no longer carry): 2.3e-8 rad over 1 s. Mutation:
+    no release, so the frictional joint keeps armature dt*D without the force that goes with it: 0.37 rad."""
+    path = tmp_path / "servo_friction.xml"
+    path.write_text(SERVO_FRICTION.format(damping=0.5, kv=0.05, friction=0.05))
+
+    def run(release: bool) -> float:
+        result = MJCFLoader().load(path)
+        reference = copy.deepcopy(result.model)
+        reference.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION
+        reference.dof_frictionloss[:] = 0.0
+        data = mujoco.MjData(reference)
+        data.qvel[:] = 3.0
+        result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
+        if release:
+            result.release()
+        worst = 0.0
+        for _ in range(500):
+            mujoco.mj_step(reference, data)
+            result.scene.step()
+            worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+        return worst
+
+    assert run(release=True) < SERVO_TOLERANCE
+    assert run(release=False) > 10 * SERVO_TOLERANCE
