@@ -20,6 +20,7 @@ class Metric:
     tolerance: float
     unit: str
     count: int = 0
+    raw_max: float | None = None  # where the judged error is what float32 cannot resolve subtracted: the raw max
 
     @property
     def margin(self) -> float:
@@ -33,18 +34,25 @@ class Metric:
         def num(x: float) -> float | None:
             return None if not math.isfinite(x) else float(x)
 
-        return {"name": self.name, "max": num(self.max), "rms": num(self.rms), "tolerance": self.tolerance,
-                "margin": num(self.margin), "unit": self.unit, "count": self.count, "passed": self.passed}
+        out = {"name": self.name, "max": num(self.max), "rms": num(self.rms), "tolerance": self.tolerance,
+               "margin": num(self.margin), "unit": self.unit, "count": self.count, "passed": self.passed}
+        if self.raw_max is not None:
+            out["raw_max"] = num(self.raw_max)
+        return out
 
 
-def metric(name: str, errors, tolerance: float, unit: str) -> Metric:
-    """Max and RMS of the absolute errors; no samples gives a zero metric with count 0."""
-    err = np.abs(np.asarray(errors, dtype=float)).ravel()
+def metric(name: str, errors, tolerance: float, unit: str, floor=None) -> Metric:
+    """Max and RMS of the absolute errors; no samples gives a zero metric with count 0. With `floor` (per
+    sample, what float32 cannot resolve) the judged errors are |error| - floor (at least 0), and the raw max is
+    kept beside them."""
+    raw = np.abs(np.asarray(errors, dtype=float))
+    err = (np.maximum(raw - np.asarray(floor, dtype=float), 0.0) if floor is not None else raw).ravel()
+    raw_max = float(raw.max()) if floor is not None and raw.size and np.all(np.isfinite(raw)) else None
     if err.size == 0:
         return Metric(name, 0.0, 0.0, tolerance, unit, 0)
     if not np.all(np.isfinite(err)):
         return Metric(name, math.inf, math.inf, tolerance, unit, int(err.size))
-    return Metric(name, float(err.max()), float(np.sqrt(np.mean(err**2))), tolerance, unit, int(err.size))
+    return Metric(name, float(err.max()), float(np.sqrt(np.mean(err**2))), tolerance, unit, int(err.size), raw_max)
 
 
 @dataclass

@@ -87,7 +87,8 @@ def _cell(v: Verdict) -> str:
         return v.outcome
     worst = max(metrics, key=lambda m: (m["max"] / m["tolerance"]) if m["max"] is not None and m["tolerance"]
                 else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0))
-    return (f"{v.outcome}: {worst['name']} {_fmt(worst['max'])} (tol {_fmt(worst['tolerance'])}, "
+    raw = f"raw {_fmt(worst['raw_max'])}, " if worst.get("raw_max") is not None else ""
+    return (f"{v.outcome}: {worst['name']} {_fmt(worst['max'])} ({raw}tol {_fmt(worst['tolerance'])}, "
             f"margin {_fmt(worst['margin'])})")
 
 
@@ -215,7 +216,8 @@ def markdown(summary: dict, tiers: list[str]) -> str:
             cells.append(("**" + text + "**") if v["worse_than_expected"] else text)
         lines.append(f"| {m['id']} | " + " | ".join(cells) + " |")
     legend = ("Cells: outcome, then the metric closest to (or furthest past) its tolerance: max error, tolerance "
-              "and margin = tolerance - max (units and every other metric in summary.json).")
+              "and margin = tolerance - max (units and every other metric in summary.json); where float32 cannot "
+              "resolve part of an error, max is what is left beyond it and raw the error itself.")
     lines += ["", legend, ""]
     if summary["worse_than_expected"]:
         lines += ["## Worse than the manifest expects", ""] + [f"- {w}" for w in summary["worse_than_expected"]]

@@ -144,19 +144,20 @@ def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.nd
     return qpos, poses, force
 
 
-def one_step_qvel(result, run: reference.Rollout, every: int, float32_relative: float = 0.0) -> np.ndarray:
+def one_step_qvel(result, run: reference.Rollout, every: int,
+                  float32_relative: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Every `every` steps: MuJoCo's state into SAPIEN, the same ctrl, one step; |SAPIEN - MuJoCo| velocity,
     less what float32 cannot resolve: `float32_relative` times the larger speed before or after the step (SAPIEN
     holds the state and integrates in float32; a motor spinning a light body up to hundreds of rad/s leaves
     1e-5 rad/s of rounding)."""
-    out = []
+    out, floors = [], []
     for t in range(0, run.ctrl.shape[0], every):
         sapien_side.set_state(result, run.qpos[t], run.qvel[t], run.act[t])
         result.set_ctrl(run.ctrl[t])
         result.scene.step()
-        floor = float32_relative * np.maximum(np.abs(run.qvel[t]), np.abs(run.qvel[t + 1]))
-        out.append(np.maximum(np.abs(sapien_side.get_state(result)[1] - run.qvel[t + 1]) - floor, 0.0))
-    return np.array(out)
+        floors.append(float32_relative * np.maximum(np.abs(run.qvel[t]), np.abs(run.qvel[t + 1])))
+        out.append(np.abs(sapien_side.get_state(result)[1] - run.qvel[t + 1]))
+    return np.array(out), np.array(floors)
 
 
 def saturated_steps(model: mujoco.MjModel, force: np.ndarray) -> int:
@@ -231,17 +232,19 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     every = int(tolerances.setting("actuated", "one_step_every"))
     mismatched = settings_mismatches(result, ref)
     with actuated_scene(result, qpos0, qvel0, contacts=False):
-        one_step = one_step_qvel(result, run, every, float(tolerances.setting("actuated", "float32_relative")))
+        one_step, one_step_floor = one_step_qvel(result, run, every,
+                                                 float(tolerances.setting("actuated", "float32_relative")))
         sp_qpos, sp_links, sp_force = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
     err = reference.qpos_difference(ref, run.qpos, sp_qpos)
     # float32 holds SAPIEN's coordinates: what it cannot resolve at the size each has reached is not judged
     floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
-    judged = np.maximum(np.abs(err) - floor, 0.0)
+    judged = gate.judged_steps + 1
     metrics: list[Metric] = [
         Metric("settings_mismatches", float(len(mismatched)), float(len(mismatched)), 0.0, "count", 3),
-        metric("one_step_qvel", one_step, tolerances[f"actuated.one_step_qvel_{kind}"], "rad/s or m/s"),
-        metric("rollout_qpos", judged[: gate.judged_steps + 1], tolerances[f"actuated.rollout_qpos_{kind}"],
-               "rad or m"),
+        metric("one_step_qvel", one_step, tolerances[f"actuated.one_step_qvel_{kind}"], "rad/s or m/s",
+               floor=one_step_floor),
+        metric("rollout_qpos", err[:judged], tolerances[f"actuated.rollout_qpos_{kind}"], "rad or m",
+               floor=floor[:judged]),
     ]
     notes = removal + list(mismatched) + _ctrl_notes(scale, left, steps)
     if gate.chaotic:
