@@ -105,3 +105,17 @@ def test_summary_lists_integrator_switch_ctrl_scaling_and_saturation_of_the_actu
     assert ("- arm/actuated: MuJoCo mjINT_IMPLICITFAST instead of the authored mjINT_EULER; ctrl deviations "
             "scaled by 0.25; forcerange reached on 3 steps (clamped on both sides)") in text
     assert "- arm/actuated_contact" not in text  # nothing to say: same integrator, no scaling
+
+
+def test_a_float32_floor_is_subtracted_before_judging_and_the_raw_error_kept():
+    from conformance.report import metric
+
+    # errors of 1e-6 and 3e-6 where float32 resolves 2e-6: 0 and 1e-6 are judged, 3e-6 is kept as the raw max
+    judged = metric("rollout_qpos", [1e-6, -3e-6], 5e-7, "rad", floor=[2e-6, 2e-6])
+    assert (judged.max, judged.raw_max, judged.passed) == (pytest.approx(1e-6), 3e-6, False)
+    assert judged.to_dict()["raw_max"] == 3e-6
+    assert "raw_max" not in metric("rollout_qpos", [1e-6], 5e-7, "rad").to_dict()
+    entry = ModelEntry(id="a", source="x", tiers=("actuated",))
+    result = {"status": "ok", "tiers": {"actuated": {"status": "fail", "metrics": [judged.to_dict()], "notes": []}}}
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"a": result})
+    assert "rollout_qpos 1e-06 (raw 3e-06, tol 5e-07" in summary.markdown(doc, ["actuated"])
