@@ -212,8 +212,9 @@ class Actuation:
                 kv[key] = kv.get(key, 0.0) + (actuator.damping if explicit_kv else 0.0)
         for (art, dof), damping in kv.items():
             law = drives[(art, dof)]
-            if damping:
-                law = dataclasses.replace(law, damping=law.damping - damping)
+            if damping:  # every joint actuator's kv is explicit: the drive keeps the passive damping (not a
+                # difference, whose rounding would move the kp*dt boundary below)
+                law = dataclasses.replace(law, damping=self.passive[(art, dof)].damping)
                 forces[art][dof] -= damping * v[art][dof]
             if not law.exact(timestep):
                 forces[art][dof] += constants[(art, dof)] - law.stiffness * q[art][dof]
