@@ -39,6 +39,13 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
                        "actuator damping/armature (passive terms on the transmission) are not mapped")
     if any(model.jnt_limited) and not limits_disabled(model):
         notes.approximate("joint", "limits", "PhysX joint limits are hard; MuJoCo's are soft (solref/solimp)")
+    integrator = int(model.opt.integrator)
+    if integrator == int(mujoco.mjtIntegrator.mjINT_RK4):
+        notes.approximate("option", "integrator", "RK4 has no PhysX counterpart: simulated as MuJoCo's Euler "
+                          "(semi-implicit), first order in the timestep apart over a fixed time")
+    elif integrator == int(mujoco.mjtIntegrator.mjINT_IMPLICIT):
+        notes.approximate("option", "integrator", "implicit's Coriolis and actuator-gain derivatives are not "
+                          "mapped: simulated as MuJoCo's implicitfast, first order in the timestep apart over a fixed time")
     if contacts_disabled(model):
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
     if limits_disabled(model):

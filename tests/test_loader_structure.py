@@ -163,3 +163,15 @@ def test_an_mjspec_built_from_scratch_loads():
     result = MJCFLoader().load(spec)
     assert [art.dof for art in result.articulations] == [1]
     assert np.isclose(sum(link.mass for link in result.articulations[0].links if link.mass > 1e-6), 1.0)
+
+
+@pytest.mark.parametrize("integrator, listed", [("RK4", True), ("implicit", True), ("Euler", False),
+                                                ("implicitfast", False)])
+def test_an_integrator_physx_cannot_follow_is_listed(tmp_path, integrator, listed):
+    path = tmp_path / "integrator.xml"
+    path.write_text(f'<mujoco><option integrator="{integrator}"/><worldbody><body><joint/><geom size=".1"/>'
+                    '</body></worldbody></mujoco>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = MJCFLoader().load(path)
+    assert (("option", "integrator") in {(e.kind, e.name) for e in result.approximations}) is listed
