@@ -66,7 +66,7 @@ GAPS = {gap.name: gap for gap in (
     Gap("limits", "joint limits disabled (MuJoCo's are soft, PhysX's hard)",
         lambda m: bool(m.jnt_limited.any()) and not _disabled(m, FLAGS.mjDSBL_LIMIT, FLAGS.mjDSBL_CONSTRAINT),
         _disable(FLAGS.mjDSBL_LIMIT)),
-    Gap("fluid", "fluid density and viscosity zeroed (PhysX has no fluid drag)",
+    Gap("fluid", "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
         lambda m: m.opt.density > 0 or m.opt.viscosity > 0, _no_fluid),
     Gap("half_timestep", "timestep halved on both sides (integration differences shrink faster than force errors)",
         lambda m: True, _half_timestep),

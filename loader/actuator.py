@@ -105,6 +105,7 @@ class Actuation:
     armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
     applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
+    fluid: object | None = None  # MuJoCo's inertia-box fluid forces (`fluid.Fluid`), added once per step
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:
@@ -183,6 +184,8 @@ class Actuation:
         for art, qf in zip(articulations, forces):
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
+        if self.fluid is not None and advance:  # link forces accumulate until the step: once per step only
+            self.fluid.apply(articulations)
 
     def release(self, articulations) -> None:
         """Hand the joints to a caller that drives them itself (their own drive targets, no `set_ctrl`): every

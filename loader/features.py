@@ -26,8 +26,6 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
         if model.body_mocapid[b] >= 0:
             notes.approximate("body", _name(model.body(b), b, "body"),
                               "mocap body loaded as a fixed link at its initial pose")
-    if model.opt.density > 0 or model.opt.viscosity > 0:
-        notes.drop("option", "density/viscosity", "fluid drag and lift (MuJoCo's fluid model) are not simulated")
     for j in range(model.njnt):
         dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + _dof_count(model, j))
         if np.any(model.jnt_stiffnesspoly[j]) or any(np.any(model.dof_dampingpoly[d]) for d in dofs):

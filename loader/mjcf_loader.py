@@ -23,6 +23,7 @@ from .contact import contacts_disabled, plan_collision_filter
 from .equality import EqualityLink, map_equalities
 from .errors import Notes, Unsupported, UnsupportedFeatureWarning
 from .features import find_unmapped
+from .fluid import plan_fluid
 from .geom import collides, plan_shape
 from .joint import FREE, KIND
 from .mapping import BodyLink, GeomShape, JointDofs, Mapping
@@ -182,6 +183,7 @@ class MJCFLoader:
         mapping = _mapping(model, parsed, articulations)
         actuation = plan_actuation(model, mapping, parsed.notes)
         actuation.tendons = map_tendons(model, mapping, actuation, parsed.notes)
+        actuation.fluid = plan_fluid(model, mapping, parsed.notes)
         if self.solver_iterations == "auto":
             tune_iterations(articulations, model, actuation, mapping, parsed.notes)
         equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)

@@ -1,0 +1,85 @@
+"""MuJoCo's inertia-box fluid model (`<option density viscosity wind>`) as per-step forces on the links.
+
+For every body with mass, MuJoCo takes the box of uniform density with the body's inertia (sides
+b_i = sqrt(6 (I_j + I_k - I_i) / m)) and applies at its centre of mass, in its inertial frame, from the body's
+velocity relative to the wind there: viscous drag -3 pi d mu v and torque -pi d^3 mu w (d the mean side), and
+quadratic drag -rho/2 b_j b_k |v_i| v_i and torque -rho b_i (b_j^4 + b_k^4) |w_i| w_i / 64. Those are explicit
+forces of the state at the start of the step, which `set_ctrl` computes from the links' velocities and adds with
+`add_force_torque` (PhysX clears them after the step): exact under MuJoCo's Euler. Under implicitfast MuJoCo also
+takes the forces' velocity derivatives into its implicit step, which is not mapped (listed). Geoms with
+`fluidshape="ellipsoid"` use MuJoCo's other fluid model, which is not mapped (listed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .errors import Notes
+from .mapping import Mapping
+
+MINIMUM = 1e-15  # MuJoCo's mjMINVAL
+
+
+@dataclass(frozen=True)
+class FluidBody:
+    articulation: int
+    link: int
+    box: tuple[float, float, float]  # sides of the equivalent inertia box
+
+
+@dataclass(frozen=True)
+class Fluid:
+    density: float
+    viscosity: float
+    wind: np.ndarray
+    bodies: tuple[FluidBody, ...]
+
+    def wrench(self, box, angular: np.ndarray, linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo's fluid (torque, force) on a body, all in its inertial frame, from its velocity there."""
+        b = np.asarray(box)
+        diameter = b.mean()
+        torque = -np.pi * diameter**3 * self.viscosity * angular
+        force = -3.0 * np.pi * diameter * self.viscosity * linear
+        if self.density > 0:
+            area = np.array([b[1] * b[2], b[0] * b[2], b[0] * b[1]])
+            force = force - 0.5 * self.density * area * np.abs(linear) * linear
+            lever = np.array([b[0] * (b[1]**4 + b[2]**4), b[1] * (b[0]**4 + b[2]**4), b[2] * (b[0]**4 + b[1]**4)])
+            torque = torque - self.density * lever * np.abs(angular) * angular / 64.0
+        return torque, force
+
+    def apply(self, articulations) -> None:
+        """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
+        for body in self.bodies:
+            link = articulations[body.articulation].links[body.link]
+            frame = (link.entity_pose * link.cmass_local_pose).to_transformation_matrix()[:3, :3]
+            angular = frame.T @ np.asarray(link.angular_velocity, np.float64)
+            linear = frame.T @ (np.asarray(link.linear_velocity, np.float64) - self.wind)
+            torque, force = self.wrench(body.box, angular, linear)
+            link.add_force_torque(frame @ force, frame @ torque)
+
+
+def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:
+    if model.opt.density <= 0 and model.opt.viscosity <= 0:
+        return None
+    if any(model.geom_fluid[:, 0]):
+        notes.drop("option", "fluidshape", "geoms with fluidshape=\"ellipsoid\" (MuJoCo's ellipsoid fluid model) "
+                   "are not mapped; their bodies feel no fluid")
+    if int(model.opt.integrator) != int(mujoco.mjtIntegrator.mjINT_EULER):
+        notes.approximate("option", "density/viscosity", "fluid forces applied explicitly; this integrator also "
+                          "treats their velocity derivatives implicitly (first order in the timestep apart)")
+    ellipsoid = {int(model.geom_bodyid[g]) for g in range(model.ngeom) if model.geom_fluid[g, 0]}
+    bodies = []
+    for b in range(1, model.nbody):
+        target = mapping.bodies[b]
+        mass = float(model.body_mass[b])
+        if target is None or target.articulation is None or mass < MINIMUM or b in ellipsoid:
+            continue
+        inertia = model.body_inertia[b]
+        box = tuple(float(np.sqrt(max(MINIMUM, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
+                    for i, j, k in ((0, 1, 2), (1, 0, 2), (2, 0, 1)))
+        bodies.append(FluidBody(target.articulation, target.link, box))
+    return Fluid(float(model.opt.density), float(model.opt.viscosity), np.asarray(model.opt.wind, np.float64),
+                 tuple(bodies))
