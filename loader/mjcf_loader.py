@@ -120,7 +120,7 @@ class LoadResult:
     def release(self) -> None:
         """Leave the joints to a simulation that drives them with its own PhysX drive targets and never calls
         `set_ctrl` (a ManiSkill controller): passive spring-damper drives, MuJoCo's armature, no joint forces.
-        What needs `set_ctrl` every step (frictionloss, tendons, clamps) is then not carried."""
+        What needs `set_ctrl` every step (frictionloss, tendons, clamps, fluid) is then not carried."""
         if self.actuation is not None:
             self.actuation.release(self.articulations)
 
