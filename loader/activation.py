@@ -31,44 +31,41 @@ class Activation:
     act: np.ndarray = field(default=None)
 
     def __post_init__(self):
-        if self.act is None:
-            self.act = np.zeros(self.model.na)
         m = self.model
-        self.actuators = [a for a in range(m.nu) if int(m.actuator_dyntype[a]) in MAPPED]
+        if self.act is None:
+            self.act = np.zeros(m.na)
+        self.actuators = np.array([a for a in range(m.nu) if int(m.actuator_dyntype[a]) in MAPPED], dtype=int)
+        a = self.actuators
+        self.adr = m.actuator_actadr[a].astype(int)
+        self.integrator = m.actuator_dyntype[a] == int(DYN.mjDYN_INTEGRATOR)
+        tau = m.actuator_dynprm[a, 0].astype(float)
+        self.tau = np.maximum(tau, MINIMUM_TIME_CONSTANT)
+        self.exact = (m.actuator_dyntype[a] == int(DYN.mjDYN_FILTEREXACT)) & (tau >= MINIMUM_TIME_CONSTANT)
+        self.early = m.actuator_actearly[a].astype(bool)
+        self.limited = m.actuator_actlimited[a].astype(bool)
+        self.low = np.where(self.limited, m.actuator_actrange[a, 0], -np.inf)
+        self.high = np.where(self.limited, m.actuator_actrange[a, 1], np.inf)
 
     def reset(self, act: np.ndarray | None = None) -> None:
         self.act = np.zeros(self.model.na) if act is None else np.asarray(act, dtype=np.float64).copy()
 
-    def _rate(self, a: int, ctrl: float, act: float) -> float:
-        if int(self.model.actuator_dyntype[a]) == int(DYN.mjDYN_INTEGRATOR):
-            return ctrl
-        tau = max(float(self.model.actuator_dynprm[a][0]), MINIMUM_TIME_CONSTANT)
-        return (ctrl - act) / tau
-
-    def _next(self, a: int, ctrl: float, act: float) -> float:
-        m = self.model
-        rate = self._rate(a, ctrl, act)
-        timestep = float(m.opt.timestep)
-        tau = float(m.actuator_dynprm[a][0])
-        if int(m.actuator_dyntype[a]) == int(DYN.mjDYN_FILTEREXACT) and tau >= MINIMUM_TIME_CONSTANT:
-            act = act + rate * tau * (1.0 - np.exp(-timestep / tau))
-        else:
-            act = act + timestep * rate
-        if m.actuator_actlimited[a]:
-            act = min(max(act, float(m.actuator_actrange[a][0])), float(m.actuator_actrange[a][1]))
-        return float(act)
+    def _next(self, ctrl: np.ndarray) -> np.ndarray:
+        """Every mapped actuator's activation after one step under `ctrl` (MuJoCo's mj_advance)."""
+        act = self.act[self.adr]
+        u = np.asarray(ctrl, dtype=np.float64)[self.actuators]
+        rate = np.where(self.integrator, u, (u - act) / self.tau)
+        timestep = float(self.model.opt.timestep)
+        step = np.where(self.exact, rate * self.tau * (1.0 - np.exp(-timestep / self.tau)), timestep * rate)
+        return np.clip(act + step, self.low, self.high)
 
     def inputs(self, ctrl: np.ndarray) -> np.ndarray:
         """What each actuator's gain multiplies this step: ctrl, or the activation (the next one with actearly)."""
         out = np.asarray(ctrl, dtype=np.float64).copy()
-        m = self.model
-        for a in self.actuators:
-            adr = int(m.actuator_actadr[a])
-            out[a] = self._next(a, ctrl[a], self.act[adr]) if m.actuator_actearly[a] else self.act[adr]
+        if self.actuators.size:
+            out[self.actuators] = np.where(self.early, self._next(ctrl), self.act[self.adr])
         return out
 
     def advance(self, ctrl: np.ndarray) -> None:
         """One step of the activation under this (clamped) ctrl, as MuJoCo takes it after the step."""
-        for a in self.actuators:
-            adr = int(self.model.actuator_actadr[a])
-            self.act[adr] = self._next(a, ctrl[a], self.act[adr])
+        if self.actuators.size:
+            self.act[self.adr] = self._next(ctrl)

@@ -176,7 +176,7 @@ class Actuation:
                 self.armature[key] = armature
             drives[key], constants[key] = row.drive(v[art][dof], timestep, row.scale(damping, timestep))
         for (art, dof), dof_drive in drives.items():
-            if (art, dof) in tendon_kv:
+            if tendon_kv.get((art, dof)):
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
             joint = joints[art][dof]
             forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep,
