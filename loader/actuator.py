@@ -106,6 +106,7 @@ class Actuation:
     applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
     fluid: object | None = None  # MuJoCo's inertia-box fluid forces (`fluid.Fluid`), added once per step
+    gravcomp: object | None = None  # partial gravity compensation forces (`gravcomp.GravityCompensation`)
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:
@@ -184,8 +185,9 @@ class Actuation:
         for art, qf in zip(articulations, forces):
             if art.dof:
                 art.set_qf(qf.astype(np.float32))
-        if self.fluid is not None and advance:  # link forces accumulate until the step: once per step only
-            self.fluid.apply(articulations)
+        for link_forces in (self.fluid, self.gravcomp):  # link forces accumulate until the step: once per step
+            if link_forces is not None and advance:
+                link_forces.apply(articulations)
 
     def release(self, articulations) -> None:
         """Hand the joints to a caller that drives them itself (their own drive targets, no `set_ctrl`): every

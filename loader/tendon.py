@@ -113,6 +113,10 @@ def map_tendons(model: mujoco.MjModel, mapping, actuation, notes) -> list[Passiv
             continue
         if model.tendon_limited[t]:
             notes.drop("tendon", name, "tendon length limit not mapped")
+        if model.tendon_frictionloss[t] > 0:
+            notes.drop("tendon", name, f"tendon frictionloss {model.tendon_frictionloss[t]:g} not mapped")
+        if model.tendon_armature[t] > 0:
+            notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
         stiffness, damping = float(model.tendon_stiffness[t]), float(model.tendon_damping[t])
         if stiffness == 0 and damping == 0:
             continue  # a transmission only: actuators and equalities read it

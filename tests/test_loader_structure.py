@@ -75,6 +75,22 @@ def test_nonlinear_damping_and_actuator_passive_terms_are_listed_not_dropped_sil
     assert not {("joint", "plain"), ("actuator", "bare")} & listed
 
 
+def test_tendon_friction_and_armature_are_listed_not_dropped_silently():
+    import mujoco
+
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><body><joint name="a"/><geom size=".1"/></body><body pos="1 0 0"><joint name="b"/>'
+        '<geom size=".1"/></body></worldbody><tendon>'
+        '<fixed name="rough" frictionloss="0.5" damping="0.2"><joint joint="a" coef="1"/><joint joint="b" coef="-1"/>'
+        '</fixed><fixed name="heavy" armature="0.1" damping="0.2"><joint joint="a" coef="1"/></fixed>'
+        '<fixed name="plain" damping="0.2"><joint joint="b" coef="1"/></fixed></tendon></mujoco>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = MJCFLoader().load(spec)
+    reasons = {entry.name: entry.reason for entry in result.unsupported if entry.kind == "tendon"}
+    assert "frictionloss" in reasons["rough"] and "armature" in reasons["heavy"] and "plain" not in reasons
+
+
 def test_keyframe_is_usable_as_the_initial_state(load):
     result = load(suite_path("dog"))
     qpos, _ = result.state(0)

@@ -1,0 +1,52 @@
+"""Body gravity compensation (`<body gravcomp>`): MuJoCo's passive force -gravcomp * m * g at the body's centre of
+mass.
+
+gravcomp = 1 cancels gravity exactly: the link does not feel PhysX's gravity (`disable_gravity`), nothing per step.
+Any other value keeps PhysX's gravity and adds -gravcomp * m * g with `add_force_torque` once per step from
+`set_ctrl` (PhysX clears link forces after the step). A joint with `actuatorgravcomp` takes its share through the
+actuators in MuJoCo, where `actuatorfrcrange` clamps it; the loader applies it as a passive force (listed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .errors import Notes
+from .mapping import Mapping
+
+
+@dataclass(frozen=True)
+class GravityCompensation:
+    """Per-step forces on links whose bodies compensate gravity partly (or more than fully)."""
+
+    forces: tuple[tuple[int, int, np.ndarray], ...]  # (articulation, link, world force)
+
+    def apply(self, articulations) -> None:
+        for art, link, force in self.forces:
+            articulations[art].links[link].add_force_torque(force, np.zeros(3))
+
+
+def plan_gravcomp(model: mujoco.MjModel, mapping: Mapping, articulations, notes: Notes) -> GravityCompensation | None:
+    """Links of fully compensated bodies stop feeling gravity; the others get their per-step force."""
+    gravity = np.asarray(model.opt.gravity, np.float64)
+    if not np.any(model.body_gravcomp) or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY \
+            or not np.any(gravity):
+        return None
+    if np.any(model.jnt_actgravcomp):
+        notes.approximate("joint", "actuatorgravcomp", "gravity compensation routed through the actuators is "
+                          "applied as a passive force: the joint's actuatorfrcrange does not clamp it")
+    forces = []
+    for b in range(1, model.nbody):
+        share = float(model.body_gravcomp[b])
+        target = mapping.bodies[b]
+        if share == 0 or target is None or target.articulation is None:
+            continue
+        link = articulations[target.articulation].links[target.link]
+        if share == 1.0:
+            link.disable_gravity = True
+        else:
+            forces.append((target.articulation, target.link, -share * float(model.body_mass[b]) * gravity))
+    return GravityCompensation(tuple(forces)) if forces else None
