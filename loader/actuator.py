@@ -37,6 +37,7 @@ from .activation import Activation
 from .drive import DofDrive
 from .errors import Notes
 from .friction import FrictionRow, friction_rows, note_coupled_friction
+from .joint import dof_damping, joint_stiffness
 from .mapping import Mapping
 from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
 
@@ -163,8 +164,7 @@ class Actuation:
                 forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
-        if self.enabled:
-            self._explicit_terms(drives, constants, forces, clamped, q, v, timestep, explicit_kv)
+        self._explicit_terms(drives, constants, forces, clamped, q, v, timestep, explicit_kv)
         for key, row in self.friction.items():  # the drive carries the friction (`friction.py`)
             art, dof = key
             law = drives[key]
@@ -207,14 +207,17 @@ class Actuation:
 
     def _explicit_terms(self, drives, constants, forces, clamped: set[int], q, v, timestep: float,
                         explicit_kv: bool) -> None:
-        """On the DoFs of joint actuators: under Euler their kv leaves the drive as the explicit force -kv qdot; and
-        where the damping left in the drive cannot absorb kp*dt (`drive.py`), kp leaves it as the explicit force
-        (constant - kp q), which is what MuJoCo does with kp."""
+        """On the DoFs of joint actuators, under Euler, their kv leaves the drive as the explicit force -kv qdot; and
+        on every DoF where the damping left in the drive cannot absorb the stiffness (kp, spring) times dt
+        (`drive.py`), the stiffness leaves it as the explicit force (constant - K q), which is what MuJoCo does."""
         kv: dict[tuple[int, int], float] = {}
-        for a, actuator in enumerate(self.actuators):
+        for a, actuator in enumerate(self.actuators if self.enabled else ()):
             if actuator.mapped and actuator.joint is not None and a not in clamped:
                 key = (actuator.articulation, actuator.dofs[0])
                 kv[key] = kv.get(key, 0.0) + (actuator.damping if explicit_kv else 0.0)
+        for key, law in drives.items():
+            if key not in kv and not law.exact(timestep):
+                kv[key] = 0.0
         for (art, dof), damping in kv.items():
             law = drives[(art, dof)]
             if damping:  # every joint actuator's kv is explicit: the drive keeps the passive damping (not a
@@ -264,8 +267,8 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
     for j, target in enumerate(mapping.joints):
         if target.kind in ("hinge", "slide"):
             adr = model.jnt_qposadr[j]
-            stiffness = float(model.jnt_stiffness[j])
-            passive = DofDrive(stiffness, float(model.dof_damping[model.jnt_dofadr[j]]),
+            stiffness = joint_stiffness(model, j)
+            passive = DofDrive(stiffness, dof_damping(model, int(model.jnt_dofadr[j])),
                                stiffness * float(model.qpos_spring[adr]))
             actuation.passive[(target.articulation, target.dofs[0])] = passive
             actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))

@@ -38,6 +38,10 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
     if any(model.jnt_limited) and not limits_disabled(model):
         notes.approximate("joint", "limits", "PhysX joint limits are hard; MuJoCo's are soft (solref/solimp)")
     integrator = int(model.opt.integrator)
+    if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and model.opt.disableflags & int(
+            mujoco.mjtDisableBit.mjDSBL_EULERDAMP) and np.any(model.dof_damping):
+        notes.approximate("option", "flag eulerdamp", "joint damping is explicit in MuJoCo with eulerdamp disabled; "
+                          "PhysX drives apply it implicitly (first order in the timestep apart)")
     if integrator == int(mujoco.mjtIntegrator.mjINT_RK4):
         notes.approximate("option", "integrator", "RK4 has no PhysX counterpart: simulated as MuJoCo's Euler "
                           "(semi-implicit), first order in the timestep apart over a fixed time")

@@ -22,6 +22,25 @@ SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
 BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 KIND = {HINGE: "hinge", SLIDE: "slide", BALL: "ball", FREE: "free"}
+_DSBL = mujoco.mjtDisableBit
+
+
+def springs_on(model: mujoco.MjModel) -> bool:
+    """MuJoCo applies joint and tendon springs (`<flag spring="disable"/>` turns them off)."""
+    return not model.opt.disableflags & int(_DSBL.mjDSBL_SPRING)
+
+
+def dampers_on(model: mujoco.MjModel) -> bool:
+    """MuJoCo applies joint and tendon damping (`<flag damper="disable"/>` turns it off)."""
+    return not model.opt.disableflags & int(_DSBL.mjDSBL_DAMPER)
+
+
+def joint_stiffness(model: mujoco.MjModel, j: int) -> float:
+    return float(model.jnt_stiffness[j]) if springs_on(model) else 0.0
+
+
+def dof_damping(model: mujoco.MjModel, dof: int) -> float:
+    return float(model.dof_damping[dof]) if dampers_on(model) else 0.0
 
 
 @dataclass
@@ -59,9 +78,9 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     name = joint_name(model, j)
     anchor = model.jnt_pos[j].copy()
     dof = model.jnt_dofadr[j]
-    damping = float(model.dof_damping[dof])
+    damping = dof_damping(model, dof)
     armature = float(model.dof_armature[dof])
-    stiffness = float(model.jnt_stiffness[j])
+    stiffness = joint_stiffness(model, j)
     if model.dof_frictionloss[dof] > 0 and jtype not in (HINGE, SLIDE):  # hinges and slides: `actuator.py`
         notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
                    "scales with the joint reaction force, MuJoCo's is a constant torque")
@@ -83,9 +102,6 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
             kind = "prismatic"
             ref_offset = pose((-ref, 0, 0))
         spring_target = float(model.qpos_spring[model.jnt_qposadr[j]])
-        if stiffness * model.opt.timestep > damping:
-            notes.approximate("joint", name, "spring stiffer than its damping can absorb in one step: the PhysX "
-                              "drive cannot have negative damping, agreement is O(timestep)")
         return [
             JointPlan(kind, name, limits, pose(anchor, quat_x_to(axis)), ref_offset, damping, armature,
                       stiffness, spring_target, j)
@@ -102,7 +118,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
                           "them to the body-frame angular velocity, which differs away from the zero rotation")
     return [
         JointPlan("revolute_unwrapped", f"{name}_{'xyz'[i]}", (-np.inf, np.inf), pose(anchor, quat_x_to(axis)),
-                  sapien.Pose(), float(model.dof_damping[dof + i]), float(model.dof_armature[dof + i]),
+                  sapien.Pose(), dof_damping(model, dof + i), float(model.dof_armature[dof + i]),
                   0.0, 0.0, j, i)
         for i, axis in enumerate(np.eye(3))
     ]

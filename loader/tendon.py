@@ -25,6 +25,8 @@ import mujoco
 import numpy as np
 import sapien
 
+from .joint import dampers_on, springs_on
+
 
 def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, float]]:
     """(MuJoCo joint id, coefficient) pairs of a fixed tendon, or [] for a spatial one."""
@@ -117,7 +119,8 @@ def map_tendons(model: mujoco.MjModel, mapping, actuation, notes) -> list[Passiv
             notes.drop("tendon", name, f"tendon frictionloss {model.tendon_frictionloss[t]:g} not mapped")
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
-        stiffness, damping = float(model.tendon_stiffness[t]), float(model.tendon_damping[t])
+        stiffness = float(model.tendon_stiffness[t]) if springs_on(model) else 0.0
+        damping = float(model.tendon_damping[t]) if dampers_on(model) else 0.0
         if stiffness == 0 and damping == 0:
             continue  # a transmission only: actuators and equalities read it
         mapped = []

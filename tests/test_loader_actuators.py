@@ -564,3 +564,27 @@ def test_gravity_compensation_matches_mujoco(tmp_path, monkeypatch, upper, lower
     monkeypatch.setattr(loader.mjcf_loader, "plan_gravcomp", lambda *args: None)
     ignored = MJCFLoader().load(path)
     assert _replay(ignored, ignored.model, lambda step, data: np.zeros(0), 1.0).max() > 10 * SERVO_TOLERANCE
+
+
+@pytest.mark.parametrize("flags", ['spring="disable"', 'damper="disable"', 'spring="disable" damper="disable"'])
+def test_spring_and_damper_flags_are_honoured(tmp_path, monkeypatch, flags):
+    """<flag spring/damper="disable"/> turns joint and tendon springs/dampers off in MuJoCo; the loader too.
+    Mutation: flags ignored (the springs and dampers mapped anyway)."""
+    path = tmp_path / "flags.xml"
+    path.write_text(f"""<mujoco><option timestep="0.002"><flag {flags}/></option>
+      <worldbody><body pos="0 0 1"><joint name="a" axis="0 1 0" stiffness="3" springref="0.5" damping="0.2"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".5"/></body>
+        <body pos="0 1 1"><joint name="b" axis="0 1 0"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"
+          mass=".5"/></body></worldbody>
+      <tendon><fixed stiffness="2" damping="0.3"><joint joint="a" coef="1"/><joint joint="b" coef="-1"/></fixed>
+      </tendon></mujoco>""")
+    result = MJCFLoader().load(path)
+    assert _replay(result, result.model, lambda step, data: np.zeros(0), 1.0).max() < SERVO_TOLERANCE
+    import loader.joint
+    import loader.tendon
+
+    for module in (loader.joint, loader.tendon):
+        monkeypatch.setattr(module, "springs_on", lambda model: True)
+        monkeypatch.setattr(module, "dampers_on", lambda model: True)
+    blind = MJCFLoader().load(path)
+    assert _replay(blind, blind.model, lambda step, data: np.zeros(0), 1.0).max() > 10 * SERVO_TOLERANCE

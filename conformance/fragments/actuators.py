@@ -100,8 +100,9 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     Read at q = 0, qdot = 0, where no actuator force can sit on a forcerange or actuatorfrcrange bound (there the
     loader applies the clamped force explicitly and the drive keeps the passive terms only). MuJoCo's rules: kv is
     implicit under implicit/implicitfast and explicit under Euler and RK4, damping implicit, kp and springs
-    explicit; a drive is implicit in what it holds, so an actuated DoF whose implicit damping cannot absorb kp*dt
-    keeps kp out of its drive (explicit force), and a frictional DoF's drive holds only its friction row."""
+    explicit; a drive is implicit in what it holds, so a DoF whose implicit damping cannot absorb its stiffness
+    (kp, spring) times dt keeps the stiffness out of its drive (explicit force), and a frictional DoF's drive holds
+    only its friction row."""
     for art in result.articulations:
         art.set_qpos(np.zeros(art.dof, np.float32))
         art.set_qvel(np.zeros(art.dof, np.float32))
@@ -116,7 +117,6 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     enabled = not (model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION))
     implicit_kv = int(model.opt.integrator) in (int(mujoco.mjtIntegrator.mjINT_IMPLICIT),
                                                 int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
-    actuated = set()
     for a in range(model.nu):
         if enabled and _mappable(model, a):
             target = result.mapping.joints[int(model.actuator_trnid[a][0])]
@@ -124,14 +124,13 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
             k, d = expected_gains(model, a)
             stiffness[key] += k
             damping[key] += d if implicit_kv else 0.0
-            actuated.add(key)
     out = []
     dt = float(model.opt.timestep)
     friction = _friction_drives(result, model)
     for key, want_k in stiffness.items():
         joint = result.articulations[key[0]].active_joints[key[1]]
         want_d = max(damping[key] - want_k * dt, 0.0)
-        if key in actuated and damping[key] - want_k * dt < 0:  # kp explicit
+        if damping[key] - want_k * dt < 0:  # the stiffness (kp, spring) explicit
             want_k, want_d = 0.0, damping[key]
         if key in friction:  # the drive carries the friction row; damping rides as armature dt D, kp explicit
             dof, regularizer, inverse_inertia = friction[key]
