@@ -29,7 +29,7 @@ class GravityCompensation:
             articulations[art].links[link].add_force_torque(force, np.zeros(3))
 
 
-def plan_gravcomp(model: mujoco.MjModel, mapping: Mapping, articulations, notes: Notes) -> GravityCompensation | None:
+def map_gravcomp(model: mujoco.MjModel, mapping: Mapping, articulations, notes: Notes) -> GravityCompensation | None:
     """Links of fully compensated bodies stop feeling gravity; the others get their per-step force."""
     gravity = np.asarray(model.opt.gravity, np.float64)
     if not np.any(model.body_gravcomp) or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY \

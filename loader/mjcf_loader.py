@@ -25,7 +25,7 @@ from .errors import Notes, Unsupported, UnsupportedFeatureWarning
 from .features import find_unmapped
 from .fluid import plan_fluid
 from .geom import collides, plan_shape
-from .gravcomp import plan_gravcomp
+from .gravcomp import map_gravcomp
 from .joint import FREE, KIND
 from .mapping import BodyLink, GeomShape, JointDofs, Mapping
 from .solver import tune_iterations
@@ -185,7 +185,7 @@ class MJCFLoader:
         actuation = plan_actuation(model, mapping, parsed.notes)
         actuation.tendons = map_tendons(model, mapping, actuation, parsed.notes)
         actuation.fluid = plan_fluid(model, mapping, parsed.notes)
-        actuation.gravcomp = plan_gravcomp(model, mapping, articulations, parsed.notes)
+        actuation.gravcomp = map_gravcomp(model, mapping, articulations, parsed.notes)
         if self.solver_iterations == "auto":
             tune_iterations(articulations, model, actuation, mapping, parsed.notes)
         equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)

@@ -561,7 +561,7 @@ def test_gravity_compensation_matches_mujoco(tmp_path, monkeypatch, upper, lower
     assert _replay(result, result.model, lambda step, data: np.zeros(0), 1.0).max() < SERVO_TOLERANCE
     import loader.mjcf_loader
 
-    monkeypatch.setattr(loader.mjcf_loader, "plan_gravcomp", lambda *args: None)
+    monkeypatch.setattr(loader.mjcf_loader, "map_gravcomp", lambda *args: None)
     ignored = MJCFLoader().load(path)
     assert _replay(ignored, ignored.model, lambda step, data: np.zeros(0), 1.0).max() > 10 * SERVO_TOLERANCE
 
