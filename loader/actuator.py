@@ -9,8 +9,8 @@ drive the joint's passive damping, with kp in the drive while that damping absor
 explicit too. The integrator is read from the loaded model's `opt.integrator` on every `set_ctrl`.
 An actuator on a fixed tendon applies J^T f as a generalized force, its bias evaluated from the state when
 `set_ctrl` is called (call it every step); MuJoCo's implicit step holds only the diagonal of its kv J^T J (measured
-exact), which joins the joints' drives, so this too is exact under implicitfast. Activation dynamics, muscles and
-site/body transmissions are not mapped.
+exact), which joins the joints' drives, so this too is exact under implicitfast. Filter and integrator activation
+dynamics are stepped by `activation.py`; muscles and site/body transmissions are not mapped.
 
 Joint frictionloss rides on the joint's drive; the joint's own damping and gains then leave the drive as armature
 and explicit forces (`friction.py`).
@@ -133,10 +133,12 @@ class Actuation:
         joints = [art.active_joints for art in articulations]  # the property builds a new list per call
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
         v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        tendon_kv: dict[tuple[int, int], float] = {}  # implicit tendon damping and kv diagonal this step, per DoF
         for tendon in self.tendons:
-            for art, dof, force in tendon.forces(q, v):
+            for art, dof, force, diagonal in tendon.forces(q, v, not explicit_kv):
                 forces[art][dof] += force
-        tendon_kv: dict[tuple[int, int], float] = {}  # implicit kv of tendon actuators this step, per DoF
+                if diagonal:
+                    tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + diagonal
         clamped: set[int] = set()  # joint actuators applied explicitly this step
         via_damping: dict[tuple[int, int], float] = {}
         if self.enabled:
@@ -164,7 +166,7 @@ class Actuation:
                 forces[art][dof] += actuator.gear * c * force + implicit * c * c * v[art][dof]
                 tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + implicit * c * c
         timestep = float(model.opt.timestep)
-        self._explicit_terms(drives, constants, forces, clamped, q, v, timestep, explicit_kv)
+        self._explicit_terms(drives, constants, forces, clamped, q, v, timestep, explicit_kv, tendon_kv)
         for key, row in self.friction.items():  # the drive carries the friction (`friction.py`)
             art, dof = key
             law = drives[key]
@@ -206,17 +208,21 @@ class Actuation:
         self.armature.clear()
 
     def _explicit_terms(self, drives, constants, forces, clamped: set[int], q, v, timestep: float,
-                        explicit_kv: bool) -> None:
+                        explicit_kv: bool, tendon_kv: dict[tuple[int, int], float]) -> None:
         """On the DoFs of joint actuators, under Euler, their kv leaves the drive as the explicit force -kv qdot; and
-        on every DoF where the damping left in the drive cannot absorb the stiffness (kp, spring) times dt
-        (`drive.py`), the stiffness leaves it as the explicit force (constant - K q), which is what MuJoCo does."""
+        on every DoF where the damping left in the drive (with the tendons' implicit diagonal) cannot absorb the
+        stiffness (kp, spring) times dt (`drive.py`), the stiffness leaves it as the explicit force (constant - K q),
+        which is what MuJoCo does."""
         kv: dict[tuple[int, int], float] = {}
         for a, actuator in enumerate(self.actuators if self.enabled else ()):
             if actuator.mapped and actuator.joint is not None and a not in clamped:
                 key = (actuator.articulation, actuator.dofs[0])
                 kv[key] = kv.get(key, 0.0) + (actuator.damping if explicit_kv else 0.0)
+        def exact(key, law: DofDrive) -> bool:
+            return law.damping + tendon_kv.get(key, 0.0) - law.stiffness * timestep >= 0.0
+
         for key, law in drives.items():
-            if key not in kv and not law.exact(timestep):
+            if key not in kv and not exact(key, law):
                 kv[key] = 0.0
         for (art, dof), damping in kv.items():
             law = drives[(art, dof)]
@@ -224,7 +230,7 @@ class Actuation:
                 # difference, whose rounding would move the kp*dt boundary below)
                 law = dataclasses.replace(law, damping=self.passive[(art, dof)].damping)
                 forces[art][dof] -= damping * v[art][dof]
-            if not law.exact(timestep):
+            if not exact((art, dof), law):
                 forces[art][dof] += constants[(art, dof)] - law.stiffness * q[art][dof]
                 constants[(art, dof)] = 0.0
                 law = dataclasses.replace(law, stiffness=0.0)

@@ -40,9 +40,6 @@ class DofDrive:
         """The PhysX drive damping that reproduces MuJoCo's semi-implicit step (clamped at 0)."""
         return max(self.damping - self.stiffness * timestep, 0.0)
 
-    def carries_nothing(self) -> bool:
-        return self.stiffness == 0 and self.damping == 0
-
     def exact(self, timestep: float) -> bool:
         return self.damping - self.stiffness * timestep >= 0.0
 

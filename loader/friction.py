@@ -30,6 +30,7 @@ import numpy as np
 from .drive import DofDrive
 from .errors import Notes
 from .mapping import Mapping
+from .tree import forward_at_qpos0, inverse_inertia
 
 
 @dataclass(frozen=True)
@@ -56,14 +57,10 @@ def friction_rows(model: mujoco.MjModel, mapping: Mapping) -> dict[tuple[int, in
     """The friction row of every frictional hinge/slide DoF, by (articulation, SAPIEN dof)."""
     if not model.dof_frictionloss.any():
         return {}
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    mujoco.mj_forward(model, data)
+    data = forward_at_qpos0(model)
     rows = {int(data.efc_id[i]): (float(data.efc_KBIP[i][1]), float(data.efc_R[i])) for i in range(data.nefc)
             if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)}
-    inertia = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, inertia)
-    inverse = np.diag(np.linalg.pinv(inertia, hermitian=True))
+    inverse = np.diag(inverse_inertia(model, data))
     out = {}
     for j, target in enumerate(mapping.joints):
         dof = int(model.jnt_dofadr[j])
@@ -88,8 +85,7 @@ def note_coupled_friction(model: mujoco.MjModel, mapping: Mapping, actuation, no
     damped = {key for key, drive in actuation.drives.items() if drive.damping > 0}
     damped |= {(art, dof) for a, terms in actuation.tendon_terms.items() if actuation.actuators[a].damping
                for art, dof, _ in terms}
-    dof_of = {(t.articulation, t.dofs[0]): int(model.jnt_dofadr[j]) for j, t in enumerate(mapping.joints)
-              if t.kind in ("hinge", "slide")}
+    dof_of = mapping.mujoco_dofs()
     for j, target in enumerate(mapping.joints):
         key = (target.articulation, target.dofs[0]) if target.kind in ("hinge", "slide") else None
         if key not in actuation.friction:

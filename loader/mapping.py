@@ -79,6 +79,10 @@ class Mapping:
                 result[adr + k] = (target.articulation, dof)
         return result
 
+    def mujoco_dofs(self) -> dict[tuple[int, int], int]:
+        """(articulation, SAPIEN DoF) -> MuJoCo DoF, for every DoF a SAPIEN joint carries."""
+        return {key: d for d, key in enumerate(self.dofs) if key[1] is not None}
+
     def set_state(self, articulations, qpos, qvel=None) -> None:
         """Put MuJoCo's (qpos, qvel) into the SAPIEN articulations."""
         qpos = np.asarray(qpos, dtype=np.float64)

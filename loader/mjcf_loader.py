@@ -183,7 +183,7 @@ class MJCFLoader:
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
         mapping = _mapping(model, parsed, articulations)
         actuation = plan_actuation(model, mapping, parsed.notes)
-        actuation.tendons = map_tendons(model, mapping, actuation, parsed.notes)
+        actuation.tendons = map_tendons(model, mapping, parsed.notes)
         actuation.fluid = plan_fluid(model, mapping, parsed.notes)
         actuation.gravcomp = map_gravcomp(model, mapping, articulations, parsed.notes)
         if self.solver_iterations == "auto":

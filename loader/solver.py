@@ -19,7 +19,10 @@ import mujoco
 import numpy as np
 
 from .actuator import Actuation
+from .drive import DofDrive
 from .mapping import Mapping
+from .tendon import IMPLICIT
+from .tree import forward_at_qpos0, inverse_inertia
 
 RESIDUAL = 1e-6  # the fraction of a drive impulse's error left after the sweeps
 MAX_ITERATIONS = 255  # PhysX's limit for an articulation
@@ -43,23 +46,20 @@ def sweeps_needed(radius: float, residual: float = RESIDUAL) -> int:
 
 def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -> dict[int, float]:
     """Per articulation with at least two drives: the Gauss-Seidel radius of its drive rows at qpos0."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    mujoco.mj_forward(model, data)
-    inertia = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, inertia)
-    inverse = np.linalg.pinv(inertia, hermitian=True)  # a singular M (coincident joints) still loads
-    dof_of = {}  # (articulation, SAPIEN dof) -> MuJoCo dof
-    for j, target in enumerate(mapping.joints):
-        if target.kind in ("hinge", "slide"):
-            dof_of[(target.articulation, target.dofs[0])] = int(model.jnt_dofadr[j])
+    inverse = inverse_inertia(model, forward_at_qpos0(model))
+    dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
     tendon_kv: dict[tuple[int, int], float] = {}  # tendon actuators' kv diagonal joins the drives every step
     for a, terms in actuation.tendon_terms.items():
         for art, dof, c in terms:
             tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + actuation.actuators[a].damping * c * c
+    passive_diagonal: dict[tuple[int, int], float] = {}  # passive tendon dampers' diagonal, implicit integrators
+    for tendon in actuation.tendons if int(model.opt.integrator) in IMPLICIT else ():
+        for art, dof, c in tendon.terms:
+            passive_diagonal[(art, dof)] = passive_diagonal.get((art, dof), 0.0) + tendon.damping * c * c
     rows: dict[int, list[tuple[int, float]]] = {}
     for key, dof_drive in actuation.drives.items():
+        dof_drive = DofDrive(dof_drive.stiffness, dof_drive.damping + passive_diagonal.get(key, 0.0))
         damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
         weight = timestep * (damping + timestep * dof_drive.stiffness)
         if key in actuation.friction:  # the drive carries only the friction (compliance R / s)

@@ -78,8 +78,8 @@ def tendon_state(terms, q: list[np.ndarray], v: list[np.ndarray]) -> tuple[float
 class PassiveTendon:
     """A fixed tendon's spring (dead band `low`..`high`) and damper as MuJoCo applies them, over (articulation,
     dof, coefficient) terms: the force J^T f from the state, explicit, written by `set_ctrl` every step. Under
-    MuJoCo's implicit integrators the damper's diagonal D c_i^2 is implicit (it joins the joints' drives) and
-    `force` adds D c_i^2 qdot_i back, so that the step equals MuJoCo's."""
+    MuJoCo's implicit integrators the damper's diagonal D c_i^2 is implicit (`set_ctrl` adds it to the joints'
+    drives) and `forces` adds D c_i^2 qdot_i back, so that the step equals MuJoCo's."""
 
     name: str
     terms: tuple[tuple[int, int, float], ...]
@@ -87,26 +87,27 @@ class PassiveTendon:
     damping: float
     low: float
     high: float
-    diagonal: bool
 
-    def forces(self, q: list[np.ndarray], v: list[np.ndarray]):
+    def forces(self, q: list[np.ndarray], v: list[np.ndarray], implicit: bool):
+        """Per term (articulation, dof, explicit force, implicit damping for the drive): the diagonal D c^2 is
+        implicit under MuJoCo's implicit integrators (`implicit`), explicit under Euler."""
         length, rate = tendon_state(self.terms, q, v)
         stretch = length - self.low if length < self.low else (length - self.high if length > self.high else 0.0)
         pull = -self.stiffness * stretch - self.damping * rate
         for art, dof, c in self.terms:
-            yield art, dof, c * pull + (self.damping * c * c * v[art][dof] if self.diagonal else 0.0)
+            diagonal = self.damping * c * c if implicit else 0.0
+            yield art, dof, c * pull + diagonal * v[art][dof], diagonal
 
 
 IMPLICIT = (int(mujoco.mjtIntegrator.mjINT_IMPLICIT), int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
 
 
-def map_tendons(model: mujoco.MjModel, mapping, actuation, notes) -> list[PassiveTendon]:
+def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     """Passive tendon properties: a fixed tendon's spring and damper, applied as MuJoCo does. MuJoCo's implicit
     and implicitfast integrators treat a tendon's damping implicitly through its diagonal D c_i^2 only, Euler
     explicitly (both measured to 1e-16 on three hinges); a PhysX fixed tendon would be implicit in the whole
     D J J^T and in its spring (2.3e-3 rad over 1 s on that fixture)."""
     out = []
-    diagonal = int(model.opt.integrator) in IMPLICIT
     for t in range(model.ntendon):
         name = model.tendon(t).name or f"tendon{t}"
         terms = fixed_tendon_terms(model, t)
@@ -132,10 +133,5 @@ def map_tendons(model: mujoco.MjModel, mapping, actuation, notes) -> list[Passiv
             mapped.append((target.articulation, target.dofs[0], coefficient))
         else:
             low, high = (float(x) for x in model.tendon_lengthspring[t])
-            tendon = PassiveTendon(name, tuple(mapped), stiffness, damping, low, high, diagonal)
-            if diagonal:
-                for art, dof, c in mapped:
-                    for drives in (actuation.passive, actuation.drives):
-                        drives[(art, dof)].damping += damping * c * c
-            out.append(tendon)
+            out.append(PassiveTendon(name, tuple(mapped), stiffness, damping, low, high))
     return out

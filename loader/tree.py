@@ -55,6 +55,22 @@ def body_name(model: mujoco.MjModel, b: int) -> str:
     return model.body(b).name or f"body{b}"
 
 
+def forward_at_qpos0(model: mujoco.MjModel) -> mujoco.MjData:
+    """MuJoCo's forward pass at qpos0 (inertia, constraint rows)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_forward(model, data)
+    return data
+
+
+def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """The joint-space M^-1 (nv x nv) at `data`'s state: a pseudo-inverse, so that a singular M (coincident
+    joints) still loads."""
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    return np.linalg.pinv(inertia, hermitian=True)
+
+
 def world_poses_at_qpos0(model: mujoco.MjModel) -> mujoco.MjData:
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0

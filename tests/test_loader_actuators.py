@@ -255,10 +255,10 @@ def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator
     assert len(result.actuation.tendons) == 1
     errors = _replay(result, model, lambda step, data: np.zeros(0), 1.0)
     assert errors.max() < TENDON_TOLERANCE, errors.max()
-    import loader.tendon
+    import loader.actuator
 
     implicit = (int(mujoco.mjtIntegrator.mjINT_EULER),) if integrator == "Euler" else ()
-    monkeypatch.setattr(loader.tendon, "IMPLICIT", implicit)
+    monkeypatch.setattr(loader.actuator, "IMPLICIT", implicit)  # set_ctrl reads the integrator rule there
     other, model = load()
     assert _replay(other, model, lambda step, data: np.zeros(0), 1.0).max() > 10 * TENDON_TOLERANCE
 
