@@ -36,7 +36,9 @@ from .activation import MAPPED as MAPPED_DYNAMICS
 from .activation import Activation
 from .drive import DofDrive
 from .errors import Notes
+from .fluid import Fluid
 from .friction import FrictionRow, friction_rows, note_coupled_friction
+from .gravcomp import GravityCompensation
 from .joint import dof_damping, joint_stiffness
 from .mapping import Mapping
 from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
@@ -106,8 +108,8 @@ class Actuation:
     armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
     applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
-    fluid: object | None = None  # MuJoCo's inertia-box fluid forces (`fluid.Fluid`), added once per step
-    gravcomp: object | None = None  # partial gravity compensation forces (`gravcomp.GravityCompensation`)
+    fluid: Fluid | None = None  # MuJoCo's inertia-box fluid forces, added once per step
+    gravcomp: GravityCompensation | None = None  # partial gravity compensation forces, added once per step
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:

@@ -65,13 +65,13 @@ class Fluid:
 def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:
     if model.opt.density <= 0 and model.opt.viscosity <= 0:
         return None
-    if any(model.geom_fluid[:, 0]):
+    ellipsoid = {int(model.geom_bodyid[g]) for g in range(model.ngeom) if model.geom_fluid[g, 0]}
+    if ellipsoid:
         notes.drop("option", "fluidshape", "geoms with fluidshape=\"ellipsoid\" (MuJoCo's ellipsoid fluid model) "
                    "are not mapped; their bodies feel no fluid")
     if int(model.opt.integrator) != int(mujoco.mjtIntegrator.mjINT_EULER):
         notes.approximate("option", "density/viscosity", "fluid forces applied explicitly; this integrator also "
                           "treats their velocity derivatives implicitly (first order in the timestep apart)")
-    ellipsoid = {int(model.geom_bodyid[g]) for g in range(model.ngeom) if model.geom_fluid[g, 0]}
     bodies = []
     for b in range(1, model.nbody):
         target = mapping.bodies[b]

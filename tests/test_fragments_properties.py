@@ -48,3 +48,18 @@ def test_rejected_documents_raise_the_loaders_typed_error():
 def test_random_orientations_agree_on_forward_kinematics():
     delta = _run("kinematics")
     assert delta.get("tier kinematics pass", 0) >= CI_EXAMPLES["kinematics"] * 0.5, delta
+
+
+@pytest.mark.parametrize("integrator, unstable", [("Euler", True), ("implicitfast", False)])
+def test_a_model_that_blows_up_only_with_its_actuators_on_is_no_reference(integrator, unstable):
+    """kv 1 on a 2 cm sphere: explicit under Euler, MuJoCo diverges within the stability run (it would pass the
+    20 judged steps and fail them on the loader); implicit under implicitfast it is a reference."""
+    import mujoco
+
+    from conformance.fragments.properties import mujoco_ill_posed
+
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><option integrator="{integrator}"/><worldbody><body><joint name="j"/><geom size="0.02"/></body>'
+        '</worldbody><actuator><velocity joint="j" kv="1"/></actuator></mujoco>')
+    reason = mujoco_ill_posed(model, 20)
+    assert (reason == "MuJoCo itself is unstable on the model with its actuators on (bad qacc)") is unstable, reason

@@ -165,7 +165,7 @@ def redundant_dofs(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
 def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
     """Why MuJoCo's own dynamics are no reference (None when they are): a singular joint-space inertia (two
     hinges on one axis: only their sum is determined), or a blow-up (bad qacc) within the horizon."""
-    from ..reference import initial_state, matched
+    from ..reference import initial_state, matched, rollout
 
     ref, _ = matched(model, contact=False)
     data = mujoco.MjData(ref)
@@ -180,12 +180,10 @@ def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
         return "MuJoCo itself is unstable on the model (bad qacc)"
     if model.nu:  # explicit actuator gains (kv under Euler) can diverge slowly, past the short judged horizon
         ref, _ = matched(model, contact=False, actuation=True)
-        data = mujoco.MjData(ref)
-        data.qpos[:] = initial_state(model)[0]  # where the tiers start (inside the joint limits)
-        data.qvel[:] = 1e-3  # a growing mode needs a seed: at rest with zero ctrl nothing may move
-        for _ in range(max(steps, ACTUATED_STABILITY_STEPS)):
-            mujoco.mj_step(ref, data)
-        if data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number or not np.all(np.isfinite(data.qpos)):
+        # from where the tiers start (inside the joint limits), with a seed velocity: at rest with zero ctrl
+        # a growing mode may never start
+        run = rollout(ref, initial_state(model)[0], np.full(model.nv, 1e-3), max(steps, ACTUATED_STABILITY_STEPS))
+        if run.unstable(ref):
             return "MuJoCo itself is unstable on the model with its actuators on (bad qacc)"
     return None
 
