@@ -54,6 +54,7 @@ class LoadResult:
     actuators: list[ActuatorMap] = field(default_factory=list)
     equalities: list[EqualityLink] = field(default_factory=list)
     actuation: Actuation | None = field(default=None, repr=False)
+    held_ctrl: np.ndarray | None = field(default=None, init=False, repr=False)  # the ctrl `step` holds
 
     @property
     def articulation(self) -> sapien.physx.PhysxArticulation | None:
@@ -112,10 +113,9 @@ class LoadResult:
         a controller running slower than the simulation keeps the state-dependent terms (friction, tendons,
         force clamps, explicit gains, activations) of every step, as MuJoCo with the same ctrl held would."""
         if ctrl is not None:
-            self._held_ctrl = np.asarray(ctrl, dtype=float).copy()
-        held = getattr(self, "_held_ctrl", None)
+            self.held_ctrl = np.asarray(ctrl, dtype=float).copy()
         for _ in range(substeps):
-            self.set_ctrl(held, qfrc_applied)
+            self.set_ctrl(self.held_ctrl, qfrc_applied)
             self.scene.step()
 
     def release(self) -> None:
