@@ -6,6 +6,7 @@ compiled and passed the tiers, documents MuJoCo rejected, actuators compared. Sk
 from __future__ import annotations
 
 import logging
+from types import SimpleNamespace
 
 import pytest
 
@@ -63,3 +64,28 @@ def test_a_model_that_blows_up_only_with_its_actuators_on_is_no_reference(integr
         '</worldbody><actuator><velocity joint="j" kv="1"/></actuator></mujoco>')
     reason = mujoco_ill_posed(model, 20)
     assert (reason == "MuJoCo itself is unstable on the model with its actuators on (bad qacc)") is unstable, reason
+
+
+def test_a_failure_is_excused_as_the_limit_gap_only_when_mujoco_reached_a_limit():
+    """The actuated run's own count of steps at a limit excuses its failure; without it, and with the zero-command
+    run staying clear of the (wide) limits, the failure stands."""
+    import mujoco
+
+    from conformance.fragments.properties import limits_excuse
+    from conformance.report import TierReport
+    from conformance.tolerances import load
+    from loader.errors import Unsupported
+
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><option gravity="0 0 0"/><worldbody><body><joint name="j" range="-90 90"/><geom size=".1"/></body>'
+        '</worldbody></mujoco>')
+
+    listed = SimpleNamespace(approximations=[Unsupported("joint", "limits", "PhysX joint limits are hard; "
+                                                         "MuJoCo's are soft")], unsupported=[])
+
+    def report(limit_steps: int) -> TierReport:
+        return TierReport("actuated", "fail", [], [], settings={"limit_steps": limit_steps})
+
+    assert limits_excuse(report(3), listed, model, load())
+    assert not limits_excuse(report(0), listed, model, load())
+    assert not limits_excuse(report(3), SimpleNamespace(approximations=[], unsupported=[]), model, load())
