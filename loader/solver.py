@@ -49,12 +49,13 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
     inverse = inverse_inertia(model, forward_at_qpos0(model))
     dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
+    implicit = int(model.opt.integrator) in IMPLICIT
     tendon_kv: dict[tuple[int, int], float] = {}  # tendon actuators' kv diagonal joins the drives every step
-    for a, terms in actuation.tendon_terms.items():
+    for a, terms in actuation.tendon_terms.items() if implicit else ():  # under Euler/RK4 kv is explicit
         for art, dof, c in terms:
             tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + actuation.actuators[a].damping * c * c
     passive_diagonal: dict[tuple[int, int], float] = {}  # passive tendon dampers' diagonal, implicit integrators
-    for tendon in actuation.tendons if int(model.opt.integrator) in IMPLICIT else ():
+    for tendon in actuation.tendons if implicit else ():
         for art, dof, c in tendon.terms:
             passive_diagonal[(art, dof)] = passive_diagonal.get((art, dof), 0.0) + tendon.damping * c * c
     rows: dict[int, list[tuple[int, float]]] = {}

@@ -7,6 +7,7 @@ sinusoidal ctrl, contact off, MuJoCo implicitfast: 4.0e-7 rad at the loader's 20
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 from models import suite_path
 from test_loader_actuators import _contact_free, _replay
@@ -57,3 +58,23 @@ def test_iterations_are_never_lowered_and_can_be_kept_or_set():
     keep = MJCFLoader()
     keep.solver_iterations = None
     assert all(a.solver_position_iterations == 10 for a in keep.load(suite_path("finger")).articulations)
+
+
+TENDON_SERVO = """<mujoco><option integrator="{integrator}" timestep="0.002"/><worldbody><body>
+  <joint name="a" axis="0 1 0" damping="0.01"/><geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".05"/>
+  <body pos=".2 0 0"><joint name="b" axis="0 1 0" damping="0.01"/>
+    <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".05"/></body></body></worldbody>
+  <tendon><fixed name="t"><joint joint="a" coef="1"/><joint joint="b" coef="1"/></fixed></tendon>
+  <actuator><velocity tendon="t" kv="{kv}"/></actuator></mujoco>"""
+
+
+def _iterations(integrator: str, kv: float) -> int:
+    spec = mujoco.MjSpec.from_string(TENDON_SERVO.format(integrator=integrator, kv=kv))
+    return MJCFLoader().load(spec).articulations[0].solver_position_iterations
+
+
+def test_a_tendon_servos_kv_couples_the_drives_only_where_the_integrator_makes_it_implicit():
+    # under implicitfast the servo's kv diagonal rides on the two joints' drives (coupled through the chain's
+    # inertia): more sweeps; under Euler kv is an explicit force and leaves the drive rows as they were
+    assert _iterations("implicitfast", 5.0) > _iterations("implicitfast", 0.0)
+    assert _iterations("Euler", 5.0) == _iterations("Euler", 0.0)
