@@ -17,10 +17,11 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from .compile import MJMINVAL
+
 DYN = mujoco.mjtDyn
 MAPPED = {int(DYN.mjDYN_FILTER): "filter", int(DYN.mjDYN_FILTEREXACT): "filterexact",
           int(DYN.mjDYN_INTEGRATOR): "integrator"}
-MINIMUM_TIME_CONSTANT = 1e-15  # MuJoCo's mjMINVAL, below which tau is not divided by
 
 
 @dataclass
@@ -39,8 +40,8 @@ class Activation:
         self.adr = m.actuator_actadr[a].astype(int)
         self.integrator = m.actuator_dyntype[a] == int(DYN.mjDYN_INTEGRATOR)
         tau = m.actuator_dynprm[a, 0].astype(float)
-        self.tau = np.maximum(tau, MINIMUM_TIME_CONSTANT)
-        self.exact = (m.actuator_dyntype[a] == int(DYN.mjDYN_FILTEREXACT)) & (tau >= MINIMUM_TIME_CONSTANT)
+        self.tau = np.maximum(tau, MJMINVAL)
+        self.exact = (m.actuator_dyntype[a] == int(DYN.mjDYN_FILTEREXACT)) & (tau >= MJMINVAL)
         self.early = m.actuator_actearly[a].astype(bool)
         self.limited = m.actuator_actlimited[a].astype(bool)
         self.low = np.where(self.limited, m.actuator_actrange[a, 0], -np.inf)

@@ -10,6 +10,8 @@ import mujoco
 
 from .errors import MissingAssetError, MJCFError
 
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
+
 _MISSING_FILE_SIGNS = ("error opening file", "resource not found", "could not open", "file not found")
 
 

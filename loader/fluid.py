@@ -18,10 +18,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .compile import MJMINVAL
 from .errors import Notes
 from .mapping import Mapping
-
-MINIMUM = 1e-15  # MuJoCo's mjMINVAL
 
 
 @dataclass(frozen=True)
@@ -76,10 +75,10 @@ def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid |
     for b in range(1, model.nbody):
         target = mapping.bodies[b]
         mass = float(model.body_mass[b])
-        if target is None or target.articulation is None or mass < MINIMUM or b in ellipsoid:
+        if target is None or target.articulation is None or mass < MJMINVAL or b in ellipsoid:
             continue
         inertia = model.body_inertia[b]
-        box = tuple(float(np.sqrt(max(MINIMUM, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
+        box = tuple(float(np.sqrt(max(MJMINVAL, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
                     for i, j, k in ((0, 1, 2), (1, 0, 2), (2, 0, 1)))
         bodies.append(FluidBody(target.articulation, target.link, box))
     return Fluid(float(model.opt.density), float(model.opt.viscosity), np.asarray(model.opt.wind, np.float64),
