@@ -110,6 +110,7 @@ class Actuation:
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
     fluid: Fluid | None = None  # MuJoCo's inertia-box fluid forces, added once per step
     gravcomp: GravityCompensation | None = None  # partial gravity compensation forces, added once per step
+    connects: list = field(default_factory=list)  # connect equalities' soft law (`equality.SoftConnect`), per step
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:
@@ -192,6 +193,8 @@ class Actuation:
         for link_forces in (self.fluid, self.gravcomp):  # link forces accumulate until the step: once per step
             if link_forces is not None and advance:
                 link_forces.apply(articulations)
+        for connect in self.connects:
+            connect.update(timestep)
 
     def release(self, articulations) -> None:
         """Hand the joints to a caller that drives them itself (their own drive targets, no `set_ctrl`): every
@@ -206,6 +209,8 @@ class Actuation:
         for art in articulations:
             if art.dof:
                 art.set_qf(np.zeros(art.dof, np.float32))
+        for connect in self.connects:
+            connect.lock()
         self.applied.clear()
         self.armature.clear()
 

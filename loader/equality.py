@@ -12,6 +12,16 @@ tendon damping 1 / (dt R) with R MuJoCo's regularizer, stiffness K d / R, and an
 (1/dt - B) / R x rate every step), but it needs PhysX's iterative tendon solve to converge at strong gains: on
 dm_control manipulator it reaches one-step 4.5e-6 rad/s only at 200 position iterations, and with coupling
 ratio 2 (the fixture) PhysX's tendon solve diverges (`tendon.py`). Not used.
+
+A connect takes that exact form on a PhysX D6 joint, whose three linear drive rows PhysX solves one constraint row
+each (`impedance.py`): damping D = 1 / (dt R) and a velocity target, rewritten by `set_ctrl` before every step
+(`SoftConnect`). Two PhysX details enter the target, both measured on a four-bar and a two-link loop: the D6
+measures the parent's velocity at the child's anchor, and PhysX's step leaves the row's velocity short of the
+centripetal term w x (w x r) of each anchor about its link's centre of mass (r from it). With them the first step
+matches MuJoCo to float32 (2e-7 rad/s at joint speeds up to 4 rad/s, violated or not); MuJoCo's velocity-product
+term J' qdot is then not needed. Left: MuJoCo solves the constraint with M and integrates joint damping with
+M + dt D afterwards, PhysX solves both together (5e-5 rad/s on the four-bar with 0.01 damping on its crank).
+`release` locks the D6 again (its callers do not rewrite the target); the next `set_ctrl` frees it.
 """
 
 from __future__ import annotations
@@ -23,9 +33,10 @@ import numpy as np
 import sapien
 
 from .errors import Notes
+from .impedance import SoftRow, diag_approx
 from .mapping import Mapping
 from .tendon import create_fixed_tendon, fixed_tendon_terms
-from .tree import world_poses_at_qpos0
+from .tree import forward_at_qpos0, world_poses_at_qpos0
 
 EQ = mujoco.mjtEq
 
@@ -38,6 +49,87 @@ class EqualityLink:
     kind: str
     mapped: bool
     reason: str = ""
+    soft: SoftConnect | None = None  # a connect's per-step soft law (None: rigid or not a connect)
+
+
+FORCE_LIMIT = 1e30  # no force limit on the D6 damper
+
+
+@dataclass
+class SoftConnect:
+    """A connect as MuJoCo's soft row on a free D6 joint: damping 1 / (dt R) and a velocity target per step.
+
+    `child` and `parent` are the D6's ends (parent None: the world), `child_anchor` / `parent_anchor` the anchor in
+    each end's link frame (the parent's in world coordinates when it is the world), `frame` the parent's D6 frame
+    rotation in its link frame. Everything is in child-minus-parent terms: MuJoCo's residual r = p1 - p2 when the
+    child is body1, its negative otherwise (the law is odd in r and v, so it holds either way)."""
+
+    drive: sapien.physx.PhysxDriveComponent
+    child: sapien.physx.PhysxArticulationLinkComponent
+    child_anchor: np.ndarray
+    parent: sapien.physx.PhysxArticulationLinkComponent | None
+    parent_anchor: np.ndarray
+    frame: sapien.Pose
+    row: SoftRow
+    diag_approx: float
+    equality: int  # MuJoCo's equality id
+    articulation: int | None  # the child's articulation (solver iterations, `solver.py`)
+    soft: bool = False  # the locks are released (set by the first `update`)
+
+    @staticmethod
+    def _motion(link) -> tuple[sapien.Pose, np.ndarray, np.ndarray, np.ndarray]:
+        """The link's pose, centre of mass, its velocity and the angular velocity (the world: at rest)."""
+        if link is None:
+            zero = np.zeros(3)
+            return sapien.Pose(), zero, zero, zero
+        pose = link.entity_pose
+        return (pose, (pose * link.cmass_local_pose).p, np.asarray(link.linear_velocity, dtype=float),
+                np.asarray(link.angular_velocity, dtype=float))
+
+    def update(self, timestep: float) -> None:
+        """MuJoCo's soft law for the coming step, from the current state."""
+        child_pose, child_com, child_com_velocity, child_omega = self._motion(self.child)
+        parent_pose, parent_com, parent_com_velocity, parent_omega = self._motion(self.parent)
+        child = child_pose.to_transformation_matrix()[:3, :3] @ self.child_anchor + child_pose.p
+        parent = parent_pose.to_transformation_matrix()[:3, :3] @ self.parent_anchor + parent_pose.p
+        residual = child - parent
+        child_velocity = child_com_velocity + np.cross(child_omega, child - child_com)
+        parent_velocity = parent_com_velocity + np.cross(parent_omega, parent - parent_com)
+        velocity = child_velocity - parent_velocity
+        imp = self.row.impedance(float(np.linalg.norm(residual)))
+        damping = 1.0 / (timestep * self.row.regularizer(imp, self.diag_approx))
+        target = (self.measured(velocity, parent_omega, residual)
+                  + timestep * (self.row.reference(imp, residual, velocity)
+                                - self.centripetal(child, child_com, child_omega, parent_com, parent_omega)))
+        rotation = (parent_pose * self.frame).to_transformation_matrix()[:3, :3]
+        if not self.soft:
+            for axis in "xyz":
+                getattr(self.drive, f"set_limit_{axis}")(-np.inf, np.inf)
+            self.soft = True
+        for axis in "xyz":
+            getattr(self.drive, f"set_drive_property_{axis}")(0.0, damping, FORCE_LIMIT, "force")
+        self.drive.set_drive_velocity_target(rotation.T @ target, np.zeros(3))
+
+    @staticmethod
+    def measured(velocity, parent_omega, residual) -> np.ndarray:
+        """The row velocity the D6 sees: MuJoCo's takes each body at its own anchor, PhysX the parent at the
+        child's anchor, which lies `residual` away."""
+        return velocity - np.cross(parent_omega, residual)
+
+    @staticmethod
+    def centripetal(child, child_com, child_omega, parent_com, parent_omega) -> np.ndarray:
+        """What PhysX's step leaves out of the row's velocity change: w x (w x r) of the child's anchor about
+        each end's centre of mass."""
+        return (np.cross(child_omega, np.cross(child_omega, child - child_com))
+                - np.cross(parent_omega, np.cross(parent_omega, child - parent_com)))
+
+    def lock(self) -> None:
+        """Back to the rigid form (locked translation, no drive), for callers that stop calling `update`."""
+        for axis in "xyz":
+            getattr(self.drive, f"set_limit_{axis}")(0.0, 0.0)
+            getattr(self.drive, f"set_drive_property_{axis}")(0.0, 0.0, FORCE_LIMIT, "force")
+        self.drive.set_drive_velocity_target(np.zeros(3), np.zeros(3))
+        self.soft = False
 
 
 def _name(model: mujoco.MjModel, e: int) -> str:
@@ -76,6 +168,13 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
     result = []
     if model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_EQUALITY | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
         return result  # MuJoCo enforces none of them (<flag equality/constraint="disable"/>)
+    at_qpos0 = []  # MuJoCo's forward pass at qpos0, made once for the connects' diagApprox
+
+    def qpos0_data() -> mujoco.MjData:
+        if not at_qpos0:
+            at_qpos0.append(forward_at_qpos0(model))
+        return at_qpos0[0]
+
     for e in range(model.neq):
         name = _name(model, e)
         etype = int(model.eq_type[e])
@@ -86,7 +185,7 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
         if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)):
             result.append(_coupling(model, e, name, articulations, mapping, notes))
         elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
-            result.append(_d6(model, e, name, scene, articulations, mapping, notes))
+            result.append(_d6(model, e, name, scene, articulations, mapping, notes, qpos0_data))
         else:
             reason = f"equality type {EQ(etype).name.removeprefix('mjEQ_').lower()} has no PhysX equivalent"
             notes.drop("equality", name, reason)
@@ -143,7 +242,7 @@ def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
     return EqualityLink(name, "fixed tendon", True)
 
 
-def _d6(model, e, name, scene, articulations, mapping, notes) -> EqualityLink:
+def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> EqualityLink:
     """connect: the two anchor points coincide (translation locked); weld: the relative pose is held too."""
     if int(model.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
         reason = "site-based connect/weld is not mapped"
@@ -171,15 +270,32 @@ def _d6(model, e, name, scene, articulations, mapping, notes) -> EqualityLink:
             frame1 = (sapien.Pose(data.xpos[body1], data.xquat[body1]).inv()
                       * sapien.Pose(data.xpos[body2], data.xquat[body2]))
         frame2 = sapien.Pose()
-    ends = [(component(body1), frame1), (component(body2), frame2)]
-    if ends[1][0] is None:  # SAPIEN takes the world (None) only as the first end; a locked joint is symmetric
+    world = world_poses_at_qpos0(model)
+
+    def end(body, frame):  # a body of the static actor is the world: its frame in world coordinates
+        link = component(body)
+        if link is None:
+            frame = sapien.Pose(world.xpos[body], world.xquat[body]) * frame
+        return link, frame, body
+
+    ends = [end(body1, frame1), end(body2, frame2)]
+    if ends[1][0] is None:  # SAPIEN takes the world (None) only as the first end
         ends.reverse()
-    drive = scene.create_drive(ends[0][0], ends[0][1], ends[1][0], ends[1][1])
+    (parent, parent_frame, _), (child, child_frame, child_body) = ends
+    drive = scene.create_drive(parent, parent_frame, child, child_frame)
     for axis in "xyz":
         getattr(drive, f"set_limit_{axis}")(0.0, 0.0)
     if etype == int(EQ.mjEQ_WELD):
         drive.set_limit_twist(0.0, 0.0)
         drive.set_limit_cone(0.0, 0.0)
-    notes.approximate("equality", name, f"{'connect' if etype == int(EQ.mjEQ_CONNECT) else 'weld'} as a rigid "
-                      "PhysX D6 joint (MuJoCo's is soft: solref)")
-    return EqualityLink(name, "D6 joint", True)
+        notes.approximate("equality", name, "weld as a rigid PhysX D6 joint (MuJoCo's is soft: solref)")
+        return EqualityLink(name, "D6 joint", True)
+    rows = diag_approx(model, qpos0_data(), int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e)
+    soft = SoftConnect(drive, child, np.asarray(child_frame.p, dtype=float), parent,
+                       np.asarray(parent_frame.p, dtype=float), sapien.Pose(q=parent_frame.q),
+                       SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e]), float(rows[0]), e,
+                       mapping.bodies[child_body].articulation)
+    notes.approximate("equality", name, "connect as MuJoCo's soft law (solref, solimp) on a PhysX D6 damper that "
+                      "set_ctrl updates every step (rigid after release); exact but for the "
+                      "coupling with implicit joint damping (equality.py)")
+    return EqualityLink(name, "D6 joint", True, soft=soft)

@@ -186,9 +186,10 @@ class MJCFLoader:
         actuation.tendons = map_tendons(model, mapping, parsed.notes)
         actuation.fluid = plan_fluid(model, mapping, parsed.notes)
         actuation.gravcomp = map_gravcomp(model, mapping, articulations, parsed.notes)
+        equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
+        actuation.connects = [link.soft for link in equalities if link.soft is not None]
         if self.solver_iterations == "auto":
             tune_iterations(articulations, model, actuation, mapping, parsed.notes)
-        equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
         result = LoadResult(
             path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=self.scene,
             articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),

@@ -45,8 +45,10 @@ def sweeps_needed(radius: float, residual: float = RESIDUAL) -> int:
 
 
 def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -> dict[int, float]:
-    """Per articulation with at least two drives: the Gauss-Seidel radius of its drive rows at qpos0."""
-    inverse = inverse_inertia(model, forward_at_qpos0(model))
+    """Per articulation with at least two rows: the Gauss-Seidel radius of its drive and soft connect rows at
+    qpos0."""
+    data = forward_at_qpos0(model)
+    inverse = inverse_inertia(model, data)
     dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
     implicit = int(model.opt.integrator) in IMPLICIT
@@ -58,7 +60,7 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
     for tendon in actuation.tendons if implicit else ():
         for art, dof, c in tendon.terms:
             passive_diagonal[(art, dof)] = passive_diagonal.get((art, dof), 0.0) + tendon.damping * c * c
-    rows: dict[int, list[tuple[int, float]]] = {}
+    rows: dict[int, list[tuple[np.ndarray, float]]] = {}  # per articulation: (row over MuJoCo's DoFs, compliance)
     for key, dof_drive in actuation.drives.items():
         dof_drive = DofDrive(dof_drive.stiffness, dof_drive.damping + passive_diagonal.get(key, 0.0))
         damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
@@ -67,13 +69,34 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
             row = actuation.friction[key]
             weight = row.scale(dof_drive.damping + tendon_kv.get(key, 0.0), timestep) / row.regularizer
         if weight > 0 and key in dof_of:
-            rows.setdefault(key[0], []).append((dof_of[key], weight))
+            rows.setdefault(key[0], []).append((np.eye(model.nv)[dof_of[key]], 1.0 / weight))
+    for art, jacobian, compliance in connect_rows(model, data, actuation.connects):
+        rows.setdefault(art, []).extend((j, compliance) for j in jacobian)
     radii = {}
     for art, entries in rows.items():
-        dofs = [d for d, _ in sorted(entries)]
-        compliance = np.diag([1.0 / w for _, w in sorted(entries)])
-        radii[art] = gauss_seidel_radius(inverse[np.ix_(dofs, dofs)] + compliance)
+        jacobian = np.array([j for j, _ in entries])
+        radii[art] = gauss_seidel_radius(jacobian @ inverse @ jacobian.T + np.diag([c for _, c in entries]))
     return radii
+
+
+def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[tuple[int, np.ndarray, float]]:
+    """Per soft connect (`equality.SoftConnect`): its articulation, its three rows J1(p1) - J2(p2) at qpos0 and
+    their compliance R (PhysX's damper 1 / (dt R) leaves R per unit impulse), at a closed loop's impedance."""
+    result = []
+    for connect in connects:
+        if connect.articulation is None:
+            continue
+        e = connect.equality
+        jacobian = np.zeros((3, model.nv))
+        for sign, body, anchor in ((1.0, model.eq_obj1id[e], model.eq_data[e][0:3]),
+                                   (-1.0, model.eq_obj2id[e], model.eq_data[e][3:6])):
+            point = data.xpos[body] + data.xmat[body].reshape(3, 3) @ anchor
+            part = np.zeros((3, model.nv))
+            mujoco.mj_jac(model, data, part, None, point, int(body))
+            jacobian += sign * part
+        compliance = connect.row.regularizer(connect.row.impedance(0.0), connect.diag_approx)
+        result.append((connect.articulation, jacobian, compliance))
+    return result
 
 
 def tune_iterations(articulations, model: mujoco.MjModel, actuation: Actuation, mapping: Mapping, notes) -> None:
