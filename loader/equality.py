@@ -33,6 +33,7 @@ import numpy as np
 import sapien
 
 from .errors import Notes
+from .frames import cross
 from .impedance import SoftRow, diag_approx
 from .mapping import Mapping
 from .tendon import create_fixed_tendon, fixed_tendon_terms
@@ -93,8 +94,8 @@ class SoftConnect:
         child = child_pose.to_transformation_matrix()[:3, :3] @ self.child_anchor + child_pose.p
         parent = parent_pose.to_transformation_matrix()[:3, :3] @ self.parent_anchor + parent_pose.p
         residual = child - parent
-        child_velocity = child_com_velocity + np.cross(child_omega, child - child_com)
-        parent_velocity = parent_com_velocity + np.cross(parent_omega, parent - parent_com)
+        child_velocity = child_com_velocity + cross(child_omega, child - child_com)
+        parent_velocity = parent_com_velocity + cross(parent_omega, parent - parent_com)
         velocity = child_velocity - parent_velocity
         imp = self.row.impedance(float(np.linalg.norm(residual)))
         damping = 1.0 / (timestep * self.row.regularizer(imp, self.diag_approx))
@@ -114,14 +115,14 @@ class SoftConnect:
     def measured(velocity, parent_omega, residual) -> np.ndarray:
         """The row velocity the D6 sees: MuJoCo's takes each body at its own anchor, PhysX the parent at the
         child's anchor, which lies `residual` away."""
-        return velocity - np.cross(parent_omega, residual)
+        return velocity - cross(parent_omega, residual)
 
     @staticmethod
     def centripetal(child, child_com, child_omega, parent_com, parent_omega) -> np.ndarray:
         """What PhysX's step leaves out of the row's velocity change: w x (w x r) of the child's anchor about
         each end's centre of mass."""
-        return (np.cross(child_omega, np.cross(child_omega, child - child_com))
-                - np.cross(parent_omega, np.cross(parent_omega, child - parent_com)))
+        return (cross(child_omega, cross(child_omega, child - child_com))
+                - cross(parent_omega, cross(parent_omega, child - parent_com)))
 
     def lock(self) -> None:
         """Back to the rigid form (locked translation, no drive), for callers that stop calling `update`."""
