@@ -283,6 +283,11 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
         return link, frame, body
 
     ends = [end(body1, frame1), end(body2, frame2)]
+    rows = diag_approx(model, qpos0_data(), int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e)
+    if not len(rows) or (ends[0][0] is None and ends[1][0] is None):  # MuJoCo makes no rows for it
+        reason = "joins two bodies fixed to the world: it constrains no degree of freedom"
+        notes.drop("equality", name, reason)
+        return EqualityLink(name, "", False, reason)
     if ends[1][0] is None:  # SAPIEN takes the world (None) only as the first end
         ends.reverse()
     (parent, parent_frame, _), (child, child_frame, child_body) = ends
@@ -294,7 +299,6 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
         drive.set_limit_cone(0.0, 0.0)
         notes.approximate("equality", name, "weld as a rigid PhysX D6 joint (MuJoCo's is soft: solref)")
         return EqualityLink(name, "D6 joint", True)
-    rows = diag_approx(model, qpos0_data(), int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e)
     soft = SoftConnect(drive, child, np.asarray(child_frame.p, dtype=float), parent,
                        np.asarray(parent_frame.p, dtype=float), sapien.Pose(q=parent_frame.q),
                        SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e]), float(rows[0]), e,

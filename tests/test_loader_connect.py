@@ -192,3 +192,43 @@ def test_the_grippers_loops_are_left_off_mujoco_by_their_joint_damping():
     the drivers' damping (0.1 on armature 0.005), 1.1e-4 with every joint's damping removed on both sides."""
     assert _gripper_one_step_worst(damping=True) > 5e-3
     assert _gripper_one_step_worst(damping=False) < 5e-4
+
+
+EDGE_CASES = {
+    # the world as body1: SAPIEN takes the world only as the D6's first end, the law is odd in r and v
+    "world first": '<body name="a" pos="0 0 1"><joint axis="0 1 0"/><geom size=".1" pos=".3 0 0"/></body>'
+                   '</worldbody><equality><connect body1="world" body2="a" anchor=".3 0 1"/>',
+    # a body of the static actor with a pose of its own: its anchor is in its frame, not the world's
+    "static body": '<body name="s" pos="0 0 1" euler="0 0 90"><geom size=".05"/></body><body name="a" pos="0 0 1">'
+                   '<joint axis="0 1 0"/><geom size=".1" pos=".3 0 0"/></body></worldbody><equality>'
+                   '<connect body1="a" body2="s" anchor=".3 0 0"/>',
+    # a floating body hung from the world by its edge
+    "free body": '<body name="a" pos="0 0 1"><freejoint/><geom size=".1"/></body></worldbody><equality>'
+                 '<connect body1="a" body2="world" anchor=".1 0 0"/>',
+}
+
+
+@pytest.mark.parametrize("name", sorted(EDGE_CASES))
+def test_a_connect_to_the_world_or_a_static_body_follows_mujoco(name):
+    spec = mujoco.MjSpec.from_string(f"<mujoco><worldbody>{EDGE_CASES[name]}</equality></mujoco>")
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    result = MJCFLoader().load(spec)
+    worst = 0.0
+    for _ in range(200):
+        result.set_ctrl(None)
+        mujoco.mj_step(model, data)
+        result.scene.step()
+        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    assert worst < ROLLOUT, worst  # measured 7.9e-7 (world, static body), 3.0e-6 (free body)
+
+
+def test_a_connect_between_two_static_bodies_is_listed_not_built():
+    spec = mujoco.MjSpec.from_string(
+        '<mujoco><worldbody><body name="s" pos="0 0 1"><geom size=".05"/></body><body name="t" pos="0 0 2">'
+        '<geom size=".05"/></body><body name="a"><joint axis="0 1 0"/><geom size=".1"/></body></worldbody>'
+        '<equality><connect body1="t" body2="s" anchor="0 0 0"/></equality></mujoco>')
+    result = MJCFLoader().load(spec)
+    assert [(e.mapped, e.reason) for e in result.equalities] == [
+        (False, "joins two bodies fixed to the world: it constrains no degree of freedom")]
+    assert any(entry.kind == "equality" for entry in result.unsupported)
