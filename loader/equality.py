@@ -18,9 +18,12 @@ each (`impedance.py`): damping D = 1 / (dt R) and a velocity target, rewritten b
 (`SoftConnect`). Two PhysX details enter the target, both measured on a four-bar and a two-link loop: the D6
 measures the parent's velocity at the child's anchor, and PhysX's step leaves the row's velocity short of the
 centripetal term w x (w x r) of each anchor about its link's centre of mass (r from it). With them the first step
-matches MuJoCo to float32 (2e-7 rad/s at joint speeds up to 4 rad/s, violated or not); MuJoCo's velocity-product
-term J' qdot is then not needed. Left: MuJoCo solves the constraint with M and integrates joint damping with
-M + dt D afterwards, PhysX solves both together (5e-5 rad/s on the four-bar with 0.01 damping on its crank).
+matches MuJoCo to float32 (2e-7 rad/s at joint speeds up to 4 rad/s, with the world as parent also on an open
+loop); MuJoCo's velocity-product term J' qdot is then not needed. Left: between two moving links the D6 takes both
+ends at the child's anchor where MuJoCo takes each body at its own, an error first order in the loop's violation
+(9.5e-6 rad/s at rest with the loop open by 3.6e-5 m, corpus/fixtures/closed_chain.xml); and MuJoCo solves the
+constraint with M and integrates joint damping with M + dt D afterwards, PhysX solves both together (5e-5 rad/s on
+a four-bar with 0.01 damping on its crank, 1.9e-2 on the 2f85's linkage).
 `release` locks the D6 again (its callers do not rewrite the target); the next `set_ctrl` frees it.
 A weld stays rigid: its translational rows take the connect's form, but for its rotational rows (MuJoCo's
 ts imag(conj(q2) q1 relquat), row velocity ts/2 (e_w I - [e_v]x) R2^T (w1 - w2)) no PhysX slerp-drive target was

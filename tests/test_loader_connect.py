@@ -21,7 +21,7 @@ from loader.equality import SoftConnect
 from loader.impedance import SoftRow, diag_approx
 from loader.solver import drive_radii
 
-FIXTURE = Path(__file__).resolve().parent / "fixtures" / "closed_chain.xml"
+FIXTURE = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
 ONE_STEP = 2e-5  # rad/s, measured 2.3e-6 (closed) and 9.5e-6 (open by 3.6e-5 m, at rest)
 ROLLOUT = 1e-4  # rad over 0.5 s, measured 1.3e-5
 
