@@ -143,24 +143,16 @@ def _name(model: mujoco.MjModel, e: int) -> str:
     return model.equality(e).name or f"equality{e}"
 
 
-def soft_gains(model: mujoco.MjModel, e: int, jacobian: np.ndarray) -> tuple[float, float]:
-    """Spring and damper (force per unit violation / rate) of equality `e` along `jacobian` at qpos0."""
-    timeconst, dampratio = model.eq_solref[e]
-    dmin, dmax = model.eq_solimp[e][:2]
-    if timeconst <= 0:  # direct (-stiffness, -damping) form
-        k, b = -timeconst, -dampratio
-    else:
-        timeconst = max(timeconst, 2 * model.opt.timestep)  # MuJoCo's refsafe clamp
-        k = 1.0 / (dmax**2 * timeconst**2 * dampratio**2)
-        b = 2.0 / (dmax * timeconst)
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    mujoco.mj_forward(model, data)
+def soft_gains(model: mujoco.MjModel, e: int, jacobian: np.ndarray, data: mujoco.MjData) -> tuple[float, float]:
+    """Spring and damper (force per unit violation / rate) of equality `e` along `jacobian` at qpos0 (`data`: MuJoCo's
+    forward pass there): MuJoCo's K and B (`impedance.SoftRow`) times m d / (1 - d), m the effective mass."""
+    row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
+    dmin = row.impedance(0.0)
     solved = np.zeros((1, model.nv))
     mujoco.mj_solveM(model, data, solved, jacobian.reshape(1, -1))
     mass = 1.0 / float(jacobian @ solved[0])
     scale = mass * dmin / (1.0 - dmin)
-    return k * scale, b * scale
+    return row.stiffness * scale, row.damping * scale
 
 
 def _joint_dof(model: mujoco.MjModel, mapping: Mapping, joint: int) -> tuple[int, int] | None:
@@ -175,7 +167,7 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
     result = []
     if model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_EQUALITY | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
         return result  # MuJoCo enforces none of them (<flag equality/constraint="disable"/>)
-    at_qpos0 = []  # MuJoCo's forward pass at qpos0, made once for the connects' diagApprox
+    at_qpos0 = []  # MuJoCo's forward pass at qpos0, made once (effective masses, diagApprox)
 
     def qpos0_data() -> mujoco.MjData:
         if not at_qpos0:
@@ -190,7 +182,7 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
             result.append(EqualityLink(name, "", False, "inactive"))
             continue
         if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)):
-            result.append(_coupling(model, e, name, articulations, mapping, notes))
+            result.append(_coupling(model, e, name, articulations, mapping, notes, qpos0_data))
         elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
             result.append(_d6(model, e, name, scene, articulations, mapping, notes, qpos0_data))
         else:
@@ -200,7 +192,7 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
     return result
 
 
-def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
+def _coupling(model, e, name, articulations, mapping, notes, qpos0_data) -> EqualityLink:
     """obj1 = poly(obj2): the linear part, obj1 - c1 obj2 = c0, as a fixed tendon over the joints involved."""
     c0, c1, *higher = model.eq_data[e][:5]
     if any(abs(c) > 0 for c in higher):
@@ -236,7 +228,7 @@ def _coupling(model, e, name, articulations, mapping, notes) -> EqualityLink:
     jacobian = np.zeros(model.nv)
     for key, coefficient in terms.items():
         jacobian[mujoco_dof[key]] = coefficient
-    stiffness, damping = soft_gains(model, e, jacobian)
+    stiffness, damping = soft_gains(model, e, jacobian, qpos0_data())
     articulation = next(iter(terms))[0]
     # the gains go to PhysX as they are, so PhysX spreads them over the tendon's joints (tendon.py): measured
     # closer to MuJoCo than the whole gains (times the joint count) on the coupled-joint fixture (4.4e-3 against
