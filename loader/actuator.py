@@ -110,7 +110,7 @@ class Actuation:
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
     fluid: Fluid | None = None  # MuJoCo's inertia-box fluid forces, added once per step
     gravcomp: GravityCompensation | None = None  # partial gravity compensation forces, added once per step
-    connects: list = field(default_factory=list)  # connect equalities' soft law (`equality.SoftConnect`), per step
+    connects: list = field(default_factory=list)  # connect/weld equalities' soft law (`connect.py`), per step
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:
@@ -210,7 +210,7 @@ class Actuation:
             if art.dof:
                 art.set_qf(np.zeros(art.dof, np.float32))
         for connect in self.connects:
-            connect.lock()
+            connect.lock(timestep)
         self.applied.clear()
         self.armature.clear()
 

@@ -74,7 +74,10 @@ class LoadResult:
 
     def reset(self, key: int | str | None = None) -> None:
         """Put the SAPIEN scene into the state (and ctrl and activation) of keyframe `key`, or qpos0 with zero
-        ctrl and activation."""
+        ctrl and activation; equalities back to their initial active state (as MuJoCo's mj_resetData)."""
+        for link in self.equalities:
+            if link.soft is not None:
+                link.soft.set_active(bool(self.model.eq_active0[link.soft.equality]))
         self.mapping.set_state(self.articulations, *self.state(key))
         self.set_act(None if key is None else self.model.keyframe(key).act)
         self.set_ctrl(self.ctrl(key), advance=False)
@@ -117,6 +120,19 @@ class LoadResult:
         for _ in range(substeps):
             self.set_ctrl(self.held_ctrl, qfrc_applied)
             self.scene.step()
+
+    def set_equality_active(self, key: int | str, active: bool) -> None:
+        """MuJoCo's `data.eq_active[key] = active` (key: the equality's index or name) for a connect or weld; the
+        next `set_ctrl` applies it. A joint or tendon coupling is a PhysX fixed tendon, which cannot be switched:
+        ValueError, as for an equality the loader did not map."""
+        index = key if isinstance(key, int) else mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_EQUALITY, key)
+        if not 0 <= index < self.model.neq:
+            raise KeyError(f"{self.path}: no equality {key!r} (the model has {self.model.neq})")
+        link = next((e for e in self.equalities if e.soft is not None and e.soft.equality == index), None)
+        if link is None:
+            raise ValueError(f"{self.path}: equality {key!r} cannot be switched in SAPIEN: only connect and weld "
+                             "equalities are (a joint or tendon coupling is a PhysX fixed tendon, fixed at load)")
+        link.soft.set_active(active)
 
     def release(self) -> None:
         """Leave the joints to a simulation that drives them with its own PhysX drive targets and never calls

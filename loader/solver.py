@@ -80,22 +80,32 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -
 
 
 def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[tuple[int, np.ndarray, float]]:
-    """Per soft connect (`equality.SoftConnect`): its articulation, its three rows J1(p1) - J2(p2) at qpos0 and
-    their compliance R (PhysX's damper 1 / (dt R) leaves R per unit impulse), at a closed loop's impedance."""
+    """Per soft connect or weld (`connect.py`): its articulation, its three linear rows J1(p1) - J2(p2) at qpos0
+    and their compliance R (PhysX's damper 1 / (dt R) leaves R per unit impulse), at a closed loop's impedance; a
+    weld's three rotational rows as a second entry (a row's sign does not change the radius)."""
     result = []
     for connect in connects:
         if connect.articulation is None:
             continue
-        e = connect.equality
         jacobian = np.zeros((3, model.nv))
-        for sign, body, anchor in ((1.0, model.eq_obj1id[e], model.eq_data[e][0:3]),
-                                   (-1.0, model.eq_obj2id[e], model.eq_data[e][3:6])):
+        for sign, body, anchor in ((1.0, connect.child_body, connect.child_anchor),
+                                   (-1.0, connect.parent_body, connect.parent_anchor)):
             point = data.xpos[body] + data.xmat[body].reshape(3, 3) @ anchor
             part = np.zeros((3, model.nv))
             mujoco.mj_jac(model, data, part, None, point, int(body))
             jacobian += sign * part
-        compliance = connect.row.regularizer(connect.row.impedance(0.0), connect.diag_approx)
-        result.append((connect.articulation, jacobian, compliance))
+        imp = connect.row.impedance(0.0)
+        result.append((connect.articulation, jacobian, connect.row.regularizer(imp, connect.diag_approx[0])))
+        scale = getattr(connect, "torquescale", 0.0)  # a weld's rotational rows: ts/2 R2^T (Jr1 - Jr2), closed
+        if scale:
+            rotation = np.zeros((3, model.nv))
+            for sign, body in ((1.0, connect.child_body), (-1.0, connect.parent_body)):
+                part = np.zeros((3, model.nv))
+                mujoco.mj_jacBody(model, data, None, part, int(body))
+                rotation += sign * part
+            body2 = int(model.eq_obj2id[connect.equality])
+            rows = 0.5 * scale * data.xmat[body2].reshape(3, 3).T @ rotation
+            result.append((connect.articulation, rows, connect.row.regularizer(imp, connect.diag_approx[3])))
     return result
 
 

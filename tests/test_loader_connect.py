@@ -1,4 +1,5 @@
-"""A connect equality as MuJoCo's soft law on a PhysX D6 damper (loader/impedance.py, loader/equality.py).
+"""connect and weld equalities as MuJoCo's soft law on a PhysX D6 joint's drives (loader/impedance.py,
+loader/connect.py).
 
 MuJoCo is the oracle. The fixture closes a five-bar loop between two moving links of one articulation, without
 joint damping or contacts, where the soft law is exact. Measured (mujoco 3.17.0, sapien 3.0.3): first step from a
@@ -17,7 +18,7 @@ import pytest
 from models import menagerie_root
 
 from loader import MJCFLoader
-from loader.equality import SoftConnect
+from loader.connect import SoftConnect, SoftWeld
 from loader.impedance import SoftRow, diag_approx
 from loader.solver import drive_radii
 
@@ -120,7 +121,7 @@ def test_measuring_the_parent_at_the_childs_anchor_halves_the_error_of_an_open_m
 def test_the_rigid_joint_it_replaces_misses_mujocos_soft_loop(monkeypatch):
     result = MJCFLoader().load(FIXTURE)
     for connect in result.actuation.connects:
-        connect.lock()
+        connect.lock(result.model.opt.timestep)
     monkeypatch.setattr(SoftConnect, "update", lambda self, timestep: None)  # set_ctrl keeps it rigid
     errors = _one_step_errors(result, result.model, _states(1e-4, speeds=(0.0, 1.0)))
     assert max(errors) > 10 * ONE_STEP, errors
@@ -232,3 +233,102 @@ def test_a_connect_between_two_static_bodies_is_listed_not_built():
     assert [(e.mapped, e.reason) for e in result.equalities] == [
         (False, "joins two bodies fixed to the world: it constrains no degree of freedom")]
     assert any(entry.kind == "equality" for entry in result.unsupported)
+
+
+WELD = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "welded_legs.xml"
+# measured on the welded legs (hinges about three axes, anchor off the foot, torquescale 2): first step 3.1e-7 and
+# 1.8e-6 rad/s at 1 and 3 rad/s, 0.5 s from qpos0 4.8e-7 rad
+
+
+def _weld_states(speeds=(0.0, 1.0, 3.0)):
+    rng = np.random.default_rng(0)
+    return [(0.0, speed * rng.standard_normal(8)) for speed in speeds for _ in range(2)]
+
+
+def test_a_welds_first_step_and_half_second_match_mujoco():
+    result = MJCFLoader().load(WELD)
+    assert max(_one_step_errors(result, result.model, _weld_states())) < ONE_STEP
+    model, data = result.model, mujoco.MjData(result.model)
+    result.reset()
+    worst = 0.0
+    for _ in range(250):
+        result.set_ctrl(None)
+        mujoco.mj_step(model, data)
+        result.scene.step()
+        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    assert worst < ROLLOUT, worst
+
+
+def test_without_the_rotation_frames_rate_a_moving_weld_misses(monkeypatch):
+    """The mutation: the rates of G and R2^T in the rotational rows' J' qdot (measured 6.8e-3 at 1 rad/s without)."""
+    monkeypatch.setattr(SoftWeld, "frame_rate", staticmethod(lambda *args: np.zeros(3)))
+    result = MJCFLoader().load(WELD)
+    assert max(_one_step_errors(result, result.model, _weld_states((1.0,)))) > 10 * ONE_STEP
+
+
+def test_a_weld_without_its_rotational_rows_lets_the_feet_turn(monkeypatch):
+    """What the loader did before: a D6 whose translation and twist are locked leaves swing free in PhysX (SAPIEN
+    sets no motion for a cone limit); here: the rotational rows dropped, the feet's relative rotation drifts."""
+    def translation_only(self, child, parent, imp, timestep, rotation):
+        self.drive.set_drive_property_slerp(0.0, 0.0, 1e30, "force")
+        return np.zeros(3)
+    monkeypatch.setattr(SoftWeld, "angular_target", translation_only)
+    result = MJCFLoader().load(WELD)
+    assert max(_one_step_errors(result, result.model, _weld_states((0.0, 1.0)))) > 10 * ONE_STEP
+
+
+def test_after_release_a_weld_keeps_its_relative_rotation():
+    """Without set_ctrl the slerp drive holds the weld as MuJoCo's closed-loop spring-damper; PhysX's D6 alone
+    cannot lock swing."""
+    result = MJCFLoader().load(WELD)
+    model, data = result.model, mujoco.MjData(result.model)
+    result.release()
+    for _ in range(500):
+        mujoco.mj_step(model, data)
+        result.scene.step()
+    links = {link.name: link for link in result.articulations[0].links}
+    left, right = (np.asarray(links[n].entity_pose.q) for n in ("left_lower", "right_lower"))
+    mujoco_angle = 2 * np.arccos(min(1.0, abs(float(np.dot(data.xquat[model.body("left_lower").id],
+                                                           data.xquat[model.body("right_lower").id])))))
+    sapien_angle = 2 * np.arccos(min(1.0, abs(float(np.dot(left, right)))))
+    assert abs(sapien_angle - mujoco_angle) < 1e-2, (sapien_angle, mujoco_angle)
+
+
+SWITCHED = """<mujoco><option timestep="0.002"/><worldbody><body name="arm" pos="0 0 1">
+  <joint axis="0 1 0"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/></body></worldbody>
+  <equality><connect name="pin" body1="arm" body2="world" anchor=".3 0 0" active="false"/></equality></mujoco>"""
+
+
+def test_switching_a_connect_on_and_off_follows_mujocos_eq_active():
+    """MuJoCo's data.eq_active, switched at the same steps on both sides: the arm falls, is caught 0.02 s later
+    (0.01 rad open) and let go again. Measured: 2.3e-8 before, 4e-6 caught, 2e-6 after."""
+    spec = mujoco.MjSpec.from_string(SWITCHED)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    result = MJCFLoader().load(spec)
+    assert [(e.mapped, e.soft.active) for e in result.equalities] == [(True, False)]
+    worst = {}
+    for step in range(500):
+        if step == 10:
+            data.eq_active[0] = 1
+            result.set_equality_active("pin", True)
+        if step == 300:
+            data.eq_active[0] = 0
+            result.set_equality_active(0, False)
+        result.set_ctrl(None)
+        mujoco.mj_step(model, data)
+        result.scene.step()
+        phase = "before" if step < 10 else "caught" if step < 300 else "after"
+        error = float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max())
+        worst[phase] = max(worst.get(phase, 0.0), error)
+    assert max(worst.values()) < ROLLOUT, worst
+    result.reset()
+    assert not result.equalities[0].soft.active  # back to eq_active0
+
+
+def test_only_connects_and_welds_can_be_switched():
+    result = MJCFLoader().load(FIXTURE.parents[2] / "tests" / "fixtures" / "coupled_joints.xml")
+    with pytest.raises(ValueError, match="fixed tendon"):
+        result.set_equality_active(0, False)
+    with pytest.raises(KeyError):
+        result.set_equality_active("no such equality", True)

@@ -1,0 +1,220 @@
+"""connect and weld equalities as MuJoCo's soft law on a PhysX D6 joint, rewritten by `set_ctrl` every step.
+
+A MuJoCo row solves f = (A + R)^-1 (aref - a0); after one step that is exactly an implicit damper 1 / (dt R) on the
+row's velocity with the target J v0 + dt aref (`impedance.py`), which a D6 drive is. The connect's three rows are
+the D6's linear drives; a weld adds three rotational rows on its slerp drive. PhysX details in the target, measured
+on four-bar, five-bar and welded two-leg fixtures (hinge joints):
+- the D6 takes the parent's velocity at the child's anchor, MuJoCo each body at its own anchor;
+- PhysX's step leaves the linear row's velocity short of w x (w x r) of the anchor about each end's centre of mass,
+  and carries the rest of MuJoCo's velocity-product term J' qdot itself (so aref enters without it);
+- a weld's rotational rows (residual ts imag(e), e = conj(q2) q1 relquat; row velocity G R2^T (w1 - w2) with
+  G = ts/2 (e_w I - [e_v]x)) meet PhysX's slerp drive through G^T G = (ts/2)^2 (I - e_v e_v^T), taken as
+  (ts/2)^2 I, and only the frame part of their J' qdot (G' and R2') enters the target.
+The first step then matches MuJoCo to float32 on a closed loop (2e-7 rad/s at 3 rad/s). Left: terms first order in
+the loop's violation (PhysX applies both ends' forces at the child's anchor; the e_v e_v^T part), and MuJoCo solving
+a constraint with M before integrating joint damping with M + dt D where PhysX solves both together (1.9e-2 rad/s
+on the 2f85's linkage). `release` (no more `set_ctrl`) locks the D6's translation and holds a weld's rotation with
+a slerp spring-damper (approximate); `set_active` is MuJoCo's eq_active.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sapien
+
+from .frames import cross, quat_conj, quat_mul
+from .impedance import SoftRow
+
+FORCE_LIMIT = 1e30  # no force limit on the D6's drives
+
+
+def _skew(v) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@dataclass
+class _Motion:
+    """One end of the D6: pose, centre of mass, its velocity, angular velocity (a static end: its fixed pose)."""
+
+    pose: sapien.Pose
+    com: np.ndarray
+    velocity: np.ndarray
+    omega: np.ndarray
+
+    @classmethod
+    def of(cls, link, static_pose: sapien.Pose) -> _Motion:
+        if link is None:
+            zero = np.zeros(3)
+            return cls(static_pose, static_pose.p, zero, zero)
+        pose = link.entity_pose
+        return cls(pose, (pose * link.cmass_local_pose).p, np.asarray(link.linear_velocity, dtype=float),
+                   np.asarray(link.angular_velocity, dtype=float))
+
+    def point(self, anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World position and velocity of a point fixed in this end (`anchor` in its frame)."""
+        point = self.pose.to_transformation_matrix()[:3, :3] @ anchor + self.pose.p
+        return point, self.velocity + cross(self.omega, point - self.com)
+
+
+@dataclass
+class SoftConnect:
+    """A connect as MuJoCo's soft rows on the D6's linear drives (`update` before every step).
+
+    `child` and `parent` are the D6's ends (None: the world or a body of the static actor, at `parent_pose`),
+    `child_anchor` / `parent_anchor` MuJoCo's anchor of each in its body frame, `frame` the parent's D6 frame
+    rotation in its body frame. Everything is in child-minus-parent terms, MuJoCo's residual r = p1 - p2 when the
+    child is body1 and -r otherwise: the law is odd in r and v, so it holds either way."""
+
+    drive: sapien.physx.PhysxDriveComponent
+    child: sapien.physx.PhysxArticulationLinkComponent
+    child_anchor: np.ndarray
+    parent: sapien.physx.PhysxArticulationLinkComponent | None
+    parent_anchor: np.ndarray
+    parent_pose: sapien.Pose  # the static parent's world pose (identity for the world)
+    frame: sapien.Pose
+    row: SoftRow
+    diag_approx: np.ndarray  # MuJoCo's diagApprox per row (3 for a connect, 6 for a weld)
+    equality: int  # MuJoCo's equality id
+    child_body: int  # MuJoCo body ids of the ends (solver iterations, `solver.py`)
+    parent_body: int
+    articulation: int | None  # the child's articulation
+    active: bool = True  # MuJoCo's eq_active
+    soft: bool = False  # the D6 is free and driven (False: locked by `lock`, or free and idle when inactive)
+
+    def update(self, timestep: float) -> None:
+        """MuJoCo's soft law for the coming step, from the current state."""
+        if not self.active:
+            return
+        child, parent = _Motion.of(self.child, sapien.Pose()), _Motion.of(self.parent, self.parent_pose)
+        child_point, child_velocity = child.point(self.child_anchor)
+        parent_point, parent_velocity = parent.point(self.parent_anchor)
+        residual, velocity = child_point - parent_point, child_velocity - parent_velocity
+        imp = self.row.impedance(float(np.linalg.norm(np.concatenate([residual, self.rotation_residual(child,
+                                                                                                           parent)]))))
+        damping = 1.0 / (timestep * self.row.regularizer(imp, self.diag_approx[0]))
+        target = (self.measured(velocity, parent.omega, residual)
+                  + timestep * (self.row.reference(imp, residual, velocity)
+                                - self.centripetal(child_point, child.com, child.omega, parent.com, parent.omega)))
+        rotation = (parent.pose * self.frame).to_transformation_matrix()[:3, :3]
+        self._free()
+        for axis in "xyz":
+            getattr(self.drive, f"set_drive_property_{axis}")(0.0, damping, FORCE_LIMIT, "force")
+        self.drive.set_drive_velocity_target(rotation.T @ target, self.angular_target(child, parent, imp, timestep,
+                                                                                     rotation))
+
+    def rotation_residual(self, child: _Motion, parent: _Motion) -> np.ndarray:
+        return np.zeros(0)
+
+    def angular_target(self, child, parent, imp, timestep, rotation) -> np.ndarray:
+        return np.zeros(3)
+
+    @staticmethod
+    def measured(velocity, parent_omega, residual) -> np.ndarray:
+        """The row velocity the D6 sees: MuJoCo's takes each body at its own anchor, PhysX the parent at the
+        child's anchor, which lies `residual` away."""
+        return velocity - cross(parent_omega, residual)
+
+    @staticmethod
+    def centripetal(child, child_com, child_omega, parent_com, parent_omega) -> np.ndarray:
+        """What PhysX's step leaves out of the row's velocity change: w x (w x r) of the child's anchor about
+        each end's centre of mass."""
+        return (cross(child_omega, cross(child_omega, child - child_com))
+                - cross(parent_omega, cross(parent_omega, child - parent_com)))
+
+    def _free(self) -> None:
+        if not self.soft:
+            for axis in "xyz":
+                getattr(self.drive, f"set_limit_{axis}")(-np.inf, np.inf)
+            self.soft = True
+
+    def _idle(self) -> None:
+        """Free and undriven: MuJoCo's inactive equality."""
+        self._free()
+        for axis in "xyz":
+            getattr(self.drive, f"set_drive_property_{axis}")(0.0, 0.0, FORCE_LIMIT, "force")
+        self.drive.set_drive_velocity_target(np.zeros(3), np.zeros(3))
+
+    def set_active(self, active: bool) -> None:
+        """MuJoCo's `data.eq_active`: an inactive equality leaves the D6 free and undriven."""
+        self.active = bool(active)
+        if not self.active:
+            self._idle()
+
+    def lock(self, timestep: float) -> None:
+        """For callers that stop calling `update` (`release`): locked translation, no drive; or free if inactive."""
+        if not self.active:
+            self._idle()
+            return
+        for axis in "xyz":
+            getattr(self.drive, f"set_limit_{axis}")(0.0, 0.0)
+            getattr(self.drive, f"set_drive_property_{axis}")(0.0, 0.0, FORCE_LIMIT, "force")
+        self.drive.set_drive_velocity_target(np.zeros(3), np.zeros(3))
+        self.soft = False
+
+
+@dataclass
+class SoftWeld(SoftConnect):
+    """A weld: the connect's linear rows at its anchor plus MuJoCo's three rotational rows on the slerp drive."""
+
+    relative_quat: np.ndarray = None  # MuJoCo's relpose rotation (body2 in body1's frame)
+    torquescale: float = 1.0
+    child_is_body1: bool = False
+
+    def _bodies(self, child: _Motion, parent: _Motion) -> tuple[_Motion, _Motion]:
+        return (child, parent) if self.child_is_body1 else (parent, child)
+
+    def _error(self, child: _Motion, parent: _Motion) -> np.ndarray:
+        """e = conj(q2) q1 relquat: MuJoCo's rotational residual is torquescale times its vector part."""
+        body1, body2 = self._bodies(child, parent)
+        return quat_mul(quat_conj(np.asarray(body2.pose.q)), quat_mul(np.asarray(body1.pose.q), self.relative_quat))
+
+    def rotation_residual(self, child: _Motion, parent: _Motion) -> np.ndarray:
+        return self.torquescale * self._error(child, parent)[1:]
+
+    def angular_target(self, child, parent, imp, timestep, rotation) -> np.ndarray:
+        scale = self.torquescale
+        if scale == 0:
+            self.drive.set_drive_property_slerp(0.0, 0.0, FORCE_LIMIT, "force")
+            return np.zeros(3)
+        body1, body2 = self._bodies(child, parent)
+        e = self._error(child, parent)
+        body2_rotation = body2.pose.to_transformation_matrix()[:3, :3]
+        relative = body1.omega - body2.omega
+        omega = body2_rotation.T @ relative  # body1 relative to body2, in body2's frame
+        gain = 0.5 * scale * (e[0] * np.eye(3) - _skew(e[1:]))
+        row_velocity = gain @ omega
+        reference = (self.row.reference(imp, scale * e[1:], row_velocity)
+                     - self.frame_rate(scale, e, gain, omega, body2_rotation, body2.omega, relative))
+        row_damping = 1.0 / (timestep * self.row.regularizer(imp, self.diag_approx[3]))
+        self.drive.set_drive_property_slerp(0.0, 0.25 * scale * scale * row_damping, FORCE_LIMIT, "force")
+        sign = 1.0 if self.child_is_body1 else -1.0
+        return sign * (4.0 / (scale * scale)) * (rotation.T @ body2_rotation @ gain.T
+                                                  @ (row_velocity + timestep * reference))
+
+    @staticmethod
+    def frame_rate(scale, e, gain, omega, body2_rotation, body2_omega, relative) -> np.ndarray:
+        """The part of the rotational rows' J' qdot that PhysX's step does not carry: the rates of G and of R2^T
+        (the links' own angular velocity-product terms it carries)."""
+        e_rate = 0.5 * quat_mul(np.concatenate([[0.0], omega]), e)
+        gain_rate = 0.5 * scale * (e_rate[0] * np.eye(3) - _skew(e_rate[1:]))
+        return gain_rate @ omega - gain @ (body2_rotation.T @ cross(body2_omega, relative))
+
+    def _idle(self) -> None:
+        super()._idle()
+        self.drive.set_drive_property_slerp(0.0, 0.0, FORCE_LIMIT, "force")
+
+    def lock(self, timestep: float) -> None:
+        """For callers that stop calling `update`: translation locked, rotation held by the slerp drive (PhysX's D6
+        locks only twist, not swing) as a spring-damper: the closed loop's damper, and a spring that closes an
+        opening at MuJoCo's reference rate K imp / B. Approximate (welded legs, 1 s without set_ctrl: relative
+        rotation 8.8e-3 rad against MuJoCo's 4.8e-3, joints 5e-3 apart)."""
+        super().lock(timestep)
+        if not self.active or self.torquescale == 0:
+            return
+        imp = self.row.impedance(0.0)
+        damping = 0.25 * self.torquescale ** 2 / (timestep * self.row.regularizer(imp, self.diag_approx[3]))
+        self.drive.set_drive_target(sapien.Pose())
+        self.drive.set_drive_property_slerp(damping * self.row.stiffness * imp / self.row.damping, damping,
+                                            FORCE_LIMIT, "force")
