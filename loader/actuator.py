@@ -40,6 +40,7 @@ from .fluid import Fluid
 from .friction import FrictionRow, friction_rows, note_coupled_friction
 from .gravcomp import GravityCompensation
 from .joint import dof_damping, joint_stiffness
+from .limit import limit_rows
 from .mapping import Mapping
 from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
 
@@ -105,6 +106,8 @@ class Actuation:
     joint_range: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
     tendons: list = field(default_factory=list)  # passive fixed tendons (`tendon.PassiveTendon`), every step
     friction: dict[tuple[int, int], FrictionRow] = field(default_factory=dict)  # frictional hinge/slide DoFs
+    limits: dict = field(default_factory=dict)  # limited hinge/slide DoFs whose soft limit rows ride on the drive
+    limits_soft: bool = False  # PhysX's hard limits of those DoFs are widened out of the rows' way
     armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
     applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
@@ -134,6 +137,8 @@ class Actuation:
             forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
         explicit_kv = int(model.opt.integrator) not in IMPLICIT  # Euler, RK4
         joints = [art.active_joints for art in articulations]  # the property builds a new list per call
+        if self.limits and not self.limits_soft:
+            self.hold_limits(joints, soft=True)
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
         v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         tendon_kv: dict[tuple[int, int], float] = {}  # implicit tendon damping and kv diagonal this step, per DoF
@@ -181,6 +186,21 @@ class Actuation:
                 joints[art][dof].set_armature(np.array([armature], np.float32))
                 self.armature[key] = armature
             drives[key], constants[key] = row.drive(v[art][dof], timestep, row.scale(damping, timestep))
+        for key, row in self.limits.items():  # a joint at its limit: the drive carries the row (`limit.py`)
+            art, dof = key
+            law = drives[key]
+            damping = law.damping + tendon_kv.get(key, 0.0)
+            step = row.drive(q[art][dof], v[art][dof], timestep, row.scale(damping, timestep))
+            armature = row.armature + (timestep * damping if step is not None else 0.0)
+            if self.armature.get(key, row.armature) != armature:
+                joints[art][dof].set_armature(np.array([armature], np.float32))
+                self.armature[key] = armature
+            if step is None:
+                continue
+            tendon_kv.pop(key, None)
+            forces[art][dof] += (constants[key] + via_damping.pop(key, 0.0) - law.stiffness * q[art][dof]
+                                 - damping * v[art][dof] + step[2])
+            drives[key], constants[key] = step[0], step[1]
         for (art, dof), dof_drive in drives.items():
             if tendon_kv.get((art, dof)):
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
@@ -199,13 +219,16 @@ class Actuation:
     def release(self, articulations) -> None:
         """Hand the joints to a caller that drives them itself (their own drive targets, no `set_ctrl`): every
         DoF's drive gets the joint's passive spring-damper, frictional joints their own armature back (their
-        friction is then not carried), `qf` is cleared. The next `set_ctrl` takes them over again."""
+        friction is then not carried), limits PhysX's hard limit at MuJoCo's range, `qf` is cleared. The next
+        `set_ctrl` takes them over again."""
         joints = [art.active_joints for art in articulations]
         timestep = float(self.model.opt.timestep)
         for (art, dof), passive in self.passive.items():
             drive.apply(joints[art][dof], passive, passive.constant, timestep)
-        for (art, dof), row in self.friction.items():
+        for (art, dof), row in list(self.friction.items()) + list(self.limits.items()):
             joints[art][dof].set_armature(np.array([row.armature], np.float32))
+        if self.limits:
+            self.hold_limits(joints, soft=False)
         for art in articulations:
             if art.dof:
                 art.set_qf(np.zeros(art.dof, np.float32))
@@ -213,6 +236,14 @@ class Actuation:
             connect.lock(timestep)
         self.applied.clear()
         self.armature.clear()
+
+    def hold_limits(self, joints, soft: bool) -> None:
+        """PhysX's hard limit of every DoF with soft limit rows: widened out of the rows' way (`soft`), or at
+        MuJoCo's range (for callers that do not call `set_ctrl`)."""
+        for (art, dof), row in self.limits.items():
+            low, high = row.physx_limits() if soft else (row.lower, row.upper)
+            joints[art][dof].set_limit(np.array([[low, high]], np.float32))
+        self.limits_soft = soft
 
     def _explicit_terms(self, drives, constants, forces, clamped: set[int], q, v, timestep: float,
                         explicit_kv: bool, tendon_kv: dict[tuple[int, int], float]) -> None:
@@ -286,6 +317,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
             actuation.passive[(target.articulation, target.dofs[0])] = passive
             actuation.drives[(target.articulation, target.dofs[0])] = DofDrive(**vars(passive))
     actuation.friction = friction_rows(model, mapping)
+    actuation.limits = limit_rows(model, mapping, notes)
     if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype):
         actuation.activation = Activation(model)
     disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)

@@ -36,7 +36,9 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
             notes.drop("actuator", _name(model.actuator(a), a, "actuator"),
                        "actuator damping/armature (passive terms on the transmission) are not mapped")
     if any(model.jnt_limited) and not limits_disabled(model):
-        notes.approximate("joint", "limits", "PhysX joint limits are hard; MuJoCo's are soft (solref/solimp)")
+        notes.approximate("joint", "limits", "MuJoCo's soft limit rows ride on the joint drives one row at a time "
+                          "(loader/limit.py, set_ctrl every step): rows MuJoCo solves together (joints at their "
+                          "limits that move together) are approximate; PhysX's hard limits after release()")
     integrator = int(model.opt.integrator)
     if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and model.opt.disableflags & int(
             mujoco.mjtDisableBit.mjDSBL_EULERDAMP) and np.any(model.dof_damping):

@@ -72,10 +72,13 @@ def test_several_joints_in_one_body_become_a_chain_in_joint_order(load, rng):
 def test_joint_limits_are_mujocos_radians_and_metres(load):
     result = load(FIXTURES / "multi_joint_body.xml")
     model = result.model
+    result.release()  # PhysX's hard limits at MuJoCo's range (set_ctrl widens them for the soft limit rows)
     for name in ("hip_x", "hip_y", "hip_z"):
         target = result.mapping.joints[model.joint(name).id]
         joint = result.articulations[target.articulation].active_joints[target.dofs[0]]
         np.testing.assert_allclose(joint.limit[0], model.jnt_range[model.joint(name).id], rtol=1e-6)
+        row = result.actuation.limits[(target.articulation, target.dofs[0])]
+        np.testing.assert_allclose((row.lower, row.upper), model.jnt_range[model.joint(name).id], rtol=1e-12)
         assert joint.type == "revolute"
 
 

@@ -127,7 +127,15 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
             anchor_err.append(np.linalg.norm(offset - np.dot(offset, data.xaxis[j]) * data.xaxis[j]))
         enforced = model.jnt_limited[j] and not limits_disabled(model)
         ref = tuple(model.jnt_range[j]) if enforced else (-np.inf, np.inf)
-        limit_err.append(_limit_error(ref, joint.limit))
+        soft = result.actuation.limits.get((entry.articulation, entry.dofs[0])) if result.actuation else None
+        if soft is not None:  # MuJoCo's soft limit rows on the drive (loader/limit.py): their ends are the range,
+            limit_err.append(_limit_error(ref, (soft.lower, soft.upper)))  # and PhysX's hard limit lies beyond
+            low, high = np.asarray(joint.limit, dtype=float).ravel()
+            if not (low < ref[0] and high > ref[1]):
+                mismatches.append(f"joint {name!r}: PhysX's limit {low:.6g}..{high:.6g} does not clear the soft "
+                                  f"limit rows at {ref[0]:.6g}..{ref[1]:.6g}")
+        else:
+            limit_err.append(_limit_error(ref, joint.limit))
     sapien_dofs = sum(a.dof for a in result.articulations)
     if sapien_dofs != expected_dofs:
         mismatches.append(f"{sapien_dofs} SAPIEN dofs, {expected_dofs} MuJoCo joint dofs (free joints excluded)")

@@ -1,0 +1,117 @@
+"""MuJoCo's soft joint limits on the joint's PhysX drive, where the drive carries nothing else at the limit.
+
+A limit row (J = +1 at the lower end, -1 at the upper) exists while the joint is within `margin` of the end and
+pushes only: f = max(0, (A + R)^-1 (aref - a0)), aref = -B v_row - K imp (r - margin). As for a friction row
+(`friction.py`), a drive with damping s / (R dt) pulling the joint velocity to the target v + dt aref / s is that
+row, unclamped (s = 1 + (M^-1)_ii dt D where the joint's implicit damping D rides as armature). One-sided: the
+drive's force limit L and an explicit force sign * L around a target shifted by -sign * L / (its damping) make the
+total force clamp(row force, 0, 2 L). L is sized each step far above the row's force (float32 keeps L * 6e-8 of
+it). PhysX's own limit then has to stay out of the way: the loader widens it (`WIDEN`) and puts it back on
+`release`, whose callers do not call `set_ctrl`. Measured on a pendulum bouncing on both ends of its range for
+1.2 s: 1.3e-8 rad from MuJoCo with L = 10, 8.5e-7 with L = 1000 (float32); PhysX's hard limit there: 1e-2.
+A joint with frictionloss (its drive carries the friction) or coupled to other rows keeps PhysX's hard limit: listed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .drive import DofDrive
+from .errors import Notes
+from .impedance import SoftRow
+from .mapping import Mapping
+from .tree import forward_at_qpos0, inverse_inertia
+
+WIDEN = 0.25  # PhysX's hard limit sits this fraction of the range (at least 0.1 rad or m) beyond MuJoCo's ends
+ACCELERATION_BOUND = 1e3  # the row force covers unconstrained accelerations up to this (rad/s^2 or m/s^2) ...
+MINIMUM_LIMIT = 1.0  # ... and is never below this (N or N m)
+
+
+@dataclass(frozen=True)
+class LimitRow:
+    """MuJoCo's limit rows of one hinge/slide DoF."""
+
+    lower: float
+    upper: float
+    margin: float
+    row: SoftRow
+    diag_approx: float  # MuJoCo's diagApprox of the row: dof_invweight0
+    inverse_inertia: float  # (M^-1)_ii at qpos0, for the damping scale s
+    armature: float  # the joint's own armature
+
+    def scale(self, implicit_damping: float, timestep: float) -> float:
+        return 1.0 + self.inverse_inertia * timestep * implicit_damping
+
+    def active(self, q: float) -> tuple[float, float] | None:
+        """(sign, r) of the row that exists at q (r = q - lower or upper - q), or None."""
+        below, above = q - self.lower, self.upper - q
+        if below < self.margin and below <= above:
+            return 1.0, below
+        if above < self.margin:
+            return -1.0, above
+        return None
+
+    def drive(self, q: float, v: float, timestep: float, scale: float) -> tuple[DofDrive, float, float] | None:
+        """For this step: the drive, its constant (damping times the velocity target) and the explicit force, or
+        None when no row exists."""
+        found = self.active(q)
+        if found is None:
+            return None
+        sign, r = found
+        imp = self.row.impedance(abs(r - self.margin))
+        damping = scale / (self.row.regularizer(imp, self.diag_approx) * timestep)
+        row_velocity = sign * v
+        target = sign * (row_velocity + timestep * float(self.row.reference(imp, r - self.margin, row_velocity))
+                         / scale)
+        limit = max(MINIMUM_LIMIT, damping * (abs(target) + abs(v) + timestep * ACCELERATION_BOUND))
+        return DofDrive(0.0, damping, 0.0, limit), damping * target - sign * limit, sign * limit
+
+    def physx_limits(self) -> tuple[float, float]:
+        """PhysX's hard limit while the rows are emulated: widened out of their way."""
+        widen = max(0.1, WIDEN * (self.upper - self.lower))
+        return self.lower - widen, self.upper + widen
+
+
+def coupled_joints(model: mujoco.MjModel) -> set[int]:
+    """Joints another constraint row couples to: in a joint or tendon equality, or on a tendon. MuJoCo solves
+    their limit rows together with those rows, which a per-DoF drive cannot see (the panda's fingers, held against
+    their limits by a tendon servo and coupled by an equality: 2.5e-4 m with soft rows, 3e-6 with PhysX's hard
+    limit), so they keep the hard limit."""
+    out = set()
+    for e in range(model.neq):
+        if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):
+            out.update(int(i) for i in (model.eq_obj1id[e], model.eq_obj2id[e]) if i >= 0)
+    for w in range(model.nwrap):
+        if int(model.wrap_type[w]) == int(mujoco.mjtWrap.mjWRAP_JOINT):
+            out.add(int(model.wrap_objid[w]))
+    return out
+
+
+def limit_rows(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> dict[tuple[int, int], LimitRow]:
+    """MuJoCo's limit rows for every limited hinge/slide DoF without frictionloss and not coupled to other rows
+    (`coupled_joints`), by (articulation, SAPIEN dof)."""
+    if model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_LIMIT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
+        return {}
+    limited = [j for j, target in enumerate(mapping.joints)
+               if model.jnt_limited[j] and target.kind in ("hinge", "slide")]
+    if not limited:
+        return {}
+    inverse = np.diag(inverse_inertia(model, forward_at_qpos0(model)))
+    coupled = coupled_joints(model)
+    out = {}
+    for j in limited:
+        target, dof = mapping.joints[j], int(model.jnt_dofadr[j])
+        why = ("the joint's drive carries its frictionloss" if model.dof_frictionloss[dof] > 0 else
+               "an equality or tendon couples the joint" if j in coupled else "")
+        if why:
+            notes.approximate("joint", model.joint(j).name or f"joint{j}", f"limit kept as PhysX's hard limit: {why} "
+                              "(MuJoCo's limit is soft: solreflimit)")
+            continue
+        lower, upper = (float(x) for x in model.jnt_range[j])
+        out[(target.articulation, target.dofs[0])] = LimitRow(
+            lower, upper, float(model.jnt_margin[j]), SoftRow.of(model, model.jnt_solref[j], model.jnt_solimp[j]),
+            float(model.dof_invweight0[dof]), float(inverse[dof]), float(model.dof_armature[dof]))
+    return out

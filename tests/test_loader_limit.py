@@ -1,0 +1,114 @@
+"""MuJoCo's soft joint limits on the joint drives (loader/limit.py); MuJoCo is the oracle.
+
+A pendulum swings through +-30 degrees of range and bounces on both soft ends for 1.2 s. Measured (mujoco 3.17.0,
+sapien 3.0.3): 4.4e-7 rad without damping, 2.6e-7 with damping 0.05 (its implicit part as armature, the row
+scaled), 2.2e-5 held by a position servo; PhysX's hard limits instead: 4.4e-2, 3.5e-2, 6.9e-2.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from loader import MJCFLoader
+from loader.limit import LimitRow
+
+TOLERANCE = 1e-4  # rad over 1.2 s, measured 2.2e-5 at most
+PENDULUM = """<mujoco><option timestep="0.002"/><worldbody><body name="arm" pos="0 0 1">
+  <joint name="hinge" axis="0 1 0" range="-30 30" damping="{damping}"/>
+  <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/></body></worldbody>{actuator}</mujoco>"""
+CASES = {
+    "free": ("0", ""),
+    "damped": ("0.05", ""),
+    "servo": ("0", '<actuator><position joint="hinge" kp="2" kv="0.1"/></actuator>'),
+}
+
+
+def _bounce(name: str, hard: bool = False) -> float:
+    damping, actuator = CASES[name]
+    xml = PENDULUM.format(damping=damping, actuator=actuator)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    if hard:  # the mapping before: PhysX's hard limit at MuJoCo's range
+        result.actuation.hold_limits([a.active_joints for a in result.articulations], soft=False)
+        result.actuation.limits = {}
+    worst = 0.0
+    for step in range(600):
+        ctrl = np.full(model.nu, np.sin(0.02 * step)) if model.nu else None
+        if model.nu:
+            data.ctrl[:] = ctrl
+        result.set_ctrl(ctrl)
+        mujoco.mj_step(model, data)
+        result.scene.step()
+        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    assert data.qpos.min() < -0.5 or data.qpos.max() > 0.5 or name == "servo"  # it reached a soft end
+    return worst
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_a_pendulum_bounces_on_its_soft_limits_as_in_mujoco(name):
+    assert _bounce(name) < TOLERANCE
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_physxs_hard_limits_miss_it(name):
+    """The mutation: what the loader did before (measured 3.5e-2 to 6.9e-2)."""
+    assert _bounce(name, hard=True) > 100 * TOLERANCE
+
+
+def _leaving_the_limit() -> float:
+    """First step from just past the lower end, moving away from it at 3 rad/s: MuJoCo's row force would pull
+    (its reference acceleration is negative) and is clamped to zero."""
+    xml = PENDULUM.format(damping="0", actuator="")
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    data.qpos[0], data.qvel[0] = model.jnt_range[0][0] - 0.002, 3.0
+    mujoco.mj_forward(model, data)
+    assert data.nefc == 1 and data.efc_force[0] == 0.0  # the row exists and does not push
+    result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
+    result.set_ctrl(None)
+    mujoco.mj_step(model, data)
+    result.scene.step()
+    return float(np.abs(result.mapping.get_state(result.articulations)[1] - data.qvel).max())
+
+
+def test_a_limit_row_only_pushes(monkeypatch):
+    """Measured 1.1e-4 rad/s (float32 around the one-sided offset); two-sided 0.67."""
+    assert _leaving_the_limit() < 1e-3
+
+    def two_sided(self, q, v, timestep, scale):  # the mutation: no offset, the drive pulls as well
+        step = original(self, q, v, timestep, scale)
+        if step is None:
+            return None
+        drive, constant, offset = step
+        return drive, constant + offset, 0.0
+    original = LimitRow.drive
+    monkeypatch.setattr(LimitRow, "drive", two_sided)
+    assert _leaving_the_limit() > 1e-1
+
+
+def test_release_puts_physxs_hard_limit_back_and_set_ctrl_widens_it_again():
+    xml = PENDULUM.format(damping="0", actuator="")
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    joint = result.articulations[0].active_joints[0]
+    low, high = np.deg2rad([-30.0, 30.0])
+    assert joint.limit[0][0] < low - 0.05 and joint.limit[0][1] > high + 0.05  # out of the rows' way
+    result.release()
+    np.testing.assert_allclose(joint.limit[0], [low, high], rtol=1e-6)
+    result.set_ctrl(None)
+    assert joint.limit[0][0] < low - 0.05
+
+
+def test_frictional_and_coupled_joints_keep_the_hard_limit_and_say_so():
+    xml = """<mujoco><worldbody><body><joint name="rough" axis="0 1 0" range="-30 30" frictionloss=".1"/>
+      <geom size=".1" pos=".2 0 0"/><body pos=".4 0 0"><joint name="a" axis="0 1 0" range="-30 30"/>
+      <geom size=".1" pos=".2 0 0"/><body pos=".4 0 0"><joint name="b" axis="0 1 0" range="-30 30"/>
+      <geom size=".1" pos=".2 0 0"/></body></body></body></worldbody>
+      <equality><joint joint1="a" joint2="b"/></equality></mujoco>"""
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    assert not result.actuation.limits
+    kept = {e.name for e in result.approximations if "limit kept as PhysX's hard limit" in e.reason}
+    assert kept == {"rough", "a", "b"}
