@@ -108,6 +108,7 @@ class Actuation:
     friction: dict[tuple[int, int], FrictionRow] = field(default_factory=dict)  # frictional hinge/slide DoFs
     limits: dict = field(default_factory=dict)  # limited hinge/slide DoFs whose soft limit rows ride on the drive
     limits_soft: bool = False  # PhysX's hard limits of those DoFs are widened out of the rows' way
+    _limit_table: tuple | None = field(default=None, repr=False)  # (keys, lower + margin, upper - margin)
     armature: dict[tuple[int, int], float] = field(default_factory=dict)  # PhysX armature last set, friction DoFs
     applied: dict = field(default_factory=dict)  # per PhysX joint, the drive settings last written (`drive.apply`)
     activation: Activation | None = None  # actuators with filter / integrator dynamics (`activation.py`)
@@ -186,7 +187,8 @@ class Actuation:
                 joints[art][dof].set_armature(np.array([armature], np.float32))
                 self.armature[key] = armature
             drives[key], constants[key] = row.drive(v[art][dof], timestep, row.scale(damping, timestep))
-        for key, row in self.limits.items():  # a joint at its limit: the drive carries the row (`limit.py`)
+        for key in self._near_limits(q):  # a joint at its limit: the drive carries the row (`limit.py`)
+            row = self.limits[key]
             art, dof = key
             law = drives[key]
             damping = law.damping + tendon_kv.get(key, 0.0)
@@ -196,6 +198,7 @@ class Actuation:
                 joints[art][dof].set_armature(np.array([armature], np.float32))
                 self.armature[key] = armature
             if step is None:
+                self.armature.pop(key, None)  # back to the joint's own armature: nothing to remember
                 continue
             tendon_kv.pop(key, None)
             forces[art][dof] += (constants[key] + via_damping.pop(key, 0.0) - law.stiffness * q[art][dof]
@@ -236,6 +239,21 @@ class Actuation:
             connect.lock(timestep)
         self.applied.clear()
         self.armature.clear()
+
+    def _near_limits(self, q) -> list[tuple[int, int]]:
+        """The limited DoFs to visit this step: those past an end (within its margin), and those whose armature
+        still holds a row's implicit damping from an earlier step (vectorised: most joints are clear)."""
+        if not self.limits:
+            return []
+        if self._limit_table is None:
+            keys = list(self.limits)
+            rows = [self.limits[k] for k in keys]
+            self._limit_table = (keys, np.array([r.lower + r.margin for r in rows]),
+                                 np.array([r.upper - r.margin for r in rows]))
+        keys, low, high = self._limit_table
+        values = np.array([q[art][dof] for art, dof in keys])
+        near = (values < low) | (values > high)
+        return [k for k, hit in zip(keys, near) if hit or k in self.armature]
 
     def hold_limits(self, joints, soft: bool) -> None:
         """PhysX's hard limit of every DoF with soft limit rows: widened out of the rows' way (`soft`), or at
