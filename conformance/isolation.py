@@ -59,11 +59,13 @@ class Gap:
 GAPS = {gap.name: gap for gap in (
     Gap("frictionloss", "joint frictionloss zeroed (PhysX has no constant-torque joint friction)",
         lambda m: bool(m.dof_frictionloss.any()), _zero_frictionloss),
-    Gap("equality", "equality constraints disabled (MuJoCo's are soft; PhysX tendons and D6 joints are not)",
+    Gap("equality", "equality constraints disabled (soft in MuJoCo; couplings are PhysX tendon springs, and "
+        "connect/weld rows are exact alone but coupled with joint damping)",
         lambda m: bool(m.neq and m.eq_active0.any()) and not _disabled(m, FLAGS.mjDSBL_EQUALITY,
                                                                          FLAGS.mjDSBL_CONSTRAINT),
         _disable(FLAGS.mjDSBL_EQUALITY)),
-    Gap("limits", "joint limits disabled (MuJoCo's are soft, PhysX's hard)",
+    Gap("limits", "joint limits disabled (soft rows on the drives are exact alone but coupled through implicit "
+        "damping; PhysX's hard limit where kept)",
         lambda m: bool(m.jnt_limited.any()) and not _disabled(m, FLAGS.mjDSBL_LIMIT, FLAGS.mjDSBL_CONSTRAINT),
         _disable(FLAGS.mjDSBL_LIMIT)),
     Gap("fluid", "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
