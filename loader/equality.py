@@ -202,7 +202,8 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     soft = (SoftWeld if weld else SoftConnect)(
         drive, child, np.asarray(child_frame.p, dtype=float), parent, np.asarray(parent_frame.p, dtype=float),
         parent_pose, sapien.Pose(q=parent_frame.q), SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e]),
-        np.asarray(rows, dtype=float), e, child_body, parent_body, mapping.bodies[child_body].articulation, **extra)
+        np.asarray(rows, dtype=float), e, child_body, parent_body, mapping.bodies[child_body].articulation,
+        child_rotation=np.asarray(child_frame.q, dtype=float), **extra)
     soft.lock(float(model.opt.timestep))  # rigid until the first set_ctrl
     if not model.eq_active0[e]:
         soft.set_active(False)
