@@ -44,9 +44,11 @@ ACTUATED_STABILITY_STEPS = 500
 
 
 # PhysX holds poses in float32: an absolute position tolerance measured on metre-sized models must grow with
-# the distances a generated model spans (slide ranges of 90 m in degree-unit documents, row 19). 1e-6 of the
-# extent is about 8 float32 ulps; the harness's own (larger) tolerance stays the floor.
-FLOAT32_RELATIVE = 1e-6
+# the distances a generated model spans (slide ranges of 90 m in degree-unit documents, row 19). 2e-6 of the
+# extent is about 16 float32 ulps: a fuzz find put a body at the end of a six-body rotated chain with a 136 m slide
+# 1.1e-6 of its extent off (corpus/regressions/deep_chain_long_slide_float32.xml; 1e-6 before). The harness's own
+# (larger) tolerance stays the floor.
+FLOAT32_RELATIVE = 2e-6
 EXTENT_SCALED = ("kinematics.position", "inertia.com", "collision.position", "structure.anchor",
                  "dynamics.one_step_qpos_fixed", "dynamics.one_step_qpos_floating")  # slide q of 21 m: float32
 # Likewise the one-step acceleration tolerances are absolute, measured where accelerations are tens of rad/s^2;
