@@ -178,31 +178,22 @@ class Actuation:
         self._explicit_terms(drives, constants, forces, clamped, q, v, timestep, explicit_kv, tendon_kv)
         for key, row in self.friction.items():  # the drive carries the friction (`friction.py`)
             art, dof = key
-            law = drives[key]
-            damping = law.damping + tendon_kv.pop(key, 0.0)  # implicit: armature dt D and explicit -D v
-            forces[art][dof] += (constants[key] + via_damping.pop(key, 0.0) - law.stiffness * q[art][dof]
-                                 - damping * v[art][dof])
-            armature = row.armature + timestep * damping
-            if self.armature.get(key) != armature:
-                joints[art][dof].set_armature(np.array([armature], np.float32))
-                self.armature[key] = armature
+            damping = self._armature_form(key, row.armature, joints[art][dof], drives[key], constants[key], q, v,
+                                          forces, tendon_kv, via_damping, timestep)
             drives[key], constants[key] = row.drive(v[art][dof], timestep, row.scale(damping, timestep))
         for key in self._near_limits(q):  # a joint at its limit: the drive carries the row (`limit.py`)
             row = self.limits[key]
             art, dof = key
             law = drives[key]
-            damping = law.damping + tendon_kv.get(key, 0.0)
-            step = row.drive(q[art][dof], v[art][dof], timestep, row.scale(damping, timestep))
-            armature = row.armature + (timestep * damping if step is not None else 0.0)
-            if self.armature.get(key, row.armature) != armature:
-                joints[art][dof].set_armature(np.array([armature], np.float32))
-                self.armature[key] = armature
-            if step is None:
-                self.armature.pop(key, None)  # back to the joint's own armature: nothing to remember
+            step = row.drive(q[art][dof], v[art][dof], timestep,
+                             row.scale(law.damping + tendon_kv.get(key, 0.0), timestep))
+            if step is None:  # clear of its ends: the joint's own armature back, nothing to remember
+                self._set_armature(joints[art][dof], key, row.armature, row.armature)
+                self.armature.pop(key, None)
                 continue
-            tendon_kv.pop(key, None)
-            forces[art][dof] += (constants[key] + via_damping.pop(key, 0.0) - law.stiffness * q[art][dof]
-                                 - damping * v[art][dof] + step[2])
+            self._armature_form(key, row.armature, joints[art][dof], law, constants[key], q, v, forces, tendon_kv,
+                                via_damping, timestep)
+            forces[art][dof] += step[2]
             drives[key], constants[key] = step[0], step[1]
         for (art, dof), dof_drive in drives.items():
             if tendon_kv.get((art, dof)):
@@ -239,6 +230,23 @@ class Actuation:
             connect.lock(timestep)
         self.applied.clear()
         self.armature.clear()
+
+    def _armature_form(self, key, own_armature: float, joint, law: DofDrive, constant: float, q, v, forces,
+                       tendon_kv, via_damping, timestep: float) -> float:
+        """Free the DoF's drive for a constraint row (friction, limit): its implicit damping D becomes armature
+        dt D plus the explicit force -D v, its stiffness and constant explicit forces. Returns D."""
+        art, dof = key
+        damping = law.damping + tendon_kv.pop(key, 0.0)
+        forces[art][dof] += (constant + via_damping.pop(key, 0.0) - law.stiffness * q[art][dof]
+                             - damping * v[art][dof])
+        self._set_armature(joint, key, own_armature + timestep * damping)
+        return damping
+
+    def _set_armature(self, joint, key, armature: float, unset: float | None = None) -> None:
+        """Write the DoF's PhysX armature when it differs from the last written (`unset`: what it is if never)."""
+        if self.armature.get(key, unset) != armature:
+            joint.set_armature(np.array([armature], np.float32))
+            self.armature[key] = armature
 
     def _near_limits(self, q) -> list[tuple[int, int]]:
         """The limited DoFs to visit this step: those past an end (within its margin), and those whose armature

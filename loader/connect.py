@@ -108,10 +108,7 @@ class SoftConnect:
                   + timestep * (self.row.reference(imp, residual, velocity) - self.centripetal(child, parent, pin)))
         rotation = (parent.pose * self.frame).to_transformation_matrix()[:3, :3]
         self._free()
-        for axis in "xyz":
-            getattr(self.drive, f"set_drive_property_{axis}")(0.0, damping, FORCE_LIMIT, "force")
-        self.drive.set_drive_velocity_target(rotation.T @ target, self.angular_target(child, parent, imp, timestep,
-                                                                                     rotation))
+        self._drive(damping, rotation.T @ target, self.angular_target(child, parent, imp, timestep, rotation))
 
     def rotation_residual(self, child: _Motion, parent: _Motion) -> np.ndarray:
         return np.zeros(0)
@@ -144,12 +141,16 @@ class SoftConnect:
                 getattr(self.drive, f"set_limit_{axis}")(-np.inf, np.inf)
             self.soft = True
 
+    def _drive(self, damping: float, linear: np.ndarray, angular: np.ndarray) -> None:
+        """The linear drives' damping (no stiffness) and the velocity targets."""
+        for axis in "xyz":
+            getattr(self.drive, f"set_drive_property_{axis}")(0.0, damping, FORCE_LIMIT, "force")
+        self.drive.set_drive_velocity_target(linear, angular)
+
     def _idle(self) -> None:
         """Free and undriven: MuJoCo's inactive equality."""
         self._free()
-        for axis in "xyz":
-            getattr(self.drive, f"set_drive_property_{axis}")(0.0, 0.0, FORCE_LIMIT, "force")
-        self.drive.set_drive_velocity_target(np.zeros(3), np.zeros(3))
+        self._drive(0.0, np.zeros(3), np.zeros(3))
 
     def set_active(self, active: bool) -> None:
         """MuJoCo's `data.eq_active`: an inactive equality leaves the D6 free and undriven."""
@@ -164,8 +165,7 @@ class SoftConnect:
             return
         for axis in "xyz":
             getattr(self.drive, f"set_limit_{axis}")(0.0, 0.0)
-            getattr(self.drive, f"set_drive_property_{axis}")(0.0, 0.0, FORCE_LIMIT, "force")
-        self.drive.set_drive_velocity_target(np.zeros(3), np.zeros(3))
+        self._drive(0.0, np.zeros(3), np.zeros(3))
         self.soft = False
 
 

@@ -29,7 +29,6 @@ from .errors import Notes
 from .impedance import SoftRow, diag_approx
 from .mapping import Mapping
 from .tendon import create_fixed_tendon, fixed_tendon_terms
-from .tree import world_poses_at_qpos0
 
 EQ = mujoco.mjtEq
 
@@ -176,11 +175,11 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
         if np.linalg.norm(relative_quat) > 0:
             frame1 = sapien.Pose(model.eq_data[e][3:6], relative_quat / np.linalg.norm(relative_quat))
         else:
-            data = world_poses_at_qpos0(model)
+            data = qpos0_data()
             frame1 = (sapien.Pose(data.xpos[body1], data.xquat[body1]).inv()
                       * sapien.Pose(data.xpos[body2], data.xquat[body2]) * sapien.Pose(model.eq_data[e][0:3]))
         frame2 = sapien.Pose(model.eq_data[e][0:3])  # MuJoCo's weld anchor, in body2's frame
-    world = world_poses_at_qpos0(model)
+    world = qpos0_data()  # its body poses: qpos0's
 
     def end(body, frame):  # (link, frame in the body, body, the body's world pose if it does not move)
         return component(body), frame, body, sapien.Pose(world.xpos[body], world.xquat[body])

@@ -73,9 +73,20 @@ def _one_step_errors(result, model, states) -> list[float]:
     return errors
 
 
-def _states(shift: float, speeds=(0.0, 1.0, 3.0)):
+def _states(shift: float, speeds=(0.0, 1.0, 3.0), nv: int = 4):
     rng = np.random.default_rng(0)
-    return [(shift, speed * rng.standard_normal(4)) for speed in speeds for _ in range(2)]
+    return [(shift, speed * rng.standard_normal(nv)) for speed in speeds for _ in range(2)]
+
+
+def _rollout(result, model, data, steps: int) -> float:
+    """Step both simulators from their current states; the worst |qpos| difference."""
+    worst = 0.0
+    for _ in range(steps):
+        result.set_ctrl(None)
+        mujoco.mj_step(model, data)
+        result.scene.step()
+        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    return worst
 
 
 def test_the_first_step_of_a_closed_loop_matches_mujoco():
@@ -90,12 +101,7 @@ def test_a_falling_loop_follows_mujoco_for_half_a_second():
     model = result.model
     data = mujoco.MjData(model)
     result.reset()
-    worst = 0.0
-    for _ in range(250):
-        result.set_ctrl(None)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    worst = _rollout(result, model, data, 250)
     assert worst < ROLLOUT, worst
 
 
@@ -218,12 +224,7 @@ def test_a_connect_to_the_world_or_a_static_body_follows_mujoco(name):
     model = spec.compile()
     data = mujoco.MjData(model)
     result = MJCFLoader().load(spec)
-    worst = 0.0
-    for _ in range(200):
-        result.set_ctrl(None)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    worst = _rollout(result, model, data, 200)
     assert worst < ROLLOUT, worst  # measured 7.9e-7 (world, static body), 3.0e-6 (free body)
 
 
@@ -244,8 +245,7 @@ WELD = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "welded_leg
 
 
 def _weld_states(speeds=(0.0, 1.0, 3.0)):
-    rng = np.random.default_rng(0)
-    return [(0.0, speed * rng.standard_normal(8)) for speed in speeds for _ in range(2)]
+    return _states(0.0, speeds, nv=8)
 
 
 def test_a_welds_first_step_and_half_second_match_mujoco():
@@ -253,12 +253,7 @@ def test_a_welds_first_step_and_half_second_match_mujoco():
     assert max(_one_step_errors(result, result.model, _weld_states())) < ONE_STEP
     model, data = result.model, mujoco.MjData(result.model)
     result.reset()
-    worst = 0.0
-    for _ in range(250):
-        result.set_ctrl(None)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    worst = _rollout(result, model, data, 250)
     assert worst < ROLLOUT, worst
 
 
@@ -310,20 +305,13 @@ def test_switching_a_connect_on_and_off_follows_mujocos_eq_active():
     data = mujoco.MjData(model)
     result = MJCFLoader().load(spec)
     assert [(e.mapped, e.soft.active) for e in result.equalities] == [(True, False)]
-    worst = {}
-    for step in range(500):
-        if step == 10:
-            data.eq_active[0] = 1
-            result.set_equality_active("pin", True)
-        if step == 300:
-            data.eq_active[0] = 0
-            result.set_equality_active(0, False)
-        result.set_ctrl(None)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        phase = "before" if step < 10 else "caught" if step < 300 else "after"
-        error = float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max())
-        worst[phase] = max(worst.get(phase, 0.0), error)
+    worst = {"before": _rollout(result, model, data, 10)}
+    data.eq_active[0] = 1
+    result.set_equality_active("pin", True)
+    worst["caught"] = _rollout(result, model, data, 290)
+    data.eq_active[0] = 0
+    result.set_equality_active(0, False)
+    worst["after"] = _rollout(result, model, data, 200)
     assert max(worst.values()) < ROLLOUT, worst
     result.reset()
     assert not result.equalities[0].soft.active  # back to eq_active0
