@@ -42,6 +42,7 @@ from .gravcomp import GravityCompensation
 from .joint import dof_damping, joint_stiffness
 from .limit import limit_rows
 from .mapping import Mapping
+from .slide import drive_offsets
 from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
@@ -115,6 +116,7 @@ class Actuation:
     fluid: Fluid | None = None  # MuJoCo's inertia-box fluid forces, added once per step
     gravcomp: GravityCompensation | None = None  # partial gravity compensation forces, added once per step
     connects: list = field(default_factory=list)  # connect/weld equalities' soft law (`connect.py`), per step
+    slides: list = field(default_factory=list)  # prismatic DoFs on links that turn (`slide.py`), per step
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:
@@ -195,12 +197,14 @@ class Actuation:
                                 via_damping, timestep)
             forces[art][dof] += step[2]
             drives[key], constants[key] = step[0], step[1]
+        offsets = drive_offsets(self.slides, timestep)
         for (art, dof), dof_drive in drives.items():
             if tendon_kv.get((art, dof)):
                 dof_drive = dataclasses.replace(dof_drive, damping=dof_drive.damping + tendon_kv[(art, dof)])
             joint = joints[art][dof]
             forces[art][dof] += drive.apply(joint, dof_drive, constants[(art, dof)], timestep,
-                                            via_damping.get((art, dof), 0.0), self.applied, (art, dof))
+                                            via_damping.get((art, dof), 0.0), self.applied, (art, dof),
+                                            offsets.get((art, dof), 0.0))
         for art, qf in zip(articulations, forces):
             if art.dof:
                 art.set_qf(qf.astype(np.float32))

@@ -45,21 +45,23 @@ class DofDrive:
 
 
 def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping: float = 0.0,
-          written: dict | None = None, key=None) -> float:
+          written: dict | None = None, key=None, offset: float = 0.0) -> float:
     """Configure `joint`'s drive for the force law with state-independent part `constant`; returns the
     generalized force left to apply with `set_qf` (non-zero only for a DoF with neither stiffness nor damping).
     `via_damping` is a further constant force carried by the velocity target when the drive has damping (a
-    large explicit force cancelled by the implicit damping loses digits in PhysX's float32 `qf`). `written`
+    large explicit force cancelled by the implicit damping loses digits in PhysX's float32 `qf`). `offset` is the
+    velocity the drive's measure is short of this step (a slide on a turning link, `slide.py`): it joins the
+    velocity target, and offset x dt the position target, so the drive's force is MuJoCo's. `written`
     remembers, by `key`, what was last written to the joint, so that unchanged settings are not written again
     (the caller owns the drive: a change made to it elsewhere is not seen)."""
     damping = drive.physx_damping(timestep)
     if drive.stiffness > 0:
-        target, constant = constant / drive.stiffness, 0.0
+        target, constant = constant / drive.stiffness + offset * timestep, 0.0
     else:
         target = 0.0
     velocity_target, left = 0.0, constant + via_damping
     if damping > 0:
-        velocity_target, left = left / damping, 0.0
+        velocity_target, left = left / damping + offset, 0.0
     settings = (drive.stiffness, damping, drive.force_limit, target, velocity_target)
     if written is None or written.get(key) != settings:
         joint.set_drive_properties(drive.stiffness, damping, drive.force_limit, "force")

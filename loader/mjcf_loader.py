@@ -28,6 +28,7 @@ from .geom import collides, plan_shape
 from .gravcomp import map_gravcomp
 from .joint import FREE, KIND
 from .mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .slide import map_slides
 from .solver import tune_iterations
 from .tendon import map_tendons
 from .texture import MJCFTexture, textures
@@ -202,6 +203,7 @@ class MJCFLoader:
         actuation.tendons = map_tendons(model, mapping, parsed.notes)
         actuation.fluid = plan_fluid(model, mapping, parsed.notes)
         actuation.gravcomp = map_gravcomp(model, mapping, articulations, parsed.notes)
+        actuation.slides = map_slides(articulations)
         equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
         actuation.connects = [link.soft for link in equalities if link.soft is not None]
         if self.solver_iterations == "auto":
