@@ -5,9 +5,11 @@ impulse whose velocity response is the joint-space inverse inertia M^-1 plus the
 1/(dt * (D'_i + dt * K_i)) (D' the PhysX damping, `drive.py`). Gauss-Seidel on that matrix leaves rho^n of the
 error after n sweeps, rho the spectral radius of its iteration matrix: stiff drives on light, strongly coupled
 links (rho near 1) need many sweeps, weak drives or decoupled DoFs (rho near 0) converge in one.
-The loader raises an articulation's position iterations until rho^n <= RESIDUAL, at qpos0's inertia (MuJoCo's
-`mj_fullM`). Measured on dm_control finger (rho 0.49): one-step velocity error 9.1e-5 at SAPIEN's 10 sweeps,
-2.0e-7 at the 20 this rule picks. Equality and tendon rows are not counted; a frictional DoF counts its
+The loader raises an articulation's position iterations until rho^n <= RESIDUAL, at the largest radius over qpos0
+and the model's keyframes (MuJoCo's `mj_fullM` there): the coupling moves with the configuration, and a keyframe is
+where a model is meant to start. Measured on dm_control finger (rho 0.49): one-step velocity error 9.1e-5 at
+SAPIEN's 10 sweeps, 2.0e-7 at the 20 this rule picks; the panda needs 10 at qpos0 (rho 0.23) but 21 at its home
+keyframe (rho 0.51), where its servos moving the arm left 4e-5 rad/s at 10 sweeps and 8e-7 at 21. Equality and tendon rows are not counted; a frictional DoF counts its
 friction row only (its damping is armature there, `friction.py`).
 """
 
@@ -44,10 +46,11 @@ def sweeps_needed(radius: float, residual: float = RESIDUAL) -> int:
     return min(MAX_ITERATIONS, max(1, math.ceil(math.log(residual) / math.log(radius))))
 
 
-def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -> dict[int, float]:
+def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping,
+                qpos: np.ndarray | None = None) -> dict[int, float]:
     """Per articulation with at least two rows: the Gauss-Seidel radius of its drive and soft connect rows at
-    qpos0."""
-    data = forward_at_qpos0(model)
+    qpos0 (or `qpos`)."""
+    data = forward_at_qpos0(model, qpos)
     inverse = inverse_inertia(model, data)
     dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
@@ -109,9 +112,18 @@ def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[t
     return result
 
 
+def largest_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -> dict[int, float]:
+    """Per articulation, the largest drive radius over qpos0 and the keyframes."""
+    largest: dict[int, float] = {}
+    for qpos in (None, *model.key_qpos):
+        for art, radius in drive_radii(model, actuation, mapping, qpos).items():
+            largest[art] = max(radius, largest.get(art, 0.0))
+    return largest
+
+
 def tune_iterations(articulations, model: mujoco.MjModel, actuation: Actuation, mapping: Mapping, notes) -> None:
     """Raise each articulation's position iterations to what its drives need (never lowers them)."""
-    for art, radius in drive_radii(model, actuation, mapping).items():
+    for art, radius in largest_radii(model, actuation, mapping).items():
         articulation = articulations[art]
         needed = sweeps_needed(radius)
         articulation.solver_position_iterations = max(articulation.solver_position_iterations, needed)

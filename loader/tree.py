@@ -55,10 +55,10 @@ def body_name(model: mujoco.MjModel, b: int) -> str:
     return model.body(b).name or f"body{b}"
 
 
-def forward_at_qpos0(model: mujoco.MjModel) -> mujoco.MjData:
-    """MuJoCo's forward pass at qpos0 (inertia, constraint rows)."""
+def forward_at_qpos0(model: mujoco.MjModel, qpos: np.ndarray | None = None) -> mujoco.MjData:
+    """MuJoCo's forward pass at qpos0, or at `qpos` (inertia, constraint rows)."""
     data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
+    data.qpos[:] = model.qpos0 if qpos is None else qpos
     mujoco.mj_forward(model, data)
     return data
 

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-from models import suite_path
+from models import FIXTURES, suite_path
 from test_loader_actuators import _contact_free, _replay
 
 from loader import MJCFLoader
-from loader.solver import gauss_seidel_radius, sweeps_needed
+from loader.solver import drive_radii, gauss_seidel_radius, sweeps_needed
 
 ROLLOUT_TOLERANCE = 5e-6  # rad, measured 4.0e-7
 
@@ -78,3 +78,26 @@ def test_a_tendon_servos_kv_couples_the_drives_only_where_the_integrator_makes_i
     # inertia): more sweeps; under Euler kv is an explicit force and leaves the drive rows as they were
     assert _iterations("implicitfast", 5.0) > _iterations("implicitfast", 0.0)
     assert _iterations("Euler", 5.0) == _iterations("Euler", 0.0)
+
+
+FOLDING_ARM = FIXTURES / "folding_servo_arm.xml"
+
+
+def _arm_ctrl(step, data):
+    return np.array([0.1, -2.618, 0.0]) + 0.3 * np.array([np.sin(step * 0.02), np.cos(step * 0.03), np.sin(step * 0.05)])
+
+
+def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at_qpos0():
+    """Measured from the stretched keyframe over 1 s: 4.8e-7 rad at the keyframe's 41 sweeps, 4.0e-5 at qpos0's 16
+    (the mutation: the rule at qpos0 alone)."""
+    result, model = _contact_free(FOLDING_ARM)
+    at_qpos0 = sweeps_needed(drive_radii(model, result.actuation, result.mapping)[0])
+    at_key = sweeps_needed(drive_radii(model, result.actuation, result.mapping, model.key_qpos[0])[0])
+    assert at_key > at_qpos0
+    assert result.articulations[0].solver_position_iterations == at_key
+    assert _replay(result, model, _arm_ctrl, 1.0).max() < ROLLOUT_TOLERANCE
+
+    def qpos0_only(loaded):
+        loaded.articulations[0].solver_position_iterations = at_qpos0
+    result, model = _contact_free(FOLDING_ARM, qpos0_only)
+    assert _replay(result, model, _arm_ctrl, 1.0).max() > ROLLOUT_TOLERANCE
