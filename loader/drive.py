@@ -15,9 +15,14 @@ MuJoCo's own RK4 and Euler differ there by 1.2e-4). With the box at rest, PhysX'
 semi-implicit Euler with the velocity-product (Coriolis and centripetal) forces evaluated at the end-of-step
 velocity: M (v' - v) = dt (f - c(q, v')) reproduces PhysX's box velocity to 2e-12..4e-9 where MuJoCo's c(q, v)
 leaves 1.1e-5..1.7e-4 (torque 6 N m, joint speed 0..3 rad/s): the gap grows as (w + dw)^2 - w^2 in the joint's
-speed w and its change dw over the step. With the box moving too (a two-hinge arm, random speeds and torques)
-that rule does not hold (1.4e-3 against PhysX where MuJoCo differs by 1.1e-3): PhysX's integration of a moving
-base is not identified beyond this. Without torques or damping the two agree to 1e-6.
+speed w and its change dw over the step. Measured since: PhysX conserves the articulation's linear momentum over a
+step exactly (float32: 1e-9 of go1's mass-weighted velocity with no gravity), MuJoCo's semi-implicit Euler does not:
+its momentum moves by about dt (c(q, v') - c(q, v)) in the free joint's translational rows, and PhysX's root linear
+velocity differs from MuJoCo's by that drift over the total mass (go1, legs at 2 rad/s: errors of 2e-5..1e-4 m/s,
+each the drift to 3e-6), base at rest or moving. Angular momentum drifts in both, differently (go1: 1e-4 of
+about 1e-4 N m s): the root's angular velocity is left at up to 1.7e-4 rad/s in one step, not identified further.
+Reproducing MuJoCo's drift needs its end-of-step velocity before PhysX's step; the loader leaves PhysX's
+(physically conserved) momentum as it is. Without torques or damping the two agree to 1e-6.
 """
 
 from __future__ import annotations
