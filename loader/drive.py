@@ -20,9 +20,13 @@ step exactly (float32: 1e-9 of go1's mass-weighted velocity with no gravity), Mu
 its momentum moves by about dt (c(q, v') - c(q, v)) in the free joint's translational rows, and PhysX's root linear
 velocity differs from MuJoCo's by that drift over the total mass (go1, legs at 2 rad/s: errors of 2e-5..1e-4 m/s,
 each the drift to 3e-6), base at rest or moving. Angular momentum drifts in both, differently (go1: 1e-4 of
-about 1e-4 N m s): the root's angular velocity is left at up to 1.7e-4 rad/s in one step, not identified further.
-Reproducing MuJoCo's drift needs its end-of-step velocity before PhysX's step; the loader leaves PhysX's
-(physically conserved) momentum as it is. Without torques or damping the two agree to 1e-6.
+about 1e-4 N m s): the root's angular velocity is left at up to 1.7e-4 rad/s in one step. PhysX's source says why:
+after the solve, a floating articulation's link velocities are rebuilt at the end-of-step poses from the root's and
+the joints' new velocities, the linear momentum of the solver's velocities is restored exactly and the angular
+momentum's magnitude rescaled (a rigid spin of every link); a fixed base skips this. Reproducing MuJoCo's drift
+instead needs MuJoCo's end-of-step velocity before PhysX's step, so the loader leaves it: it is PhysX's integrator,
+second order in dt per step, large where a joint's speed changes a lot in one step (damping on light links, stiff
+servos). Without torques or damping the two agree to 1e-6.
 """
 
 from __future__ import annotations

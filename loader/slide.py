@@ -7,7 +7,11 @@ parent's along the axis, which the drive row (taken on the two centres of mass w
 does not see. The joint's own motion is right (no drive: float32 agreement); a damped slide on a turning link is
 not: a 15 g finger with damping 1 on a hand turning at 2 rad/s, 0.1 m from the hand's centre of mass, is 1.4e-5
 m/s off MuJoCo after one step, as dt^2 D w^2 d / (m + armature + dt D) says (panda and aloha grippers at 2 rad/s
-joint speeds: up to 1e-3 and 7e-3 m/s). A revolute drive does not see it (an angular row has no lever arm).
+joint speeds: up to 1e-3 and 7e-3 m/s). PhysX's source agrees: a drive row measures the joint's velocity from the
+two links' spatial velocities (at their centres of mass, rows taken at the start of the step), and its unconstrained
+step has added dt times each link's velocity-product acceleration to them, of which w x (w x d) lies along a slide's
+axis. A revolute drive does not see it (its row is angular: the drift's angular part w x axis qdot is normal to the
+axis).
 `set_ctrl` therefore adds dt k to the drive's velocity target and dt^2 k to its position target every step
 (`drive.apply`), which puts the drive's force back to MuJoCo's (K dt + D) qdot form: one-step errors drop to
 float32 (panda 1.0e-3 -> 4e-7, aloha 6.6e-3 -> 1e-6 m/s). A drive set by the caller after `release()` keeps the
