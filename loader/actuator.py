@@ -42,6 +42,7 @@ from .gravcomp import GravityCompensation
 from .joint import dof_damping, joint_stiffness
 from .limit import limit_rows
 from .mapping import Mapping
+from .physx import refresh_link_velocities
 from .slide import drive_offsets
 from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
 
@@ -140,6 +141,8 @@ class Actuation:
             forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
         explicit_kv = int(model.opt.integrator) not in IMPLICIT  # Euler, RK4
         joints = [art.active_joints for art in articulations]  # the property builds a new list per call
+        if self.connects or self.fluid is not None or self.slides:  # they read link velocities
+            refresh_link_velocities(articulations)
         if self.limits and not self.limits_soft:
             self.hold_limits(joints, soft=True)
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
