@@ -118,6 +118,7 @@ class Actuation:
     gravcomp: GravityCompensation | None = None  # partial gravity compensation forces, added once per step
     connects: list = field(default_factory=list)  # connect/weld equalities' soft law (`connect.py`), per step
     slides: list = field(default_factory=list)  # prismatic DoFs on links that turn (`slide.py`), per step
+    _velocity_readers: list | None = field(default=None, repr=False)  # articulations whose link velocities are read
 
     def set_ctrl(self, articulations, ctrl, qfrc_applied: list[np.ndarray] | None = None,
                  advance: bool = True) -> None:
@@ -141,8 +142,7 @@ class Actuation:
             forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
         explicit_kv = int(model.opt.integrator) not in IMPLICIT  # Euler, RK4
         joints = [art.active_joints for art in articulations]  # the property builds a new list per call
-        if self.connects or self.fluid is not None or self.slides:  # they read link velocities
-            refresh_link_velocities(articulations)
+        refresh_link_velocities(self.velocity_readers(articulations))
         if self.limits and not self.limits_soft:
             self.hold_limits(joints, soft=True)
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
@@ -216,6 +216,15 @@ class Actuation:
                 link_forces.apply(articulations)
         for connect in self.connects:
             connect.update(timestep)
+
+    def velocity_readers(self, articulations) -> list:
+        """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
+        if self._velocity_readers is None:
+            links = [s.parent for s in self.slides]
+            links += [articulations[b.articulation].links[b.link] for b in (self.fluid.bodies if self.fluid else ())]
+            links += [end for c in self.connects for end in (c.child, c.parent) if end is not None]
+            self._velocity_readers = [art for art in articulations if any(link in art.links for link in links)]
+        return self._velocity_readers
 
     def release(self, articulations) -> None:
         """Hand the joints to a caller that drives them itself (their own drive targets, no `set_ctrl`): every

@@ -48,15 +48,23 @@ class SlideDrive:
         return float(cross(omega, cross(omega, d)) @ (rotation @ self.axis_in_parent))
 
 
+def can_turn(link, articulation) -> bool:
+    """Whether a revolute joint or a floating root lies between `link` and the world (a planar root's slides on a
+    fixed base do not turn)."""
+    while link is not None and not link.is_root:
+        if link.joint.type in ("revolute", "revolute_unwrapped"):
+            return True
+        link = link.parent
+    return articulation.root.joint.type != "fixed"
+
+
 def map_slides(articulations) -> list[SlideDrive]:
-    """Every prismatic DoF below a link that can move (a slide on a fixed root does not turn)."""
+    """Every prismatic DoF whose parent link can turn."""
     slides = []
     for a, articulation in enumerate(articulations):
         for dof, joint in enumerate(articulation.active_joints):
             parent = joint.parent_link
-            if joint.type != "prismatic" or parent is None:
-                continue
-            if parent.is_root and articulation.root.joint.type == "fixed":
+            if joint.type != "prismatic" or parent is None or not can_turn(parent, articulation):
                 continue
             axis = (joint.pose_in_parent.to_transformation_matrix()[:3, 0]).astype(np.float64)
             slides.append(SlideDrive(a, dof, joint, parent, joint.child_link, axis))
