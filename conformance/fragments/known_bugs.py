@@ -22,8 +22,9 @@ class KnownBug:
     triggers: Callable[[object, mujoco.MjModel], bool]  # (load result, compiled model)
 
 
-ILL_CONDITIONED = 40.0  # condition number of MuJoCo's joint-space inertia at qpos0 beyond which one-step
-# accelerations were seen 0.1-0.3 % off (fuzz finds at 49.9, 128, 335 and 363; 70 agreed to 2e-6)
+ILL_CONDITIONED = 35.0  # condition number of MuJoCo's joint-space inertia at qpos0 beyond which one-step
+# accelerations were seen 0.1-0.3 % off (fuzz finds at 38.8, 49.9, 128, 335 and 363; 70 agreed to 2e-6): a
+# heuristic for a class not isolated, whose errors are about 1e-5 of the step's velocity change
 
 
 def _ill_conditioned(result, model: mujoco.MjModel) -> bool:
@@ -39,7 +40,7 @@ def _ill_conditioned(result, model: mujoco.MjModel) -> bool:
 # fixed in the loader: free_joint_class_damping_armature.xml (now listed as unsupported),
 # zero_dof_tree_child_pose.xml (set_state updates joint-less trees) and velocity_actuator_unreached_forcerange.xml
 # (the drive force limit is listed as an approximation); their files stay as regressions
-# ill_conditioned_hinge_and_slide.xml is a second find of the ill-conditioned class (condition number 49.9)
+# ill_conditioned_hinge_and_slide*.xml are further finds of the ill-conditioned class (condition numbers 49.9, 38.8)
 KNOWN_BUGS: list[KnownBug] = [
     KnownBug("ill_conditioned_two_hinges.xml", ("dynamics", "actuated"), _ill_conditioned),
 ]
