@@ -71,11 +71,14 @@ def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping:
     velocity_target, left = 0.0, constant + via_damping
     if damping > 0:
         velocity_target, left = left / damping + offset, 0.0
-    settings = (drive.stiffness, damping, drive.force_limit, target, velocity_target)
-    if written is None or written.get(key) != settings:
+    properties = (drive.stiffness, damping, drive.force_limit)
+    last = written.get(key) if written is not None else None
+    if last is None or last[0] != properties:
         joint.set_drive_properties(drive.stiffness, damping, drive.force_limit, "force")
+    if last is None or last[1] != target:
         joint.set_drive_target(target)
+    if last is None or last[2] != velocity_target:
         joint.set_drive_velocity_target(velocity_target)
-        if written is not None:
-            written[key] = settings
+    if written is not None:
+        written[key] = (properties, target, velocity_target)
     return left

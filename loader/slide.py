@@ -23,9 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
-from .frames import cross
+import sapien
 
 
 @dataclass(frozen=True)
@@ -37,15 +35,22 @@ class SlideDrive:
     joint: object  # sapien.physx.PhysxArticulationJoint
     parent: object  # sapien.physx.PhysxArticulationLinkComponent
     child: object
-    axis_in_parent: np.ndarray  # the joint's axis (the joint frame's +X) in the parent link's frame
+    axis_in_parent: tuple[float, float, float]  # the joint's axis (the joint frame's +X) in the parent link's frame
+    parent_com: tuple[float, float, float]  # the parent's centre of mass in its frame
+    child_com: sapien.Pose  # the child's centre of mass in its frame
 
     def centripetal(self) -> float:
-        """k = (w x (w x d)) . a at the links' current state (m/s^2)."""
-        parent_pose = self.parent.entity_pose
-        rotation = parent_pose.to_transformation_matrix()[:3, :3]
-        omega = np.asarray(self.parent.angular_velocity, dtype=np.float64)
-        d = (self.child.entity_pose * self.child.cmass_local_pose).p - (parent_pose * self.parent.cmass_local_pose).p
-        return float(cross(omega, cross(omega, d)) @ (rotation @ self.axis_in_parent))
+        """k = (w x (w x d)) . a = (w.d)(w.a) - (w.w)(d.a) at the links' current state (m/s^2), all in the parent's
+        frame (plain floats: numpy's per-call cost would dominate three-vectors)."""
+        to_parent = self.parent.entity_pose.inv()
+        d = (to_parent * self.child.entity_pose * self.child_com).p
+        w = (sapien.Pose(q=to_parent.q) * sapien.Pose(self.parent.angular_velocity)).p
+        a, c = self.axis_in_parent, self.parent_com
+        dx, dy, dz = d[0] - c[0], d[1] - c[1], d[2] - c[2]
+        wd = w[0] * dx + w[1] * dy + w[2] * dz
+        wa = w[0] * a[0] + w[1] * a[1] + w[2] * a[2]
+        ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+        return float(wd * wa - ww * (dx * a[0] + dy * a[1] + dz * a[2]))
 
 
 def can_turn(link, articulation) -> bool:
@@ -66,8 +71,9 @@ def map_slides(articulations) -> list[SlideDrive]:
             parent = joint.parent_link
             if joint.type != "prismatic" or parent is None or not can_turn(parent, articulation):
                 continue
-            axis = (joint.pose_in_parent.to_transformation_matrix()[:3, 0]).astype(np.float64)
-            slides.append(SlideDrive(a, dof, joint, parent, joint.child_link, axis))
+            axis = tuple(float(x) for x in joint.pose_in_parent.to_transformation_matrix()[:3, 0])
+            com = tuple(float(x) for x in parent.cmass_local_pose.p)
+            slides.append(SlideDrive(a, dof, joint, parent, joint.child_link, axis, com, joint.child_link.cmass_local_pose))
     return slides
 
 
