@@ -61,3 +61,22 @@ def test_the_slender_rod_find_is_exact_on_the_world_axes(tmp_path):
     on_axes = tmp_path / find.name
     on_axes.write_text(find.read_text().replace('euler="0 35 0"', 'euler="0 0 0"'))
     assert not check_path(on_axes, strict=True).failures
+
+
+def test_the_far_slide_find_passes_with_the_slides_ref_at_zero(tmp_path):
+    """The attribution of the far-slide known bug: its detector names the find, and the same document with only the
+    slide's ref at 0 (the detector then silent) passes every property."""
+    import shutil
+
+    import mujoco
+
+    from conformance.fragments.known_bugs import _slide_far_from_its_zero
+
+    find = REGRESSIONS / "slide_far_from_its_zero_off_axis.xml"
+    assert _slide_far_from_its_zero(None, mujoco.MjModel.from_xml_path(str(find)))
+    for mesh in REGRESSIONS.glob("slide_far_from_its_zero_off_axis.*.obj"):
+        shutil.copy(mesh, tmp_path)
+    at_zero = tmp_path / find.name
+    at_zero.write_text(find.read_text().replace('ref="-14"', 'ref="0"'))
+    assert not _slide_far_from_its_zero(None, mujoco.MjModel.from_xml_path(str(at_zero)))
+    assert not check_path(at_zero, strict=True).failures
