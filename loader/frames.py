@@ -59,12 +59,12 @@ def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
 
 
 # Rotations carrying +X onto a coordinate axis whose quaternions float32 holds exactly (120 degree turns about a cube
-# diagonal, a half turn about Z): the shortest rotation onto +Y or +Z has components sqrt(1/2), which float32 rounds,
+# diagonal; -X is the half turn about Z below): the shortest rotation onto +Y or +Z has components sqrt(1/2), which float32 rounds,
 # tilting the joint's axis by 6e-8 rad. Under gravity that tilt turns a light body on a vertical hinge (dm_control
 # swimmer's 10 g head spun up at 7e-5 rad/s^2 from rest, where MuJoCo's stays still).
 EXACT_X_TO = {
     (0, 1, 0): (0.5, 0.5, 0.5, 0.5), (0, -1, 0): (0.5, 0.5, -0.5, -0.5),
-    (0, 0, 1): (0.5, 0.5, -0.5, 0.5), (0, 0, -1): (0.5, 0.5, 0.5, -0.5), (-1, 0, 0): (0.0, 0.0, 0.0, 1.0),
+    (0, 0, 1): (0.5, 0.5, -0.5, 0.5), (0, 0, -1): (0.5, 0.5, 0.5, -0.5),
 }
 
 

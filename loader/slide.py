@@ -14,8 +14,8 @@ axis. A revolute drive does not see it (its row is angular: the drift's angular 
 axis).
 `set_ctrl` therefore adds dt k to the drive's velocity target and dt^2 k to its position target every step
 (`drive.apply`), which puts the drive's force back to MuJoCo's (K dt + D) qdot form: one-step errors drop to
-float32 (panda 1.0e-3 -> 4e-7, aloha 6.6e-3 -> 1e-6 m/s). A drive set by the caller after `release()` keeps the
-offset; it is second order in dt.
+float32 (panda 1.0e-3 -> 4e-7, aloha 6.6e-3 -> 1e-6 m/s). A drive the caller sets after `release()` goes without
+the offset: second order in dt per step.
 The connect rows of `connect.py` carry the same term for a D6's linear drives.
 """
 

@@ -9,8 +9,9 @@ The loader raises an articulation's position iterations until rho^n <= RESIDUAL,
 and the model's keyframes (MuJoCo's `mj_fullM` there): the coupling moves with the configuration, and a keyframe is
 where a model is meant to start. Measured on dm_control finger (rho 0.49): one-step velocity error 9.1e-5 at
 SAPIEN's 10 sweeps, 2.0e-7 at the 20 this rule picks; the panda needs 10 at qpos0 (rho 0.23) but 21 at its home
-keyframe (rho 0.51), where its servos moving the arm left 4e-5 rad/s at 10 sweeps and 8e-7 at 21. Equality and tendon rows are not counted; a frictional DoF counts its
-friction row only (its damping is armature there, `friction.py`).
+keyframe (rho 0.51), where its servos moving the arm left 4e-5 rad/s at 10 sweeps and 8e-7 at 21. Equality and
+tendon rows are not counted; a frictional DoF counts its friction row only (its damping is armature there,
+`friction.py`).
 """
 
 from __future__ import annotations

@@ -45,38 +45,30 @@ def test_every_open_bug_detector_names_a_known_bug():
     assert {bug.regression for bug in KNOWN_BUGS} <= set(KNOWN)
 
 
-
-def test_the_slender_rod_find_is_exact_on_the_world_axes(tmp_path):
-    """The attribution of the slender-rod known bug: its detector names the find, and the same document with the body
-    on the world axes (nothing else changed) passes every property."""
+@pytest.mark.parametrize("find, detector, change, detector_silent_after", [
+    ("slender_rod_about_its_axis", "_slender_about_a_hinge", ('euler="0 35 0"', 'euler="0 0 0"'), False),
+    ("slide_far_from_its_zero_off_axis", "_slide_far_from_its_zero", ('ref="-14"', 'ref="0"'), True),
+])
+def test_a_known_bugs_find_passes_without_the_trait_its_detector_names(tmp_path, find, detector, change,
+                                                                       detector_silent_after):
+    """The attribution of a known bug: its detector names the find, and the same document with only that trait
+    undone (the body back on the world axes; the slide's ref at 0, where the detector falls silent too) passes
+    every property."""
     import shutil
 
     import mujoco
 
-    from conformance.fragments.known_bugs import _slender_about_a_hinge
+    from conformance.fragments import known_bugs
 
-    find = REGRESSIONS / "slender_rod_about_its_axis.xml"
-    assert _slender_about_a_hinge(None, mujoco.MjModel.from_xml_path(str(find)))
-    shutil.copy(REGRESSIONS / "slender_rod_about_its_axis.mesh0.obj", tmp_path)
-    on_axes = tmp_path / find.name
-    on_axes.write_text(find.read_text().replace('euler="0 35 0"', 'euler="0 0 0"'))
-    assert not check_path(on_axes, strict=True).failures
-
-
-def test_the_far_slide_find_passes_with_the_slides_ref_at_zero(tmp_path):
-    """The attribution of the far-slide known bug: its detector names the find, and the same document with only the
-    slide's ref at 0 (the detector then silent) passes every property."""
-    import shutil
-
-    import mujoco
-
-    from conformance.fragments.known_bugs import _slide_far_from_its_zero
-
-    find = REGRESSIONS / "slide_far_from_its_zero_off_axis.xml"
-    assert _slide_far_from_its_zero(None, mujoco.MjModel.from_xml_path(str(find)))
-    for mesh in REGRESSIONS.glob("slide_far_from_its_zero_off_axis.*.obj"):
+    triggers = getattr(known_bugs, detector)
+    path = REGRESSIONS / f"{find}.xml"
+    assert triggers(None, mujoco.MjModel.from_xml_path(str(path)))
+    for mesh in REGRESSIONS.glob(f"{find}.*.obj"):
         shutil.copy(mesh, tmp_path)
-    at_zero = tmp_path / find.name
-    at_zero.write_text(find.read_text().replace('ref="-14"', 'ref="0"'))
-    assert not _slide_far_from_its_zero(None, mujoco.MjModel.from_xml_path(str(at_zero)))
-    assert not check_path(at_zero, strict=True).failures
+    variant = tmp_path / path.name
+    text = path.read_text()
+    assert change[0] in text
+    variant.write_text(text.replace(*change))
+    if detector_silent_after:
+        assert not triggers(None, mujoco.MjModel.from_xml_path(str(variant)))
+    assert not check_path(variant, strict=True).failures

@@ -26,14 +26,19 @@ ILL_CONDITIONED = 50.0  # condition number of MuJoCo's joint-space inertia at qp
 # accelerations were seen 0.1-0.3 % off (fuzz finds at 128, 335 and 363; 70 agreed to 2e-6)
 
 
-def _ill_conditioned(result, model: mujoco.MjModel) -> bool:
-    if model.nv < 2:
-        return False
+def _joint_space_inertia(model: mujoco.MjModel) -> np.ndarray:
+    """MuJoCo's joint-space inertia at qpos0 (nv x nv)."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
-    return bool(np.linalg.cond(full) > ILL_CONDITIONED)
+    return full
+
+
+def _ill_conditioned(result, model: mujoco.MjModel) -> bool:
+    if model.nv < 2:
+        return False
+    return bool(np.linalg.cond(_joint_space_inertia(model)) > ILL_CONDITIONED)
 
 
 SLENDER = 50.0  # a hinge whose body turns with less than 1/SLENDER of its largest principal moment about the axis
@@ -45,10 +50,7 @@ def _slender_about_a_hinge(result, model: mujoco.MjModel) -> bool:
     hinges = [j for j in range(model.njnt) if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)]
     if not hinges:
         return False
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    full = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, full)
+    full = _joint_space_inertia(model)
     for j in hinges:
         largest = float(model.body_inertia[int(model.jnt_bodyid[j])].max())
         dof = int(model.jnt_dofadr[j])
