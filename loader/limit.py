@@ -5,9 +5,10 @@ pushes only: f = max(0, (A + R)^-1 (aref - a0)), aref = -B v_row - K imp (r - ma
 (`friction.py`), a drive with damping s / (R dt) pulling the joint velocity to the target v + dt aref / s is that
 row, unclamped (s = 1 + (M^-1)_ii dt D where the joint's implicit damping D rides as armature). One-sided: the
 drive's force limit L and an explicit force sign * L around a target shifted by -sign * L / (its damping) make the
-total force clamp(row force, 0, 2 L). L is sized each step far above the row's force (float32 keeps L * 6e-8 of
-it). PhysX's own limit then has to stay out of the way: the loader widens it (`WIDEN`) and puts it back on
-`release`, whose callers do not call `set_ctrl`. Measured on a pendulum bouncing on both ends of its range for
+total force clamp(row force, 0, 2 L). L is sized each step to the row's force bound (`force_limit`), no larger:
+PhysX cancels the offset only to a residual that grows with L when contacts share the solve. PhysX's own limit
+then has to stay out of the way: the loader widens it (`WIDEN`) and puts it back on `release`, whose callers do
+not call `set_ctrl`. Measured on a pendulum bouncing on both ends of its range for
 1.2 s: 1.3e-8 rad from MuJoCo with L = 10, 8.5e-7 with L = 1000 (float32); PhysX's hard limit there: 1e-2.
 A joint with frictionloss (its drive carries the friction) or coupled to other rows keeps PhysX's hard limit: listed.
 """
@@ -26,8 +27,18 @@ from .mapping import Mapping
 from .tree import forward_at_qpos0, inverse_inertia
 
 WIDEN = 0.25  # PhysX's hard limit sits this fraction of the range (at least 0.1 rad or m) beyond MuJoCo's ends
-ACCELERATION_BOUND = 1e3  # the row force covers unconstrained accelerations up to this (rad/s^2 or m/s^2) ...
+ACCELERATION_BOUND = 100.0  # the row force covers row accelerations up to this (rad/s^2 or m/s^2) ...
 MINIMUM_LIMIT = 1.0  # ... and is never below this (N or N m)
+
+
+def force_limit(damping: float, target: float, v: float, timestep: float) -> float:
+    """The drive's force limit L for a row whose force is damping * (target - v_end), from the step's start v:
+    the total force clamp(row, 0, 2 L) covers row accelerations up to `ACCELERATION_BOUND`, and no more. The
+    explicit offset of L must be cancelled by PhysX's drive inside one solve, and with contacts in the same
+    solve PhysX leaves a residual that grows with L: sized on |target| + |v| (a speed, not the row's force), L
+    blew dm_control's humanoid up as it collapsed onto the floor
+    (tests/test_loader_limit.py::test_limit_rows_under_contact_stay_finite)."""
+    return max(MINIMUM_LIMIT, 0.5 * damping * (abs(target - v) + timestep * ACCELERATION_BOUND))
 
 
 @dataclass(frozen=True)
@@ -66,7 +77,7 @@ class LimitRow:
         row_velocity = sign * v
         target = sign * (row_velocity + timestep * float(self.row.reference(imp, r - self.margin, row_velocity))
                          / scale)
-        limit = max(MINIMUM_LIMIT, damping * (abs(target) + abs(v) + timestep * ACCELERATION_BOUND))
+        limit = force_limit(damping, target, v, timestep)
         return DofDrive(0.0, damping, 0.0, limit), damping * target - sign * limit, sign * limit
 
     def physx_limits(self) -> tuple[float, float]:

@@ -112,3 +112,48 @@ def test_frictional_and_coupled_joints_keep_the_hard_limit_and_say_so():
     assert not result.actuation.limits
     kept = {e.name for e in result.approximations if "limit kept as PhysX's hard limit" in e.reason}
     assert kept == {"rough", "a", "b"}
+
+
+def _humanoid_collapse_speed() -> tuple[float, float]:
+    """dm_control's humanoid collapsing onto its floor for 1 s under zero ctrl, through set_ctrl, from the
+    harness's start (qpos0, limited joints 5 % inside their ranges): the fastest SAPIEN joint and the fastest
+    MuJoCo joint (rad/s or m/s)."""
+    from models import suite_path
+
+    from conformance.reference import initial_state
+
+    model = mujoco.MjModel.from_xml_path(str(suite_path("humanoid")))
+    data = mujoco.MjData(model)
+    result = MJCFLoader(ignore_classes=[]).load(str(suite_path("humanoid")))
+    result.disable_actuators()
+    data.qpos[:], data.qvel[:], _ = initial_state(model)
+    result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
+    fastest_sapien = fastest_mujoco = 0.0
+    for _ in range(round(1.0 / model.opt.timestep)):
+        result.set_ctrl(None)
+        result.scene.step()
+        mujoco.mj_step(model, data)
+        speed = np.abs(result.mapping.get_state(result.articulations)[1])
+        fastest_sapien = max(fastest_sapien, float(speed.max()) if np.isfinite(speed).all() else np.inf)
+        fastest_mujoco = max(fastest_mujoco, float(np.abs(data.qvel).max()))
+    return fastest_sapien, fastest_mujoco
+
+
+COLLAPSE_SPEED_RATIO = 3.0  # measured 2.2 (33.5 against 15.2 rad/s; mujoco 3.17.0, sapien 3.0.3); blown up: 150+
+
+
+def test_limit_rows_under_contact_stay_finite():
+    """Many limit rows with the floor's contacts in one PhysX solve: the one-sided rows' explicit offsets stay
+    small enough for PhysX to cancel them (`limit.force_limit`)."""
+    sapien_speed, mujoco_speed = _humanoid_collapse_speed()
+    assert sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)
+
+
+def test_limit_rows_sized_on_speed_blow_up_under_contact(monkeypatch):
+    """The deliberate mistake: the force limit sized on |target| + |v| and 1e3 rad/s^2 (the sizing before)."""
+    import loader.limit
+
+    monkeypatch.setattr(loader.limit, "force_limit", lambda damping, target, v, timestep: max(
+        1.0, damping * (abs(target) + abs(v) + timestep * 1e3)))
+    sapien_speed, mujoco_speed = _humanoid_collapse_speed()
+    assert not sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)
