@@ -7,11 +7,19 @@ from pathlib import Path
 
 import tomllib
 
+from .isolation import GAPS, ISOLATED_TIERS
+
 TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "actuated_contact", "actuated",
               "dynamics")
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
-OUTCOME_RANK = {"pass": 0, "chaotic": 1, "skipped": 2, "fail": 3}
-FAULTS = ("crash", "hang")
+# `changed` (an expected failure whose metric left the band its reason was measured in) and `diverged` (SAPIEN left
+# the finite, physical states: conformance/divergence.py) come from the run alone: no manifest may expect them.
+OUTCOME_RANK = {"pass": 0, "chaotic": 1, "skipped": 2, "fail": 3, "changed": 4, "diverged": 5}
+EXPECTABLE = ("pass", "chaotic", "skipped", "fail")
+# An expected failure stays the failure its reason describes while its metric's max lies within this factor of the
+# value `seen` when the reason was written; outside it the outcome is `changed` until the reason is re-measured.
+BAND_FACTOR = 10.0
+FAULTS = ("crash", "hang", "nan")  # harness self-tests: a worker that segfaults, hangs, or whose SAPIEN goes NaN
 
 
 @dataclass(frozen=True)
@@ -23,6 +31,14 @@ class Expectation:
     reason: str
     # gaps (conformance.isolation.GAPS) whose removal on both sides makes the tier pass: checked on every run
     passes_without: tuple[str, ...] = ()
+    # an expected failure: the metric its reason describes and the max measured then (checked every run: `band`)
+    metric: str = ""
+    seen: float = 0.0
+
+    @property
+    def band(self) -> tuple[float, float]:
+        """The values of `metric` the failure may take and still be the one its reason describes."""
+        return self.seen / BAND_FACTOR, self.seen * BAND_FACTOR
 
 
 @dataclass(frozen=True)
@@ -37,7 +53,7 @@ class ModelEntry:
     settings: dict[str, dict] = field(default_factory=dict)
     override_reason: str = ""
     expect: dict[str, Expectation] = field(default_factory=dict)
-    fault: str | None = None  # harness self-test only: make the worker crash or hang
+    fault: str | None = None  # harness self-test only: make the worker crash, hang or poison SAPIEN's state
     base_dir: str = "."
 
     def expected(self, tier: str) -> str:
@@ -74,17 +90,20 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
     expect = {}
     for exp in raw.get("expect", []):
         tier, outcome, reason = exp.get("tier"), exp.get("outcome"), exp.get("reason")
-        if tier not in TIER_NAMES or outcome not in OUTCOME_RANK or not reason:
+        if tier not in TIER_NAMES or outcome not in EXPECTABLE or not reason:
             raise ValueError(f"{where}: model {raw['id']!r} has a bad expectation {exp} "
-                             f"(needs tier in {TIER_NAMES}, outcome in {list(OUTCOME_RANK)}, reason)")
+                             f"(needs tier in {TIER_NAMES}, outcome in {list(EXPECTABLE)}, reason)")
+        seen = exp.get("seen")
+        if outcome == "fail" and not (exp.get("metric") and isinstance(seen, (int, float)) and seen > 0):
+            raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: an expected failure names the `metric` its "
+                             "reason describes and the positive max `seen` when it was measured (the run checks "
+                             f"that the failure stays within {BAND_FACTOR:g}x of it)")
         claimed = tuple(exp.get("passes_without", ()))
-        from .isolation import GAPS, ISOLATED_TIERS
-
         unknown = [g for g in claimed if g not in GAPS]
         if unknown or (claimed and (tier not in ISOLATED_TIERS or outcome != "fail")):
             raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: passes_without {list(claimed)} needs "
                              f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}")
-        expect[tier] = Expectation(tier, outcome, reason, claimed)
+        expect[tier] = Expectation(tier, outcome, reason, claimed, str(exp.get("metric", "")), float(seen or 0.0))
     fault = raw.get("fault")
     if fault is not None and fault not in FAULTS:
         raise ValueError(f"{where}: model {raw['id']!r} fault must be one of {FAULTS}")

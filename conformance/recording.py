@@ -197,6 +197,8 @@ def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
     lines = [f"# {meta.get('model', '')}", "", "| tier | status | metric | max | rms | tolerance | margin |",
              "|---|---|---|---|---|---|---|"]
     for tier, report in reports.items():
+        if report.divergence is not None:
+            lines.append(f"| {tier} | diverged | first bad step: {report.divergence.text()} | | | | |")
         if not report.metrics:
             lines.append(f"| {tier} | {report.status} | | | | | |")
         for m in report.metrics:

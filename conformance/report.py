@@ -7,7 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-STATUSES = ("pass", "fail", "chaotic", "skipped")
+from .divergence import Divergence
+
+STATUSES = ("pass", "fail", "chaotic", "skipped", "diverged")
 
 
 @dataclass
@@ -103,18 +105,34 @@ class TierReport:
     series: dict[str, np.ndarray] = field(default_factory=dict)
     traces: list[Trace] = field(default_factory=list)
     actuators: ActuatorTrace | None = None
+    divergence: Divergence | None = None  # the first step SAPIEN left the finite, physical states
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"unknown tier status {self.status!r}")
 
     def to_dict(self) -> dict:
-        return {"tier": self.tier, "status": self.status, "metrics": [m.to_dict() for m in self.metrics],
-                "notes": list(self.notes), "settings": self.settings}
+        out = {"tier": self.tier, "status": self.status, "metrics": [m.to_dict() for m in self.metrics],
+               "notes": list(self.notes), "settings": self.settings}
+        if self.divergence is not None:
+            out["divergence"] = self.divergence.to_dict()
+        return out
+
+
+def verdict(metrics: list[Metric], chaotic: bool = False, divergence: Divergence | None = None) -> str:
+    """A simulated tier's status: diverged when SAPIEN left the finite, physical states or a metric is not finite
+    (whatever else holds), else fail when a metric is past its tolerance, chaotic when MuJoCo cannot predict
+    itself, else pass."""
+    if divergence is not None or any(not math.isfinite(m.max) for m in metrics):
+        return "diverged"
+    if not all(m.passed for m in metrics):
+        return "fail"
+    return "chaotic" if chaotic else "pass"
 
 
 def judged(tier: str, metrics: list[Metric], notes: list[str] | None = None, **extra) -> TierReport:
-    """A report whose status is pass exactly when every metric is within tolerance."""
+    """A static tier's report: pass exactly when every metric is within tolerance (an infinite error, such as a
+    finite limit against an infinite one, is a failure of the mapping, not a divergence)."""
     status = "pass" if all(m.passed for m in metrics) else "fail"
     return TierReport(tier, status, metrics, list(notes or []), **extra)
 

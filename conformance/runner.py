@@ -123,7 +123,9 @@ def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
                 proc.join()
                 results[model_id] = _collect(job, proc.exitcode, timed_out, elapsed)
                 del running[model_id]
-                bar.set_postfix_str(f"{model_id}: {results[model_id].get('status')}")
+                status = results[model_id].get("status", "")
+                bar.set_postfix_str(f"{model_id}: " + (summary.headline(status, summary.judge(job.entry, results[model_id]))
+                                                       if status == "ok" else status))
                 bar.update(1)
                 write_summary()
             time.sleep(_POLL_S)

@@ -2,10 +2,41 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 import sapien
 
 NAN_POSE = np.full(7, np.nan)
+
+
+@dataclass
+class Run:
+    """A SAPIEN rollout in MuJoCo's layout: qpos (T+1, nq), qvel (T+1, nv), every link's world pose (T+1, L, 7),
+    and for ctrl rollouts the actuator force law on SAPIEN's state (T, nu)."""
+
+    qpos: np.ndarray
+    qvel: np.ndarray
+    link_pose: np.ndarray
+    force: np.ndarray | None = None
+
+
+
+def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.ndarray, np.ndarray], None]) -> Run:
+    """Step SAPIEN `steps` times from (qpos0, qvel0), calling `before_step(t, qpos, qvel)` with the state read back
+    before each step (it writes the step's command); records the state and every link's pose after each step."""
+    set_state(result, qpos0, qvel0)
+    q, v = get_state(result)
+    qpos, qvel = np.zeros((steps + 1, q.size)), np.zeros((steps + 1, v.size))
+    poses = np.zeros((steps + 1, len(links(result)), 7))
+    qpos[0], qvel[0], poses[0] = q, v, link_poses(result)
+    for t in range(steps):
+        before_step(t, qpos[t], qvel[t])
+        result.scene.step()
+        qpos[t + 1], qvel[t + 1] = get_state(result)
+        poses[t + 1] = link_poses(result)
+    return Run(qpos, qvel, poses)
 
 
 def pose7(pose: sapien.Pose) -> np.ndarray:

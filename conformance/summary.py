@@ -8,8 +8,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from .divergence import Divergence
 from .isolation import claim_holds, order_in_timestep
-from .manifest import OUTCOME_RANK, ModelEntry
+from .manifest import OUTCOME_RANK, Expectation, ModelEntry
 
 
 @dataclass(frozen=True)
@@ -18,15 +19,29 @@ class Verdict:
 
     model: str
     tier: str
-    outcome: str  # pass / fail / expected-fail / chaotic / skipped
+    outcome: str  # pass / fail / expected-fail / chaotic / skipped / changed / diverged
     raw: str
     expected: str
     worse: bool
     detail: dict
 
 
+def _left_band(expectation: Expectation, detail: dict) -> str | None:
+    """Why an expected failure is no longer the one its reason describes (its metric left the band), or None."""
+    lo, hi = expectation.band
+    value = next((m["max"] for m in detail.get("metrics", []) if m["name"] == expectation.metric), None)
+    if value is None:
+        return (f"changed: the manifest's reason describes {expectation.metric} (seen {expectation.seen:.3g}); "
+                "the tier reported no finite value of it")
+    if lo <= value <= hi:
+        return None
+    return (f"changed: {expectation.metric} {value:.3g} left the band [{lo:.3g}, {hi:.3g}] around the "
+            f"{expectation.seen:.3g} the manifest's reason was measured at: re-measure the reason")
+
+
 def judge(entry: ModelEntry, result: dict) -> list[Verdict]:
-    """Compare a worker result with what the manifest expects, tier by tier."""
+    """Compare a worker result with what the manifest expects, tier by tier. A divergence is worse than any
+    expectation; an expected failure whose metric left its band is `changed`, also worse."""
     verdicts = []
     for tier in entry.tiers:
         report = result.get("tiers", {}).get(tier)
@@ -36,8 +51,13 @@ def judge(entry: ModelEntry, result: dict) -> list[Verdict]:
         else:
             raw, detail = report["status"], report
         expected = entry.expected(tier)
+        expectation = entry.expect.get(tier)
+        if raw == "fail" and expected == "fail" and expectation is not None:
+            change = _left_band(expectation, detail)
+            if change is not None:
+                raw, detail = "changed", {**detail, "notes": [*detail.get("notes", []), change]}
         worse = OUTCOME_RANK[raw] > OUTCOME_RANK[expected]
-        claimed = entry.expect[tier].passes_without if tier in entry.expect else ()
+        claimed = expectation.passes_without if expectation is not None else ()
         if raw == "fail" and claimed and not claim_holds(detail.get("isolation", []), claimed):
             worse = True  # the manifest's reason is a claim the run could not reproduce
             claim = f"the manifest claims the tier passes without {', '.join(claimed)}; it did not"
@@ -45,6 +65,20 @@ def judge(entry: ModelEntry, result: dict) -> list[Verdict]:
         outcome = "expected-fail" if raw == "fail" and expected == "fail" and not worse else raw
         verdicts.append(Verdict(entry.id, tier, outcome, raw, expected, worse, detail))
     return verdicts
+
+
+def headline(model_status: str, verdicts: list[Verdict]) -> str:
+    """A model's worst outcome in a few words (for the progress bar): worse-than-expected first, then the worst raw
+    outcome; a divergence names its tier and first bad step."""
+    if not verdicts:
+        return model_status
+    order = {"pass": 0, "chaotic": 1, "skipped": 2, "expected-fail": 3, "fail": 4, "changed": 5, "diverged": 6}
+    worst = max(verdicts, key=lambda v: (v.worse, order.get(v.outcome, 0)))
+    text = worst.outcome if not worst.worse else f"{worst.outcome} (expected {worst.expected})"
+    if worst.outcome == "pass":
+        return "pass"
+    where = divergence_text(worst.detail.get("divergence"))
+    return f"{text} in {worst.tier}" + (f" at {where}" if where else "")
 
 
 def atomic_write_text(path: Path, text: str) -> None:
@@ -81,7 +115,14 @@ def _fmt(x) -> str:
     return f"{x:.3g}"
 
 
+def divergence_text(divergence: dict | None) -> str:
+    """'<run> step N (t = ... s): <what>' for a tier's first divergent step, or ''."""
+    return Divergence(**divergence).text() if divergence else ""
+
+
 def _cell(v: Verdict) -> str:
+    if v.detail.get("divergence"):
+        return f"{v.outcome}: {divergence_text(v.detail['divergence'])}"
     metrics = v.detail.get("metrics") or []
     if not metrics:
         return v.outcome
@@ -98,7 +139,7 @@ def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dic
     for entry in entries:
         result = results.get(entry.id, {"status": "pending", "reason": "not finished"})
         verdicts = judge(entry, result) if result.get("status") != "pending" else []
-        worse += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _unheld(entry, v) for v in verdicts
+        worse += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _why_worse(entry, v) for v in verdicts
                   if v.worse]
         better += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts
                    if OUTCOME_RANK[v.raw] < OUTCOME_RANK[v.expected]]
@@ -111,7 +152,8 @@ def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dic
                                   "expected_reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
                                   "worse_than_expected": v.worse, "metrics": v.detail.get("metrics", []),
                                   "notes": v.detail.get("notes", []), "settings": v.detail.get("settings", {}),
-                                  "isolation": v.detail.get("isolation", [])}
+                                  "isolation": v.detail.get("isolation", []),
+                                  "divergence": v.detail.get("divergence")}
                          for v in verdicts},
         })
     return {**run, "models": models, "worse_than_expected": worse, "better_than_expected": better, "ok": not worse}
@@ -145,7 +187,11 @@ def _actuation_lines(summary: dict) -> list[str]:
     return lines
 
 
-def _unheld(entry: ModelEntry, v: Verdict) -> str:
+def _why_worse(entry: ModelEntry, v: Verdict) -> str:
+    if v.raw == "diverged":
+        return ": " + (divergence_text(v.detail.get("divergence")) or "a metric is not finite")
+    if v.raw == "changed":
+        return "; " + v.detail["notes"][-1]
     claimed = entry.expect[v.tier].passes_without if v.tier in entry.expect else ()
     return f"; it does not pass without {', '.join(claimed)} as the manifest claims" if claimed else ""
 

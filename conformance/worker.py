@@ -45,6 +45,26 @@ def _inject_fault(fault: str | None) -> None:
             time.sleep(1.0)
 
 
+NAN_AFTER_STEPS = 5  # the "nan" fault: SAPIEN's velocities are poisoned after every step past this many
+
+
+def _poison_steps(result) -> None:
+    """Harness self-test (`fault = "nan"`): from the sixth physics step of the worker on, every step leaves NaN
+    velocities in every articulation, as a PhysX blow-up would; the next step carries them into the poses."""
+    import numpy as np
+
+    step, count = result.scene.step, [0]
+
+    def poisoned() -> None:
+        step()
+        count[0] += 1
+        if count[0] > NAN_AFTER_STEPS:
+            for articulation in result.articulations:
+                articulation.set_qvel(np.full(articulation.dof, np.nan))
+
+    result.scene.step = poisoned
+
+
 def evaluate(job: Job) -> dict:
     """Run the job in this process and return the result document (also used in-process by tests)."""
     from .tiers import TIERS  # heavy imports happen in the worker, not in the parent
@@ -64,6 +84,8 @@ def evaluate(job: Job) -> dict:
         result.update(status="error", reason=f"load failed: {type(exc).__name__}: {exc}",
                       traceback=traceback.format_exc(), seconds=time.perf_counter() - started)
         return result
+    if entry.fault == "nan":
+        _poison_steps(session.result)
     result["load"] = session.load_info()
     result["settings"] = session.settings()
     reports: dict[str, TierReport] = {}
@@ -78,7 +100,7 @@ def evaluate(job: Job) -> dict:
         report.settings = {**report.settings, "seconds": round(time.perf_counter() - t0, 3)}
         reports[tier] = report
         result["tiers"][tier] = report.to_dict()
-        if report.status == "fail" and tier in ISOLATED_TIERS:
+        if report.status in ("fail", "diverged") and tier in ISOLATED_TIERS:
             expectation = entry.expect.get(tier)
             claimed = (expectation.passes_without,) if expectation and expectation.passes_without else ()
             t0 = time.perf_counter()

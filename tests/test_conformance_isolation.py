@@ -63,13 +63,14 @@ def test_a_kp_error_survives_every_isolation(friction_arm, monkeypatch):
 def _manifest(tmp_path, claim: str) -> object:
     path = tmp_path / "manifest.toml"
     path.write_text(f'[[model]]\nid = "arm"\nsource = "arm.xml"\n[[model.expect]]\ntier = "actuated"\n'
-                    f'outcome = "fail"\nreason = "frictionloss"\npasses_without = {claim}\n')
+                    f'outcome = "fail"\nmetric = "one_step_qvel"\nseen = 0.01\nreason = "frictionloss"\n'
+                    f'passes_without = {claim}\n')
     return load_manifest(path)
 
 
 def test_a_claim_the_run_cannot_reproduce_is_worse_than_expected(tmp_path):
     entry = _manifest(tmp_path, '["frictionloss"]').models[0]
-    failing = {"status": "fail", "metrics": [], "notes": [],
+    failing = {"status": "fail", "metrics": [{"name": "one_step_qvel", "max": 0.02, "tolerance": 1e-5}], "notes": [],
                "isolation": [{"without": ["frictionloss"], "outcome": "fail", "metrics": []}]}
     verdict = next(v for v in judge(entry, {"tiers": {"actuated": failing}}) if v.tier == "actuated")
     assert verdict.worse and verdict.outcome == "fail"

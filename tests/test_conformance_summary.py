@@ -10,20 +10,26 @@ import pytest
 from conformance import summary
 from conformance.manifest import Expectation, ModelEntry
 
+SEEN = [{"name": "rollout_zero_qpos", "max": 0.3, "tolerance": 1e-5, "margin": -0.3}]  # inside `_gap`'s band
 
-def _result(status: str, **tiers: str) -> dict:
-    return {"status": status, "tiers": {t: {"status": s, "metrics": [], "notes": []} for t, s in tiers.items()}}
+
+def _result(status: str, metrics: list | None = None, **tiers: str) -> dict:
+    return {"status": status, "tiers": {t: {"status": s, "metrics": metrics or [], "notes": []}
+                                        for t, s in tiers.items()}}
+
+
+def _gap(tier: str = "dynamics", outcome: str = "fail") -> Expectation:
+    return Expectation(tier, outcome, "tendons are not mapped", metric="rollout_zero_qpos", seen=0.2)
 
 
 def test_known_gap_is_expected_fail_and_not_worse():
-    entry = ModelEntry(id="m", source="x", tiers=("dynamics",),
-                       expect={"dynamics": Expectation("dynamics", "fail", "tendons are not mapped")})
-    (v,) = summary.judge(entry, _result("ok", dynamics="fail"))
+    entry = ModelEntry(id="m", source="x", tiers=("dynamics",), expect={"dynamics": _gap()})
+    (v,) = summary.judge(entry, _result("ok", SEEN, dynamics="fail"))
     assert v.outcome == "expected-fail" and not v.worse
-    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": _result("ok", dynamics="fail")})
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": _result("ok", SEEN, dynamics="fail")})
     assert doc["ok"]
     text = summary.markdown(doc, ["dynamics"])
-    assert "| m | expected-fail |" in text and "- m/dynamics (fail): tendons are not mapped" in text
+    assert "| m | expected-fail: rollout_zero_qpos 0.3 " in text and "- m/dynamics (fail): tendons are not mapped" in text
 
 
 @pytest.mark.parametrize("raw,expected,worse", [
@@ -31,9 +37,9 @@ def test_known_gap_is_expected_fail_and_not_worse():
     ("chaotic", "chaotic", False), ("pass", "fail", False), ("skipped", "pass", True),
 ])
 def test_worse_than_expected(raw, expected, worse):
-    expect = {} if expected == "pass" else {"contact": Expectation("contact", expected, "why")}
+    expect = {} if expected == "pass" else {"contact": _gap("contact", expected)}
     entry = ModelEntry(id="m", source="x", tiers=("contact",), expect=expect)
-    (v,) = summary.judge(entry, _result("ok", contact=raw))
+    (v,) = summary.judge(entry, _result("ok", SEEN, contact=raw))
     assert v.worse is worse and v.raw == raw
 
 
@@ -44,8 +50,7 @@ def test_a_crashed_worker_fails_every_tier():
 
 
 def test_a_gap_that_closed_is_listed_for_the_manifest_update():
-    entry = ModelEntry(id="m", source="x", tiers=("dynamics",),
-                       expect={"dynamics": Expectation("dynamics", "fail", "tendons are not mapped")})
+    entry = ModelEntry(id="m", source="x", tiers=("dynamics",), expect={"dynamics": _gap()})
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": _result("ok", dynamics="pass")})
     assert doc["ok"] and doc["better_than_expected"] == ["m/dynamics: pass (expected fail)"]
     assert "update its expectations" in summary.markdown(doc, ["dynamics"])

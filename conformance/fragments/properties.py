@@ -269,6 +269,9 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
         reports[name] = report
         if report.status == "skipped":
             skipped.append(f"{name}: {report.notes[0] if report.notes else 'skipped'}")
+        elif report.status == "diverged":  # never excused: no note or known bug describes a blow-up
+            where = report.divergence.text() if report.divergence else "a metric is not finite"
+            failures.append(f"{name} tier diverged: {where}")
         elif report.status == "fail":
             bug = known_bug(name, result, model) if known_bugs else None
             if _excusable(report, noted):

@@ -30,7 +30,8 @@ import numpy as np
 from loader.tendon import fixed_tendon_terms
 
 from .. import chaos, commands, reference, sapien_side
-from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped
+from ..divergence import Divergence, SpeedBound, first_divergence, first_of
+from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped, verdict
 from ..tolerances import Tolerances
 from .contact import floating_roots, settled
 from .dynamics import disable_contacts, is_floating, settings_mismatches
@@ -120,44 +121,41 @@ class ForceLaw:
         return np.clip(force, self.lo, self.hi)
 
 
-def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.ndarray):
-    """Replay `ctrl` (steps, nu) on SAPIEN through `result.set_ctrl` from (qpos0, qvel0).
-
-    Returns qpos (T+1, nq), every link's pose (T+1, L, 7) and the actuator force law on SAPIEN's state (T, nu)."""
-    steps = ctrl.shape[0]
+def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.ndarray) -> sapien_side.Run:
+    """Replay `ctrl` (steps, nu) on SAPIEN through `result.set_ctrl` from (qpos0, qvel0), with the actuator force
+    law evaluated on SAPIEN's state before each step (`Run.force`, (T, nu))."""
     law = ForceLaw(result)
     clipped = commands.clip_ctrl(model, ctrl)
-    sapien_side.set_state(result, qpos0, qvel0)
-    qpos = np.zeros((steps + 1, model.nq))
-    poses = np.zeros((steps + 1, len(sapien_side.links(result)), 7))
-    force = np.zeros((steps, model.nu))
-    qpos[0] = sapien_side.get_state(result)[0]
-    poses[0] = sapien_side.link_poses(result)
+    force = np.zeros((ctrl.shape[0], model.nu))
     activation = result.actuation.activation if result.actuation is not None else None
-    for t in range(steps):
-        q, v = sapien_side.get_state(result)
+
+    def before_step(t: int, q: np.ndarray, v: np.ndarray) -> None:
         force[t] = law(clipped[t] if activation is None else activation.inputs(clipped[t]), q, v)
         result.set_ctrl(ctrl[t])
-        result.scene.step()
-        qpos[t + 1] = sapien_side.get_state(result)[0]
-        poses[t + 1] = sapien_side.link_poses(result)
-    return qpos, poses, force
+
+    run = sapien_side.rollout(result, qpos0, qvel0, ctrl.shape[0], before_step)
+    run.force = force
+    return run
 
 
-def one_step_qvel(result, run: reference.Rollout, every: int,
-                  float32_relative: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def one_step_qvel(result, run: reference.Rollout, every: int, bound: SpeedBound, dt: float,
+                  float32_relative: float = 0.0) -> tuple[np.ndarray, np.ndarray, Divergence | None]:
     """Every `every` steps: MuJoCo's state into SAPIEN, the same ctrl, one step; |SAPIEN - MuJoCo| velocity,
     less what float32 cannot resolve: `float32_relative` times the larger speed before or after the step (SAPIEN
     holds the state and integrates in float32; a motor spinning a light body up to hundreds of rad/s leaves
-    1e-5 rad/s of rounding)."""
-    out, floors = [], []
+    1e-5 rad/s of rounding). Also the first sampled step whose SAPIEN state left what MuJoCo's run allows."""
+    out, floors, states, sampled = [], [], [], []
     for t in range(0, run.ctrl.shape[0], every):
         sapien_side.set_state(result, run.qpos[t], run.qvel[t], run.act[t])
         result.set_ctrl(run.ctrl[t])
         result.scene.step()
         floors.append(float32_relative * np.maximum(np.abs(run.qvel[t]), np.abs(run.qvel[t + 1])))
-        out.append(np.abs(sapien_side.get_state(result)[1] - run.qvel[t + 1]))
-    return np.array(out), np.array(floors)
+        states.append(sapien_side.get_state(result))
+        sampled.append(t + 1)
+        out.append(np.abs(states[-1][1] - run.qvel[t + 1]))
+    found = first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt,
+                             sampled) if states else None
+    return np.array(out), np.array(floors), found
 
 
 def saturated_steps(model: mujoco.MjModel, force: np.ndarray) -> int:
@@ -230,12 +228,14 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
                       tolerances.setting("chaos", "amplification_limit"))
     every = int(tolerances.setting("actuated", "one_step_every"))
+    bound = SpeedBound.from_tolerances(tolerances)
     mismatched = settings_mismatches(result, ref)
     with actuated_scene(result, qpos0, qvel0, contacts=False):
-        one_step, one_step_floor = one_step_qvel(result, run, every,
-                                                 float(tolerances.setting("actuated", "float32_relative")))
-        sp_qpos, sp_links, sp_force = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
-    err = reference.qpos_difference(ref, run.qpos, sp_qpos)
+        one_step, one_step_floor, diverged = one_step_qvel(
+            result, run, every, bound, dt, float(tolerances.setting("actuated", "float32_relative")))
+        sp = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
+    diverged = first_of(diverged, first_divergence("rollout", sp.qpos, sp.qvel, run.qvel, bound, dt))
+    err = reference.qpos_difference(ref, run.qpos, sp.qpos)
     # float32 holds SAPIEN's coordinates: what it cannot resolve at the size each has reached is not judged
     floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
     judged = gate.judged_steps + 1
@@ -252,13 +252,11 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
                      f"{gate.judged_steps} of {steps}; the rollout is judged on the first {gate.judged_steps} steps")
     rows = sapien_side.body_link_rows(result, model.nbody)
     time = np.arange(steps + 1) * dt
-    trace = Trace("actuated", time, run.qpos, sp_qpos, err, np.zeros((steps + 1, model.nv)), run.body_pose,
-                  sapien_side.bodies_from_links(sp_links, rows), sp_links)
+    trace = Trace("actuated", time, run.qpos, sp.qpos, err, np.zeros((steps + 1, model.nv)), run.body_pose,
+                  sapien_side.bodies_from_links(sp.link_pose, rows), sp.link_pose)
     actuators = ActuatorTrace([a.name for a in result.actuators], time[:-1], commands.clip_ctrl(ref, run.ctrl),
-                              run.actuator_force, sp_force)
-    failed = not all(m.passed for m in metrics)
-    status = "fail" if failed else ("chaotic" if gate.chaotic else "pass")
-    return TierReport("actuated", status, metrics, notes,
+                              run.actuator_force, sp.force)
+    return TierReport("actuated", verdict(metrics, gate.chaotic, diverged), metrics, notes, divergence=diverged,
                       settings={**matched, "steps": steps, "base": kind, "start": start, "chaos": gate.to_dict(),
                                 "ctrl_scale": scale, "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "one_step_every": every},
                       series={"rollout_qpos": np.abs(err).max(axis=1), "chaos_amplification": gate.amplification,
@@ -284,8 +282,9 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     size = tolerances.setting("contact", "perturbation")
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, size, seed), qvel0, steps, None, run.ctrl)
     with actuated_scene(result, qpos0, qvel0, contacts=True):
-        _, sp_links, sp_force = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
-    sp_poses = sapien_side.bodies_from_links(sp_links, sapien_side.body_link_rows(result, model.nbody))
+        sp = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
+    diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
+    sp_poses = sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, model.nbody))
     bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
     mj_final, sp_final, own = settled(run.body_pose), settled(sp_poses), settled(other.body_pose)
     band = np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1)
@@ -302,13 +301,11 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     if chaotic:
         notes.append(f"MuJoCo's own settled pose moves {spread.max():.3g} m under a {size:g} perturbation of the "
                      "start: outcome not predictable")
-    failed = not all(m.passed for m in metrics)
-    status = "fail" if failed else ("chaotic" if chaotic else "pass")
     time = np.arange(steps + 1) * dt
-    return TierReport("actuated_contact", status, metrics, notes,
+    return TierReport("actuated_contact", verdict(metrics, chaotic, diverged), metrics, notes, divergence=diverged,
                       settings={**matched, "steps": steps, "start": start, "ctrl_scale": scale,
                                 "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "mujoco_self_spread": float(spread.max(initial=0.0))},
                       series={"final_pose_band": np.nanmax(np.linalg.norm(
                           sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)},
                       actuators=ActuatorTrace([a.name for a in result.actuators], time[:-1],
-                                              commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp_force))
+                                              commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp.force))

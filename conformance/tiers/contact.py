@@ -11,7 +11,8 @@ import mujoco
 import numpy as np
 
 from .. import chaos, reference, sapien_side
-from ..report import TierReport, metric, skipped
+from ..divergence import SpeedBound, first_divergence
+from ..report import TierReport, metric, skipped, verdict
 from ..tolerances import Tolerances
 from .dynamics import sapien_rollout
 
@@ -43,8 +44,9 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
                       tolerances.setting("chaos", "amplification_limit"))
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed),
                               qvel0, steps, None)
-    _, sp_links = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
-    sp_poses = sapien_side.bodies_from_links(sp_links, sapien_side.body_link_rows(result, model.nbody))
+    sp = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
+    diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
+    sp_poses = sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, model.nbody))
     sapien_side.set_state(result, qpos0, qvel0)
     bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
     mj_final, sp_final, own = settled(run.body_pose), settled(sp_poses), settled(other.body_pose)
@@ -62,9 +64,7 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     if chaotic:
         notes.append(f"MuJoCo's own settled pose moves {spread.max():.3g} m under a "
                      f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable")
-    failed = not all(m.passed for m in metrics)
-    status = "fail" if failed else ("chaotic" if chaotic else "pass")
-    return TierReport("contact", status, metrics, notes,
+    return TierReport("contact", verdict(metrics, bool(chaotic), diverged), metrics, notes, divergence=diverged,
                       settings={**matched, "steps": steps, "start": start, "chaos": gate.to_dict(), "mujoco_self_spread": float(spread.max(initial=0.0))},
                       series={"final_pose_band": np.nanmax(np.linalg.norm(
                           sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)})

@@ -11,7 +11,8 @@ import mujoco
 import numpy as np
 
 from .. import chaos, commands, reference, sapien_side
-from ..report import Metric, TierReport, Trace, metric, skipped
+from ..divergence import Divergence, SpeedBound, first_divergence, first_of
+from ..report import Metric, TierReport, Trace, metric, skipped, verdict
 from ..tolerances import Tolerances
 
 
@@ -25,29 +26,20 @@ def disable_contacts(result) -> None:
     physx.disable_contacts(result)
 
 
-def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray):
-    """Replay `command` (steps, nv) on SAPIEN from (qpos0, qvel0).
-
-    Returns qpos (T+1, nq) in MuJoCo's layout and every link's world pose (T+1, L, 7)."""
-    steps = command.shape[0]
-    sapien_side.set_state(result, qpos0, qvel0)
-    qpos = np.zeros((steps + 1, model.nq))
-    poses = np.zeros((steps + 1, len(sapien_side.links(result)), 7))
-    qpos[0] = sapien_side.get_state(result)[0]
-    poses[0] = sapien_side.link_poses(result)
-    for t in range(steps):
-        sapien_side.apply_generalized_force(result, command[t])
-        result.scene.step()
-        qpos[t + 1] = sapien_side.get_state(result)[0]
-        poses[t + 1] = sapien_side.link_poses(result)
+def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray) -> sapien_side.Run:
+    """Replay `command` (steps, nv), a generalized force per step, on SAPIEN from (qpos0, qvel0)."""
+    run = sapien_side.rollout(result, qpos0, qvel0, command.shape[0],
+                              lambda t, q, v: sapien_side.apply_generalized_force(result, command[t]))
     sapien_side.apply_generalized_force(result, np.zeros(model.nv))
-    return qpos, poses
+    return run
 
 
-def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int) -> dict[str, np.ndarray]:
-    """Per sampled step: |SAPIEN - MuJoCo| of the velocity increment / dt, the velocity and the position."""
+def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
+             bound: SpeedBound) -> tuple[dict[str, np.ndarray], Divergence | None]:
+    """Per sampled step: |SAPIEN - MuJoCo| of the velocity increment / dt, the velocity and the position; and the
+    first sampled step whose SAPIEN state left what MuJoCo's run allows."""
     dt = ref.opt.timestep
-    qacc, qvel, qpos = [], [], []
+    qacc, qvel, qpos, states, sampled = [], [], [], [], []
     for t in range(0, run.command.shape[0], every):
         sapien_side.set_state(result, run.qpos[t], run.qvel[t])
         _, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding
@@ -57,8 +49,12 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int) ->
         qacc.append(np.abs((v1 - v0) - (run.qvel[t + 1] - run.qvel[t])) / dt)
         qvel.append(np.abs(v1 - run.qvel[t + 1]))
         qpos.append(np.abs(reference.qpos_difference(ref, run.qpos[t + 1], q1)))
+        states.append((q1, v1))
+        sampled.append(t + 1)
     sapien_side.apply_generalized_force(result, np.zeros(ref.nv))
-    return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}
+    found = first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt,
+                             sampled) if states else None
+    return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}, found
 
 
 def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
@@ -103,7 +99,8 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     torque_run = reference.rollout(ref, qpos0, qvel0, steps, torque)
     if torque_run.unstable(ref):
         return skipped("dynamics", torque_run.unstable(ref))
-    errs = one_step(result, ref, torque_run, int(tolerances.setting("dynamics", "one_step_every")))
+    bound = SpeedBound.from_tolerances(tolerances)
+    errs, diverged = one_step(result, ref, torque_run, int(tolerances.setting("dynamics", "one_step_every")), bound)
     for name, unit in (("qacc", "rad/s^2 or m/s^2"), ("qvel", "rad/s or m/s"), ("qpos", "rad or m")):
         metrics.append(metric(f"one_step_{name}", errs[name], tolerances[f"dynamics.one_step_{name}_{kind}"], unit))
         series[f"one_step_{name}"] = errs[name].max(axis=1)
@@ -118,8 +115,9 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
             return skipped("dynamics", f"{name} command: {run.unstable(ref)}")
         gate = chaos.gate(ref, run, seed, perturbation, limit)
         gates[name] = gate.to_dict()
-        sp_qpos, sp_links = sapien_rollout(result, model, qpos0, qvel0, run.command)
-        err = reference.qpos_difference(ref, run.qpos, sp_qpos)
+        sp = sapien_rollout(result, model, qpos0, qvel0, run.command)
+        diverged = first_of(diverged, first_divergence(f"rollout {name}", sp.qpos, sp.qvel, run.qvel, bound, dt))
+        err = reference.qpos_difference(ref, run.qpos, sp.qpos)
         judged_err = err[: gate.judged_steps + 1]
         metrics.append(metric(f"rollout_{name}_qpos", judged_err, tolerances[f"dynamics.rollout_qpos_{kind}"],
                               "rad or m"))
@@ -130,13 +128,11 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
             notes.append(f"rollout {name}: MuJoCo amplifies a {perturbation:g} perturbation more than "
                          f"{limit:g}x after step {gate.judged_steps} of {steps}; judged on the first "
                          f"{gate.judged_steps} steps only")
-        traces.append(Trace(name, np.arange(steps + 1) * dt, run.qpos, sp_qpos, err,
+        traces.append(Trace(name, np.arange(steps + 1) * dt, run.qpos, sp.qpos, err,
                             np.vstack([run.command, np.zeros((1, model.nv))]), run.body_pose,
-                            sapien_side.bodies_from_links(sp_links, rows), sp_links))
+                            sapien_side.bodies_from_links(sp.link_pose, rows), sp.link_pose))
     sapien_side.set_state(result, qpos0, qvel0)
-    failed = not all(m.passed for m in metrics)
-    status = "fail" if failed else ("chaotic" if chaotic else "pass")
-    return TierReport("dynamics", status, metrics, notes,
+    return TierReport("dynamics", verdict(metrics, bool(chaotic), diverged), metrics, notes,
                       settings={**matched, "steps": steps, "base": kind, "chaos": gates, "start": start,
                                 "one_step_every": int(tolerances.setting("dynamics", "one_step_every"))},
-                      series=series, traces=traces)
+                      series=series, traces=traces, divergence=diverged)
