@@ -32,6 +32,28 @@ class MissingAssetError(MJCFError):
     """A mesh, height field or texture file named by the model cannot be read."""
 
 
+class ControlError(ValueError):
+    """A command `set_ctrl` / `step` cannot apply: the wrong size, or a value that is not finite. Nothing of the
+    scene or of the activations has changed when it is raised."""
+
+
+def command_vector(path: str, name: str, value, size: int, what: str):
+    """`value` as a float64 vector of `size` finite numbers (None stays None), else ControlError naming the model
+    file, the argument and the fix."""
+    import numpy as np
+
+    if value is None:
+        return None
+    vector = np.asarray(value, dtype=np.float64)
+    if vector.shape != (size,):
+        raise ControlError(f"{path}: {name} has shape {vector.shape}; the model has {size} {what}: pass a vector "
+                           f"of {size} numbers (or None for zeros)")
+    bad = np.flatnonzero(~np.isfinite(vector))
+    if bad.size:
+        raise ControlError(f"{path}: {name}[{int(bad[0])}] is {vector[bad[0]]}: every entry must be finite")
+    return vector
+
+
 @dataclass(frozen=True)
 class Unsupported:
     """A model feature the loader could not map exactly: `kind` is the MJCF concept, `name` the element."""

@@ -21,7 +21,7 @@ from .camera import CameraConfig, SiteConfig, cameras, sites
 from .compile import CompiledModel, compile_mjcf
 from .contact import contacts_disabled, plan_collision_filter
 from .equality import EqualityLink, map_equalities
-from .errors import Notes, Unsupported, UnsupportedFeatureWarning
+from .errors import Notes, Unsupported, UnsupportedFeatureWarning, command_vector
 from .features import find_unmapped
 from .fluid import plan_fluid
 from .geom import collides, plan_shape
@@ -105,19 +105,23 @@ class LoadResult:
         Actuators with activation dynamics use the activation and take it one step further (`advance`): call it
         once per step, or with `advance=False` to re-apply the same step. `qfrc_applied`: MuJoCo's generalized
         force (size nv) on top; write it here rather than with `set_qf`, which would overwrite the loader's terms.
+        A vector of the wrong size or with a non-finite entry raises ControlError and changes nothing.
         """
+        ctrl = command_vector(self.path, "ctrl", ctrl, self.model.nu, "actuators (nu)")
+        qfrc_applied = command_vector(self.path, "qfrc_applied", qfrc_applied, self.model.nv, "DoFs (nv)")
         if self.actuation is not None:
             applied = None
             if qfrc_applied is not None:
-                applied = self.mapping.qfrc_to_sapien(np.asarray(qfrc_applied, dtype=float), self.articulations)
+                applied = self.mapping.qfrc_to_sapien(qfrc_applied, self.articulations)
             self.actuation.set_ctrl(self.articulations, ctrl, applied, advance)
 
     def step(self, ctrl=None, substeps: int = 1, qfrc_applied=None) -> None:
         """`substeps` physics steps under one MuJoCo ctrl (None: the last one given), `set_ctrl` before each:
         a controller running slower than the simulation keeps the state-dependent terms (friction, tendons,
         force clamps, explicit gains, activations) of every step, as MuJoCo with the same ctrl held would."""
+        qfrc_applied = command_vector(self.path, "qfrc_applied", qfrc_applied, self.model.nv, "DoFs (nv)")
         if ctrl is not None:
-            self.held_ctrl = np.asarray(ctrl, dtype=float).copy()
+            self.held_ctrl = command_vector(self.path, "ctrl", ctrl, self.model.nu, "actuators (nu)").copy()
         for _ in range(substeps):
             self.set_ctrl(self.held_ctrl, qfrc_applied)
             self.scene.step()

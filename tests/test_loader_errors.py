@@ -32,3 +32,49 @@ def test_unknown_default_class_is_rejected_with_mujocos_message():
 def test_a_path_that_is_not_a_file():
     with pytest.raises(MJCFError):
         MJCFLoader().load(FIXTURES / "does_not_exist.xml")
+
+
+ARM = """<mujoco><option timestep="0.002"/><worldbody><body name="arm" pos="0 0 1">
+  <joint name="hinge" axis="0 1 0" damping="0.1"/>
+  <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/></body></worldbody>
+  <actuator><position joint="hinge" kp="5" kv="0.2"/><general joint="hinge" dyntype="filter" dynprm="0.05"/>
+  </actuator></mujoco>"""
+
+
+def _arm_state(result) -> tuple:
+    import numpy as np
+
+    art, joint = result.articulations[0], result.articulations[0].active_joints[0]
+    return (np.array(art.qf), float(joint.drive_target[0]), float(joint.drive_velocity_target[0]),
+            result.act.copy(), np.array(art.qpos), np.array(art.qvel))
+
+
+@pytest.mark.parametrize("ctrl,qfrc,message", [
+    ([0.3], None, r"ctrl has shape \(1,\); the model has 2 actuators"),
+    ([0.3, 0.1, 0.0], None, "ctrl has shape"),
+    ([float("nan"), 0.1], None, r"ctrl\[0\] is nan"),
+    ([0.3, float("inf")], None, r"ctrl\[1\] is inf"),
+    ([0.3, 0.1], [float("nan")], r"qfrc_applied\[0\] is nan"),
+    ([0.3, 0.1], [1.0, 2.0], r"qfrc_applied has shape \(2,\); the model has 1 DoFs"),
+])
+def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, message):
+    import mujoco
+    import numpy as np
+
+    from loader import ControlError
+
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(ARM))
+    result.set_ctrl([0.5, 1.0])
+    result.scene.step()
+    result.set_ctrl([0.5, 1.0])
+    before = _arm_state(result)
+    with pytest.raises(ControlError, match=message) as error:
+        result.set_ctrl(ctrl, qfrc_applied=qfrc)
+    assert str(error.value).startswith(result.path)
+    with pytest.raises(ControlError):
+        result.step(ctrl, qfrc_applied=qfrc)
+    after = _arm_state(result)
+    for a, b in zip(before, after):
+        np.testing.assert_array_equal(a, b)
+    result.scene.step()  # the rejected commands reached nothing PhysX steps
+    assert np.isfinite(result.articulations[0].qvel).all()
