@@ -56,6 +56,7 @@ class LoadResult:
     equalities: list[EqualityLink] = field(default_factory=list)
     actuation: Actuation | None = field(default=None, repr=False)
     held_ctrl: np.ndarray | None = field(default=None, init=False, repr=False)  # the ctrl `step` holds
+    _saved_collision_groups: list | None = field(default=None, init=False, repr=False)  # while contacts are off
 
     @property
     def articulation(self) -> sapien.physx.PhysxArticulation | None:
@@ -145,6 +146,16 @@ class LoadResult:
         What needs `set_ctrl` every step (frictionloss, tendons, clamps, fluid) is then not carried."""
         if self.actuation is not None:
             self.actuation.release(self.articulations)
+
+    def set_contacts(self, enabled: bool) -> None:
+        """Turn every collision shape of this load off (contact-free simulation) or back on with the groups it had;
+        the state is left as it is. Safe in any order with stepping (a plain restore of zeroed collision groups
+        can crash PhysX: `physx.disable_contacts`)."""
+        if not enabled and self._saved_collision_groups is None:
+            self._saved_collision_groups = physx.disable_contacts(self)
+        elif enabled and self._saved_collision_groups is not None:
+            physx.restore_contacts(self, self._saved_collision_groups)
+            self._saved_collision_groups = None
 
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from models import FIXTURES, menagerie_root
 
-from loader import MJCFLoader, physx
+from loader import MJCFLoader
 
 SERVO_TOLERANCE = 2e-5  # rad, measured 3e-6
 COUPLING_TOLERANCE = 1e-2  # rad, measured 4.4e-3 (soft equality)
@@ -25,7 +25,7 @@ needs_menagerie = pytest.mark.skipif(menagerie_root() is None, reason="Menagerie
 
 def _contact_free(path, mutate=None):
     result = MJCFLoader().load(path)
-    physx.disable_contacts(result)
+    result.set_contacts(False)
     model = result.model
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST

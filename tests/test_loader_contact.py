@@ -79,3 +79,48 @@ def test_filter_bits_running_out_is_reported_not_silent(tmp_path):
     assert len(overflow) == 39 - 32
     # everything else still agrees with MuJoCo
     assert not collision_filter_mismatches(result)
+
+
+SWITCH_CONTACTS = """
+import sys, warnings
+import numpy as np
+warnings.simplefilter("ignore")
+import loader.physx
+from loader import MJCFLoader
+result = MJCFLoader(ignore_classes=[]).load(sys.argv[1])
+before = (result.articulations[0].get_qpos().copy(), result.articulations[0].get_qvel().copy())
+if sys.argv[2] == "no-warm-up":  # the deliberate mistake: the groups zeroed with no step before
+    loader.physx.warm_up = lambda scene: None
+result.set_contacts(False)
+after = (result.articulations[0].get_qpos(), result.articulations[0].get_qvel())
+assert all(np.array_equal(a, b) for a, b in zip(before, after)), "switching contacts off moved the state"
+for _ in range(5):
+    result.scene.step()
+result.set_contacts(True)
+for _ in range(20):
+    result.scene.step()
+print("survived", flush=True)
+"""
+
+
+def _switch_contacts(mistake: str) -> int:
+    """In a fresh process (a PhysX crash is a segfault): contacts off before the scene's first step, five steps,
+    contacts back on, twenty steps. The process's exit code."""
+    import subprocess
+    import sys
+
+    from models import suite_path
+
+    proc = subprocess.run([sys.executable, "-c", SWITCH_CONTACTS, str(suite_path("manipulator")), mistake],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode != 0 or "survived" in proc.stdout, proc.stderr
+    return proc.returncode
+
+
+def test_contacts_switched_off_before_the_first_step_come_back_without_a_crash():
+    assert _switch_contacts("none") == 0
+
+
+def test_a_plain_restore_of_zeroed_collision_groups_crashes_physx():
+    """The deliberate mistake: the groups zeroed without `disable_contacts`' warm-up step (SAPIEN 3.0.3)."""
+    assert _switch_contacts("no-warm-up") == -11
