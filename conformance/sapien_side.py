@@ -22,7 +22,6 @@ class Run:
     force: np.ndarray | None = None
 
 
-
 def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.ndarray, np.ndarray], None]) -> Run:
     """Step SAPIEN `steps` times from (qpos0, qvel0), calling `before_step(t, qpos, qvel)` with the state read back
     before each step (it writes the step's command); records the state and every link's pose after each step."""
@@ -131,19 +130,8 @@ def apply_generalized_force(result, qfrc: np.ndarray) -> None:
     result.set_ctrl(None, qfrc_applied=np.asarray(qfrc, dtype=float))
 
 
-def all_shapes(result):
-    """Every collision shape PhysX simulates: (owner label, component, shape) for links and static actors."""
-    for a, art in enumerate(result.articulations):
-        for link in art.links:
-            for shape in link.collision_shapes:
-                yield f"art{a}/{link.name}", link, shape
-    for i, actor in enumerate(result.actors):
-        component = rigid_component(actor)
-        for shape in component.collision_shapes:
-            yield f"static{i}/{actor.name}", component, shape
-
-
-
 def contacts_enabled(result) -> bool:
     """Whether any shape can still collide (`dynamics` and `actuated` zero every shape's groups)."""
-    return any(g[0] or g[1] for _, _, shape in all_shapes(result) for g in [shape.get_collision_groups()])
+    from loader.physx import collision_shapes
+
+    return any(g[0] or g[1] for shape in collision_shapes(result) for g in [shape.get_collision_groups()])

@@ -72,8 +72,7 @@ def headline(model_status: str, verdicts: list[Verdict]) -> str:
     outcome; a divergence names its tier and first bad step."""
     if not verdicts:
         return model_status
-    order = {"pass": 0, "chaotic": 1, "skipped": 2, "expected-fail": 3, "fail": 4, "changed": 5, "diverged": 6}
-    worst = max(verdicts, key=lambda v: (v.worse, order.get(v.outcome, 0)))
+    worst = max(verdicts, key=lambda v: (v.worse, OUTCOME_RANK[v.raw]))
     text = worst.outcome if not worst.worse else f"{worst.outcome} (expected {worst.expected})"
     if worst.outcome == "pass":
         return "pass"
