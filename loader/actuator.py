@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from . import drive
+from . import drive, mj
 from .activation import MAPPED as MAPPED_DYNAMICS
 from .activation import Activation
 from .drive import DofDrive
@@ -126,7 +126,7 @@ class Actuation:
         articulation, SAPIEN's DoF order) on top. `advance`: take the activations one step (once per step)."""
         model = self.model
         ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
-        clamp = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
+        clamp = not mj.disabled(model, "clampctrl")
         if clamp and model.nu:
             limited = model.actuator_ctrllimited.astype(bool)
             ctrl[limited] = np.clip(ctrl[limited], *model.actuator_ctrlrange[limited].T)
@@ -362,7 +362,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
     actuation.limits = limit_rows(model, mapping, notes)
     if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype):
         actuation.activation = Activation(model)
-    disabled = bool(model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    disabled = mj.disabled(model, "actuation")
     for a in range(model.nu):
         entry = _plan_one(model, mapping, a, disabled, actuation)
         actuation.actuators.append(entry)
@@ -384,7 +384,7 @@ def plan_actuation(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Act
 
 
 def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
-    name = model.actuator(a).name or f"actuator{a}"
+    name = mj.name(model, "actuator", a)
     gear = float(model.actuator_gear[a][0])
     ctrlrange = tuple(float(x) for x in model.actuator_ctrlrange[a]) if model.actuator_ctrllimited[a] else None
     forcerange = tuple(float(x) for x in model.actuator_forcerange[a]) if model.actuator_forcelimited[a] else None
@@ -414,7 +414,7 @@ def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
         dof_drive = actuation.drives[key]
         dof_drive.stiffness += stiffness
         dof_drive.damping += damping
-        base.update(joint=model.joint(target).name or f"joint{target}", articulation=joint.articulation,
+        base.update(joint=mj.name(model, "joint", target), articulation=joint.articulation,
                     dofs=joint.dofs)
         return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping))
     if trn == int(TRN.mjTRN_TENDON):
@@ -428,7 +428,7 @@ def _plan_one(model, mapping, a, disabled, actuation) -> ActuatorMap:
                 return ActuatorMap(**base, mapped=False, reason="its tendon crosses a ball or free joint")
             mapped_terms.append((joint.articulation, joint.dofs[0], coefficient))
         actuation.tendon_terms[a] = mapped_terms
-        base.update(tendon=model.tendon(target).name or f"tendon{target}",
+        base.update(tendon=mj.name(model, "tendon", target),
                     articulation=mapped_terms[0][0], dofs=tuple(d for _, d, _ in mapped_terms))
         return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2), damping=float(-bias[2] * gear**2))
     kind = TRN(trn).name.removeprefix("mjTRN_").lower()

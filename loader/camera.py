@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import sapien
 
+from . import mj
 from .frames import mat_to_quat, pose, quat_mul
-from .tree import body_name
 
 # SAPIEN cameras look along +X with +Z up; MuJoCo's look along -Z with +Y up.
 # Columns: SAPIEN's x, y, z axes written in MuJoCo camera axes.
@@ -42,8 +42,8 @@ def cameras(model: mujoco.MjModel) -> list[CameraConfig]:
         width, height = (int(x) for x in model.cam_resolution[c])
         result.append(
             CameraConfig(
-                name=model.camera(c).name or f"camera{c}",
-                body=body_name(model, int(model.cam_bodyid[c])),
+                name=mj.name(model, "camera", c),
+                body=mj.name(model, "body", int(model.cam_bodyid[c])),
                 pose=pose(model.cam_pos[c], q),
                 fovy=float(np.deg2rad(model.cam_fovy[c])),
                 width=width,
@@ -58,7 +58,7 @@ def cameras(model: mujoco.MjModel) -> list[CameraConfig]:
 def sites(model: mujoco.MjModel) -> dict[str, SiteConfig]:
     result = {}
     for s in range(model.nsite):
-        name = model.site(s).name or f"site{s}"
-        result[name] = SiteConfig(name, body_name(model, int(model.site_bodyid[s])),
+        name = mj.name(model, "site", s)
+        result[name] = SiteConfig(name, mj.name(model, "body", int(model.site_bodyid[s])),
                                   pose(model.site_pos[s], model.site_quat[s]))
     return result

@@ -16,8 +16,9 @@ from itertools import combinations
 import mujoco
 import numpy as np
 
+from . import mj
 from .errors import Notes
-from .tree import TreePlan, body_name
+from .tree import TreePlan
 
 GROUP_BITS = 32
 
@@ -33,12 +34,6 @@ class CollisionFilter:
         return [int(model.geom_contype[geom]), int(model.geom_conaffinity[geom]), g2, g3]
 
 
-def contacts_disabled(model: mujoco.MjModel) -> bool:
-    """`<flag contact="disable"/>` or `<flag constraint="disable"/>`: MuJoCo makes no contact at all."""
-    flags = mujoco.mjtDisableBit
-    return bool(model.opt.disableflags & (flags.mjDSBL_CONTACT | flags.mjDSBL_CONSTRAINT))
-
-
 def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]]) -> bool:
     """True when MuJoCo never generates a contact between bodies b1 and b2."""
     weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
@@ -46,7 +41,7 @@ def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[
         return True
     parent1 = int(model.body_weldid[model.body_parentid[weld1]])
     parent2 = int(model.body_weldid[model.body_parentid[weld2]])
-    filter_parent = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    filter_parent = not mj.disabled(model, "filterparent")
     if filter_parent and weld1 != 0 and weld2 != 0 and (weld1 == parent2 or weld2 == parent1):
         return True
     return (min(b1, b2), max(b1, b2)) in excluded
@@ -86,7 +81,7 @@ def plan_collision_filter(
             if not physx_skips:
                 must_exclude.append((b1, b2))
         elif physx_skips:
-            notes.approximate("contact", f"{body_name(model, b1)}/{body_name(model, b2)}",
+            notes.approximate("contact", f"{mj.name(model, 'body', b1)}/{mj.name(model, 'body', b2)}",
                               "PhysX never lets a link touch its direct parent; MuJoCo would let these bodies touch")
         else:
             must_collide.add((b1, b2))
@@ -125,7 +120,7 @@ def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, not
                     break
             else:
                 if len(bit_members) == GROUP_BITS:
-                    notes.drop("contact", f"{body_name(model, a)}/{body_name(model, b)}",
+                    notes.drop("contact", f"{mj.name(model, 'body', a)}/{mj.name(model, 'body', b)}",
                                "filtered by MuJoCo but not expressible in PhysX's 32 group bits: may collide")
                     continue
                 bit_members.append({a, b})

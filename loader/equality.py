@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 import sapien
 
+from . import mj
 from .connect import SoftConnect, SoftWeld
 from .errors import Notes
 from .impedance import SoftRow, diag_approx
@@ -42,10 +43,6 @@ class EqualityLink:
     mapped: bool
     reason: str = ""
     soft: SoftConnect | None = None  # a connect's or weld's per-step soft law (`connect.py`)
-
-
-def _name(model: mujoco.MjModel, e: int) -> str:
-    return model.equality(e).name or f"equality{e}"
 
 
 def soft_gains(model: mujoco.MjModel, e: int, jacobian: np.ndarray, data: mujoco.MjData) -> tuple[float, float]:
@@ -70,21 +67,17 @@ def _joint_dof(model: mujoco.MjModel, mapping: Mapping, joint: int) -> tuple[int
 def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, mapping: Mapping,
                    notes: Notes) -> list[EqualityLink]:
     result = []
-    if model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_EQUALITY | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
+    if mj.disabled(model, "equality", "constraint"):
         return result  # MuJoCo enforces none of them (<flag equality/constraint="disable"/>)
     at_qpos0 = []  # MuJoCo's forward pass at qpos0 with every equality on, made once (effective masses, diagApprox)
 
     def qpos0_data() -> mujoco.MjData:
         if not at_qpos0:
-            data = mujoco.MjData(model)
-            data.qpos[:] = model.qpos0
-            data.eq_active[:] = 1
-            mujoco.mj_forward(model, data)
-            at_qpos0.append(data)
+            at_qpos0.append(mj.forward_at(model, all_equalities=True))
         return at_qpos0[0]
 
     for e in range(model.neq):
-        name = _name(model, e)
+        name = mj.name(model, "equality", e)
         etype = int(model.eq_type[e])
         if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)) and not model.eq_active0[e]:
             reason = "inactive at start: a PhysX fixed tendon cannot be switched on later"

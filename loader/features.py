@@ -5,13 +5,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .contact import contacts_disabled
+from . import mj
 from .errors import Notes
-from .joint import limits_disabled
-
-
-def _name(obj, index: int, kind: str) -> str:
-    return obj.name or f"{kind}{index}"
 
 
 def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
@@ -20,28 +15,27 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
     for i in range(model.nplugin):
         notes.drop("plugin", f"plugin{i}", "engine plugins (sdf, elasticity, ...) cannot run inside PhysX")
     for i in range(model.npair):
-        notes.drop("contact pair", _name(model.pair(i), i, "pair"),
+        notes.drop("contact pair", mj.name(model, "pair", i),
                    "explicit <pair> contacts (which bypass the contype/conaffinity filter) are not mapped")
     for b in range(model.nbody):
         if model.body_mocapid[b] >= 0:
-            notes.approximate("body", _name(model.body(b), b, "body"),
+            notes.approximate("body", mj.name(model, "body", b),
                               "mocap body loaded as a fixed link at its initial pose")
     for j in range(model.njnt):
         dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + _dof_count(model, j))
         if np.any(model.jnt_stiffnesspoly[j]) or any(np.any(model.dof_dampingpoly[d]) for d in dofs):
-            notes.drop("joint", _name(model.joint(j), j, "joint"),
+            notes.drop("joint", mj.name(model, "joint", j),
                        "nonlinear (polynomial) stiffness or damping: only the linear term is mapped")
     for a in range(model.nu):
         if model.actuator_damping[a] or np.any(model.actuator_dampingpoly[a]) or model.actuator_armature[a]:
-            notes.drop("actuator", _name(model.actuator(a), a, "actuator"),
+            notes.drop("actuator", mj.name(model, "actuator", a),
                        "actuator damping/armature (passive terms on the transmission) are not mapped")
-    if any(model.jnt_limited) and not limits_disabled(model):
+    if any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"):
         notes.approximate("joint", "limits", "MuJoCo's soft limit rows ride on the joint drives one row at a time "
                           "(loader/limit.py, set_ctrl every step): rows MuJoCo solves together (joints at their "
                           "limits that move together) are approximate; PhysX's hard limits after release()")
     integrator = int(model.opt.integrator)
-    if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and model.opt.disableflags & int(
-            mujoco.mjtDisableBit.mjDSBL_EULERDAMP) and np.any(model.dof_damping):
+    if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and mj.disabled(model, "eulerdamp") and np.any(model.dof_damping):
         notes.approximate("option", "flag eulerdamp", "joint damping is explicit in MuJoCo with eulerdamp disabled; "
                           "PhysX drives apply it implicitly (first order in the timestep apart)")
     if integrator == int(mujoco.mjtIntegrator.mjINT_RK4):
@@ -50,9 +44,9 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
     elif integrator == int(mujoco.mjtIntegrator.mjINT_IMPLICIT):
         notes.approximate("option", "integrator", "implicit's Coriolis and actuator-gain derivatives are not "
                           "mapped: simulated as MuJoCo's implicitfast, first order in the timestep apart over a fixed time")
-    if contacts_disabled(model):
+    if mj.disabled(model, "contact", "constraint"):
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
-    if limits_disabled(model):
+    if mj.disabled(model, "limit", "constraint"):
         notes.approximate("option", "flag limit", "limits disabled in the model: every joint is unlimited")
 
 

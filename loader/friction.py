@@ -27,10 +27,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from . import mj
 from .drive import DofDrive
 from .errors import Notes
 from .mapping import Mapping
-from .tree import forward_at_qpos0, inverse_inertia
 
 
 @dataclass(frozen=True)
@@ -57,10 +57,10 @@ def friction_rows(model: mujoco.MjModel, mapping: Mapping) -> dict[tuple[int, in
     """The friction row of every frictional hinge/slide DoF, by (articulation, SAPIEN dof)."""
     if not model.dof_frictionloss.any():
         return {}
-    data = forward_at_qpos0(model)
+    data = mj.forward_at(model)
     rows = {int(data.efc_id[i]): (float(data.efc_KBIP[i][1]), float(data.efc_R[i])) for i in range(data.nefc)
             if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)}
-    inverse = np.diag(inverse_inertia(model, data))
+    inverse = np.diag(mj.inverse_inertia(model, data))
     out = {}
     for j, target in enumerate(mapping.joints):
         dof = int(model.jnt_dofadr[j])
@@ -93,7 +93,7 @@ def note_coupled_friction(model: mujoco.MjModel, mapping: Mapping, actuation, no
         root = _root_dof(model, dof_of[key])
         others = [k for k in damped if k != key and k in dof_of and _root_dof(model, dof_of[k]) == root]
         if others:
-            name = model.joint(j).name or f"joint{j}"
+            name = mj.name(model, "joint", j)
             notes.approximate("joint", name, f"frictionloss {actuation.friction[key].limit:g} exact while the joint "
                               f"slides; while it sticks, MuJoCo's coupling through the implicit damping of "
                               f"{len(others)} other DoF(s) moving with it is taken on the diagonal only")

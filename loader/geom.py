@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import sapien
 
+from . import mj
 from .errors import Notes
 from .frames import X_TO_Z, pose
 
@@ -40,10 +41,6 @@ class ShapePlan:
     scale: np.ndarray = field(default_factory=lambda: np.ones(3))
     friction: float = 1.0
     groups: list[int] = field(default_factory=lambda: [0, 0, 0, 0])
-
-
-def geom_name(model: mujoco.MjModel, g: int) -> str:
-    return model.geom(g).name or f"geom{g}"
 
 
 def collides(model: mujoco.MjModel, g: int) -> bool:
@@ -98,7 +95,7 @@ def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes) -> Sha
     size = model.geom_size[g]
     geom_pose = pose(model.geom_pos[g], model.geom_quat[g])
     friction = float(model.geom_friction[g][0])
-    name = geom_name(model, g)
+    name = mj.name(model, "geom", g)
     if gtype == SPHERE:
         return ShapePlan(g, "sphere", geom_pose, np.array([size[0], 0, 0]), friction=friction)
     if gtype == BOX:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from . import mj
 from .errors import Notes
 from .mapping import Mapping
 
@@ -32,7 +33,7 @@ class GravityCompensation:
 def map_gravcomp(model: mujoco.MjModel, mapping: Mapping, articulations, notes: Notes) -> GravityCompensation | None:
     """Links of fully compensated bodies stop feeling gravity; the others get their per-step force."""
     gravity = np.asarray(model.opt.gravity, np.float64)
-    if not np.any(model.body_gravcomp) or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY \
+    if not np.any(model.body_gravcomp) or mj.disabled(model, "gravity") \
             or not np.any(gravity):
         return None
     if np.any(model.jnt_actgravcomp):

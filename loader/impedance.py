@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from . import mj
 from .compile import MJMINVAL
 
 
@@ -31,7 +32,7 @@ class SoftRow:
         timeconst, dampratio = (float(x) for x in solref)
         dmax = min(max(float(solimp[1]), 0.0001), 0.9999)
         if timeconst > 0:
-            if not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE:
+            if not mj.disabled(model, "refsafe"):
                 timeconst = max(timeconst, 2.0 * float(model.opt.timestep))
             stiffness = 1.0 / max(MJMINVAL, dmax * dmax * timeconst * timeconst * dampratio * dampratio)
             damping = 2.0 / max(MJMINVAL, dmax * timeconst)

@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import sapien
 
+from . import mj
 from .errors import Notes
 from .frames import pose, quat_from_axis_angle, quat_x_to
 
@@ -22,25 +23,14 @@ SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
 BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 KIND = {HINGE: "hinge", SLIDE: "slide", BALL: "ball", FREE: "free"}
-_DSBL = mujoco.mjtDisableBit
-
-
-def springs_on(model: mujoco.MjModel) -> bool:
-    """MuJoCo applies joint and tendon springs (`<flag spring="disable"/>` turns them off)."""
-    return not model.opt.disableflags & int(_DSBL.mjDSBL_SPRING)
-
-
-def dampers_on(model: mujoco.MjModel) -> bool:
-    """MuJoCo applies joint and tendon damping (`<flag damper="disable"/>` turns it off)."""
-    return not model.opt.disableflags & int(_DSBL.mjDSBL_DAMPER)
 
 
 def joint_stiffness(model: mujoco.MjModel, j: int) -> float:
-    return float(model.jnt_stiffness[j]) if springs_on(model) else 0.0
+    return float(model.jnt_stiffness[j]) if not mj.disabled(model, "spring") else 0.0
 
 
 def dof_damping(model: mujoco.MjModel, dof: int) -> float:
-    return float(model.dof_damping[dof]) if dampers_on(model) else 0.0
+    return float(model.dof_damping[dof]) if not mj.disabled(model, "damper") else 0.0
 
 
 @dataclass
@@ -62,20 +52,10 @@ class JointPlan:
     ball_axis: int | None = None  # 0, 1, 2 for the three revolutes of a ball joint
 
 
-def limits_disabled(model: mujoco.MjModel) -> bool:
-    """`<flag limit="disable"/>` or `<flag constraint="disable"/>`: MuJoCo enforces no joint limit."""
-    flags = mujoco.mjtDisableBit
-    return bool(model.opt.disableflags & (flags.mjDSBL_LIMIT | flags.mjDSBL_CONSTRAINT))
-
-
-def joint_name(model: mujoco.MjModel, j: int) -> str:
-    return model.joint(j).name or f"joint{j}"
-
-
 def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     """One MuJoCo joint as the chain of SAPIEN joints that reproduces it (empty for a free joint)."""
     jtype = int(model.jnt_type[j])
-    name = joint_name(model, j)
+    name = mj.name(model, "joint", j)
     anchor = model.jnt_pos[j].copy()
     dof = model.jnt_dofadr[j]
     damping = dof_damping(model, dof)
@@ -91,7 +71,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
                            "joint to carry it")
         return []
     if jtype in (HINGE, SLIDE):
-        limited = bool(model.jnt_limited[j]) and not limits_disabled(model)
+        limited = bool(model.jnt_limited[j]) and not mj.disabled(model, "limit", "constraint")
         limits = tuple(float(x) for x in model.jnt_range[j]) if limited else (-np.inf, np.inf)
         ref = float(model.qpos0[model.jnt_qposadr[j]])
         axis = model.jnt_axis[j]

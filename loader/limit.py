@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from . import mj
 from .drive import DofDrive
 from .errors import Notes
 from .impedance import SoftRow
 from .mapping import Mapping
-from .tree import forward_at_qpos0, inverse_inertia
 
 WIDEN = 0.25  # PhysX's hard limit sits this fraction of the range (at least 0.1 rad or m) beyond MuJoCo's ends
 ACCELERATION_BOUND = 100.0  # the row force covers row accelerations up to this (rad/s^2 or m/s^2) ...
@@ -104,13 +104,13 @@ def coupled_joints(model: mujoco.MjModel) -> set[int]:
 def limit_rows(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> dict[tuple[int, int], LimitRow]:
     """MuJoCo's limit rows for every limited hinge/slide DoF without frictionloss and not coupled to other rows
     (`coupled_joints`), by (articulation, SAPIEN dof)."""
-    if model.opt.disableflags & (mujoco.mjtDisableBit.mjDSBL_LIMIT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT):
+    if mj.disabled(model, "limit", "constraint"):
         return {}
     limited = [j for j, target in enumerate(mapping.joints)
                if model.jnt_limited[j] and target.kind in ("hinge", "slide")]
     if not limited:
         return {}
-    inverse = np.diag(inverse_inertia(model, forward_at_qpos0(model)))
+    inverse = np.diag(mj.inverse_inertia(model, mj.forward_at(model)))
     coupled = coupled_joints(model)
     out = {}
     for j in limited:
@@ -118,7 +118,7 @@ def limit_rows(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> dict[tu
         why = ("the joint's drive carries its frictionloss" if model.dof_frictionloss[dof] > 0 else
                "an equality or tendon couples the joint" if j in coupled else "")
         if why:
-            notes.approximate("joint", model.joint(j).name or f"joint{j}", f"limit kept as PhysX's hard limit: {why} "
+            notes.approximate("joint", mj.name(model, "joint", j), f"limit kept as PhysX's hard limit: {why} "
                               "(MuJoCo's limit is soft: solreflimit)")
             continue
         lower, upper = (float(x) for x in model.jnt_range[j])

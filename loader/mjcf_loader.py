@@ -14,12 +14,12 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import physx
+from . import mj, physx
 from .actuator import Actuation, ActuatorMap, plan_actuation
 from .builders import MJCFActorBuilder, MJCFArticulationBuilder
 from .camera import CameraConfig, SiteConfig, cameras, sites
 from .compile import CompiledModel, compile_mjcf
-from .contact import contacts_disabled, plan_collision_filter
+from .contact import plan_collision_filter
 from .equality import EqualityLink, map_equalities
 from .errors import Notes, Unsupported, UnsupportedFeatureWarning, command_vector
 from .features import find_unmapped
@@ -248,7 +248,7 @@ class MJCFLoader:
         geom_class = {g.id: g.classname.name for g in compiled.spec.geoms}
         kept = [g for g in range(model.ngeom) if geom_class.get(g) not in self.ignore_classes]
         static = {0} | ({b for b in range(model.nbody) if model.body_weldid[b] == 0} if self.fix_root_link else set())
-        contact_off = contacts_disabled(model)
+        contact_off = mj.disabled(model, "contact", "constraint")
         shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes)
                   for g in kept if collides(model, g)}
         shapes = {g: s for g, s in shapes.items() if s is not None}

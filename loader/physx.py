@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import drive
+from . import drive, mj
 from .drive import DofDrive
 
 MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
@@ -25,7 +25,7 @@ def configure(model: mujoco.MjModel) -> None:
 
     PGS (not TGS): TGS adds an O(timestep) gap to MuJoCo's semi-implicit Euler (FACTS.md).
     """
-    gravity = np.zeros(3) if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else model.opt.gravity
+    gravity = np.zeros(3) if mj.disabled(model, "gravity") else model.opt.gravity
     sapien.physx.set_scene_config(gravity=np.asarray(gravity, np.float32), enable_tgs=False)
     sapien.physx.set_body_config(sleep_threshold=0.0)
 

@@ -21,11 +21,11 @@ import math
 import mujoco
 import numpy as np
 
+from . import mj
 from .actuator import Actuation
 from .drive import DofDrive
 from .mapping import Mapping
 from .tendon import IMPLICIT
-from .tree import forward_at_qpos0, inverse_inertia
 
 RESIDUAL = 1e-6  # the fraction of a drive impulse's error left after the sweeps
 MAX_ITERATIONS = 255  # PhysX's limit for an articulation
@@ -51,8 +51,8 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping,
                 qpos: np.ndarray | None = None) -> dict[int, float]:
     """Per articulation with at least two rows: the Gauss-Seidel radius of its drive and soft connect rows at
     qpos0 (or `qpos`)."""
-    data = forward_at_qpos0(model, qpos)
-    inverse = inverse_inertia(model, data)
+    data = mj.forward_at(model, qpos)
+    inverse = mj.inverse_inertia(model, data)
     dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
     implicit = int(model.opt.integrator) in IMPLICIT

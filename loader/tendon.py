@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from .joint import dampers_on, springs_on
+from . import mj
 
 
 def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, float]]:
@@ -109,7 +109,7 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     D J J^T and in its spring (2.3e-3 rad over 1 s on that fixture)."""
     out = []
     for t in range(model.ntendon):
-        name = model.tendon(t).name or f"tendon{t}"
+        name = mj.name(model, "tendon", t)
         terms = fixed_tendon_terms(model, t)
         if not terms:
             notes.drop("tendon", name, "spatial tendon: PhysX has no path-wrapping tendon")
@@ -120,8 +120,8 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
             notes.drop("tendon", name, f"tendon frictionloss {model.tendon_frictionloss[t]:g} not mapped")
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
-        stiffness = float(model.tendon_stiffness[t]) if springs_on(model) else 0.0
-        damping = float(model.tendon_damping[t]) if dampers_on(model) else 0.0
+        stiffness = float(model.tendon_stiffness[t]) if not mj.disabled(model, "spring") else 0.0
+        damping = float(model.tendon_damping[t]) if not mj.disabled(model, "damper") else 0.0
         if stiffness == 0 and damping == 0:
             continue  # a transmission only: actuators and equalities read it
         mapped = []

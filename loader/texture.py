@@ -11,6 +11,8 @@ import numpy as np
 _TYPES = {int(mujoco.mjtTexture.mjTEXTURE_2D): "2d", int(mujoco.mjtTexture.mjTEXTURE_CUBE): "cube",
           int(mujoco.mjtTexture.mjTEXTURE_SKYBOX): "skybox"}
 
+from . import mj
+
 
 @dataclass
 class MJCFTexture:
@@ -32,7 +34,7 @@ def textures(spec: mujoco.MjSpec, model: mujoco.MjModel) -> list[MJCFTexture]:
         pixels = model.tex_data[start : start + height * width * channels].reshape(height, width, channels)
         result.append(
             MJCFTexture(
-                name=model.texture(t).name or f"texture{t}",
+                name=mj.name(model, "texture", t),
                 type=_TYPES.get(int(model.tex_type[t]), "2d"),
                 rgb1=[float(x) for x in authored.rgb1],
                 rgb2=[float(x) for x in authored.rgb2],

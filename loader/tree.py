@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import sapien
 
+from . import mj
 from .errors import Notes
 from .frames import pose
 from .joint import FREE, JointPlan, plan_joint
@@ -51,33 +52,6 @@ class TreePlan:
     notes: Notes
 
 
-def body_name(model: mujoco.MjModel, b: int) -> str:
-    return model.body(b).name or f"body{b}"
-
-
-def forward_at_qpos0(model: mujoco.MjModel, qpos: np.ndarray | None = None) -> mujoco.MjData:
-    """MuJoCo's forward pass at qpos0, or at `qpos` (inertia, constraint rows)."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0 if qpos is None else qpos
-    mujoco.mj_forward(model, data)
-    return data
-
-
-def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-    """The joint-space M^-1 (nv x nv) at `data`'s state: a pseudo-inverse, so that a singular M (coincident
-    joints) still loads."""
-    inertia = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, inertia)
-    return np.linalg.pinv(inertia, hermitian=True)
-
-
-def world_poses_at_qpos0(model: mujoco.MjModel) -> mujoco.MjData:
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    mujoco.mj_kinematics(model, data)
-    return data
-
-
 def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan) -> None:
     mass = float(model.body_mass[b])
     if mass > 0:
@@ -87,7 +61,7 @@ def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan) -> None:
 
 
 def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
-    data = world_poses_at_qpos0(model)
+    data = mj.forward_at(model, kinematics_only=True)
     notes = Notes()
     articulations: list[ArticulationPlan] = []
     body_link: dict[int, tuple[int, int]] = {}
@@ -95,7 +69,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
         parent = int(model.body_parentid[b])
         joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
         has_free = any(model.jnt_type[j] == FREE for j in joints)
-        name = body_name(model, b)
+        name = mj.name(model, "body", b)
         subs = [sub for j in joints for sub in plan_joint(model, j, notes)]
         if has_free or parent not in body_link:
             world = pose(data.xpos[b], data.xquat[b])

@@ -580,11 +580,8 @@ def test_spring_and_damper_flags_are_honoured(tmp_path, monkeypatch, flags):
       </tendon></mujoco>""")
     result = MJCFLoader().load(path)
     assert _replay(result, result.model, lambda step, data: np.zeros(0), 1.0).max() < SERVO_TOLERANCE
-    import loader.joint
-    import loader.tendon
+    import loader.mj
 
-    for module in (loader.joint, loader.tendon):
-        monkeypatch.setattr(module, "springs_on", lambda model: True)
-        monkeypatch.setattr(module, "dampers_on", lambda model: True)
+    monkeypatch.setattr(loader.mj, "disabled", lambda model, *flags: False)  # the fixture sets no other flag
     blind = MJCFLoader().load(path)
     assert _replay(blind, blind.model, lambda step, data: np.zeros(0), 1.0).max() > 10 * SERVO_TOLERANCE

@@ -1,0 +1,48 @@
+"""MuJoCo queries both halves of the loader use: element names, the model's flags, a forward pass at a
+configuration, the joint-space inverse inertia. Every number the loader maps comes from the compiled model
+through these (or directly from `MjModel` arrays); nothing here re-implements MJCF semantics."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+_OBJECT = {"body": mujoco.mjtObj.mjOBJ_BODY, "joint": mujoco.mjtObj.mjOBJ_JOINT, "geom": mujoco.mjtObj.mjOBJ_GEOM,
+           "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR, "tendon": mujoco.mjtObj.mjOBJ_TENDON,
+           "equality": mujoco.mjtObj.mjOBJ_EQUALITY, "site": mujoco.mjtObj.mjOBJ_SITE,
+           "camera": mujoco.mjtObj.mjOBJ_CAMERA, "texture": mujoco.mjtObj.mjOBJ_TEXTURE,
+           "pair": mujoco.mjtObj.mjOBJ_PAIR}
+_DISABLE = mujoco.mjtDisableBit
+
+
+def name(model: mujoco.MjModel, kind: str, index: int) -> str:
+    """The element's name, or `<kind><index>` for an unnamed one (how every note and error names it)."""
+    return mujoco.mj_id2name(model, _OBJECT[kind], int(index)) or f"{kind}{index}"
+
+
+def disabled(model: mujoco.MjModel, *flags: str) -> bool:
+    """Whether any of `<flag NAME="disable"/>` is set (`"limit"`, `"constraint"`, `"spring"`, ...)."""
+    bits = 0
+    for flag in flags:
+        bits |= int(getattr(_DISABLE, f"mjDSBL_{flag.upper()}"))
+    return bool(model.opt.disableflags & bits)
+
+
+def forward_at(model: mujoco.MjModel, qpos: np.ndarray | None = None, all_equalities: bool = False,
+               kinematics_only: bool = False) -> mujoco.MjData:
+    """MuJoCo's forward pass at qpos0 (or `qpos`): inertia and constraint rows. `all_equalities`: every equality
+    active (their rows at load time, whatever `eq_active0` says); `kinematics_only`: body poses only."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0 if qpos is None else qpos
+    if all_equalities:
+        data.eq_active[:] = 1
+    (mujoco.mj_kinematics if kinematics_only else mujoco.mj_forward)(model, data)
+    return data
+
+
+def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """The joint-space M^-1 (nv x nv) at `data`'s state: a pseudo-inverse, so that a singular M (coincident
+    joints) still loads."""
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    return np.linalg.pinv(inertia, hermitian=True)
