@@ -132,6 +132,6 @@ def apply_generalized_force(result, qfrc: np.ndarray) -> None:
 
 def contacts_enabled(result) -> bool:
     """Whether any shape can still collide (`dynamics` and `actuated` zero every shape's groups)."""
-    from loader.physx import collision_shapes
+    from loader.runtime.contacts import collision_shapes
 
     return any(g[0] or g[1] for shape in collision_shapes(result) for g in [shape.get_collision_groups()])

@@ -14,26 +14,28 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import mj, physx
-from .actuator import Actuation, ActuatorMap, plan_actuation
-from .builders import MJCFActorBuilder, MJCFArticulationBuilder
-from .camera import CameraConfig, SiteConfig, cameras, sites
-from .compile import CompiledModel, compile_mjcf
-from .contact import plan_collision_filter
-from .equality import EqualityLink, map_equalities
+from . import mj
+from .build import physx_settings
+from .build.actuators import Actuation, ActuatorMap, plan_actuation
+from .build.builders import MJCFActorBuilder, MJCFArticulationBuilder
+from .build.camera import CameraConfig, SiteConfig, cameras, sites
+from .build.compile import CompiledModel, compile_mjcf
+from .build.contact import plan_collision_filter
+from .build.equalities import EqualityLink, map_equalities
+from .build.features import find_unmapped
+from .build.geom import collides, plan_shape
+from .build.joint import FREE, KIND
+from .build.mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .build.solver_iterations import tune_iterations
+from .build.texture import MJCFTexture, textures
+from .build.tree import TreePlan, plan_tree
+from .build.visual import add_visual, visuals_available
 from .errors import Notes, Unsupported, UnsupportedFeatureWarning, command_vector
-from .features import find_unmapped
-from .fluid import plan_fluid
-from .geom import collides, plan_shape
-from .gravcomp import map_gravcomp
-from .joint import FREE, KIND
-from .mapping import BodyLink, GeomShape, JointDofs, Mapping
-from .slide import map_slides
-from .solver import tune_iterations
-from .tendon import map_tendons
-from .texture import MJCFTexture, textures
-from .tree import TreePlan, plan_tree
-from .visual import add_visual, visuals_available
+from .runtime import contacts
+from .runtime.fluid import plan_fluid
+from .runtime.gravcomp import map_gravcomp
+from .runtime.slides import map_slides
+from .runtime.tendons import map_tendons
 
 
 @dataclass
@@ -150,11 +152,11 @@ class LoadResult:
     def set_contacts(self, enabled: bool) -> None:
         """Turn every collision shape of this load off (contact-free simulation) or back on with the groups it had;
         the state is left as it is. Safe in any order with stepping (a plain restore of zeroed collision groups
-        can crash PhysX: `physx.disable_contacts`)."""
+        can crash PhysX: `runtime.contacts`)."""
         if not enabled and self._saved_collision_groups is None:
-            self._saved_collision_groups = physx.disable_contacts(self)
+            self._saved_collision_groups = contacts.disable_contacts(self)
         elif enabled and self._saved_collision_groups is not None:
-            physx.restore_contacts(self, self._saved_collision_groups)
+            contacts.restore_contacts(self, self._saved_collision_groups)
             self._saved_collision_groups = None
 
     def disable_actuators(self, disabled: bool = True) -> None:
@@ -241,7 +243,7 @@ class MJCFLoader:
         compiled = compile_mjcf(mjcf_file, package_dir)
         model = compiled.model
         if self.scene is None:
-            self.scene = physx.create_scene(model)
+            self.scene = physx_settings.create_scene(model)
         tree = plan_tree(model, self.fix_root_link)
         notes = tree.notes
         find_unmapped(model, notes)

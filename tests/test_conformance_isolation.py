@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from test_tiers_actuated import ARM
 
-import loader.actuator
+import loader.build.actuators
 from conformance import isolation, tolerances
 from conformance.manifest import load as load_manifest
 from conformance.summary import judge
@@ -46,7 +46,7 @@ def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm):
 
 def test_a_kp_error_survives_every_isolation(friction_arm, monkeypatch):
     """The mutation: the loader's servo stiffness 5 % high. Removing the friction no longer makes it pass."""
-    plan = loader.actuator.plan_actuation
+    plan = loader.build.actuators.plan_actuation
 
     def stiffer(model, mapping, notes):
         actuation = plan(model, mapping, notes)

@@ -215,7 +215,7 @@ def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     assert saturated > 50  # the run really sits on the limit
     errors = _replay(result, model, _clamping_ctrl, 1.0)
     assert errors.max() < CLAMP_TOLERANCE, errors.max()
-    from loader.actuator import Actuation
+    from loader.build.actuators import Actuation
 
     monkeypatch.setattr(Actuation, "_clamped_step", lambda *args: None)  # the mutation: no explicit clamp
     unclamped, model = _contact_free(path)
@@ -255,10 +255,10 @@ def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator
     assert len(result.actuation.tendons) == 1
     errors = _replay(result, model, lambda step, data: np.zeros(0), 1.0)
     assert errors.max() < TENDON_TOLERANCE, errors.max()
-    import loader.actuator
+    import loader.build.actuators
 
     implicit = (int(mujoco.mjtIntegrator.mjINT_EULER),) if integrator == "Euler" else ()
-    monkeypatch.setattr(loader.actuator, "IMPLICIT", implicit)  # set_ctrl reads the integrator rule there
+    monkeypatch.setattr(loader.build.actuators, "IMPLICIT", implicit)  # set_ctrl reads the integrator rule there
     other, model = load()
     assert _replay(other, model, lambda step, data: np.zeros(0), 1.0).max() > 10 * TENDON_TOLERANCE
 
@@ -290,7 +290,7 @@ def test_a_tendon_servo_matches_mujoco(tmp_path, monkeypatch, forcerange):
     result, model = _contact_free(path)
     errors = _replay(result, model, square, 1.0)
     assert errors.max() < SERVO_TOLERANCE, errors.max()
-    from loader.actuator import Actuation
+    from loader.build.actuators import Actuation
 
     monkeypatch.setattr(Actuation, "_implicit_tendon_kv", staticmethod(lambda actuator, saturated: 0.0))
     explicit, model = _contact_free(path)
@@ -351,7 +351,7 @@ def test_frictionloss_on_a_damped_servo_joint_matches_mujoco(tmp_path, monkeypat
     assert not {(e.kind, e.name) for e in result.unsupported + result.approximations} & {("joint", "hinge")}
     errors = _replay(result, model, lambda step, data: targets[step // 50], 2.0)
     assert errors.max() < FRICTION_TOLERANCE, errors.max()
-    from loader.friction import FrictionRow
+    from loader.runtime.friction import FrictionRow
 
     monkeypatch.setattr(FrictionRow, "scale", lambda self, implicit_damping, timestep: 1.0)
     unscaled, model = _contact_free(path)
@@ -445,7 +445,7 @@ def test_activation_dynamics_match_mujoco(tmp_path, monkeypatch, integrator):
     assert [a.dynamics for a in result.actuators] == ["filter", "filterexact", "integrator", "filter"]
     errors = _replay(result, result.model, lambda step, data: targets[step // 50], 1.0)
     assert errors.max() < SERVO_TOLERANCE, errors.max()
-    from loader.activation import Activation
+    from loader.runtime.activation import Activation
 
     monkeypatch.setattr(Activation, "inputs", lambda self, ctrl: np.asarray(ctrl, dtype=float).copy())
     blind = MJCFLoader().load(path)

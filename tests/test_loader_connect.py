@@ -7,7 +7,7 @@ closed loop at joint speeds up to 3 rad/s 2.7e-7 rad/s; from a loop open by |r| 
 holds it open by) 7.2e-8 at rest (9.5e-6 with the D6 anchored at the child's anchor instead of the midpoint), 2.2e-5
 at 1 rad/s (PhysX applies both ends' forces at one point: first order in r times the speed); 0.5 s falling from
 qpos0 7.9e-7 rad (1.2e-5 when the rows read the links' velocities as PhysX leaves them after a step, ahead of the
-joints' by the velocity-product drift: loader/physx.py). The rigid D6 it replaces: 2e-2 on the first step.
+joints' by the velocity-product drift: loader/runtime/state.py). The rigid D6 it replaces: 2e-2 on the first step.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ import pytest
 from models import menagerie_root
 
 from loader import MJCFLoader
-from loader.connect import SoftConnect, SoftWeld
-from loader.impedance import SoftRow, diag_approx
-from loader.solver import drive_radii
+from loader.build.solver_iterations import drive_radii
+from loader.runtime.equalities import SoftConnect, SoftWeld
+from loader.soft_row import SoftRow, diag_approx
 
 FIXTURE = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
 ONE_STEP = 2e-5  # rad/s, measured 2.3e-6 (closed) and 9.5e-6 (open by 3.6e-5 m, at rest)
@@ -108,7 +108,7 @@ def test_a_falling_loop_follows_mujoco_for_half_a_second():
 
 def test_rows_read_on_the_links_drifted_velocities_miss_the_falling_loop(monkeypatch):
     """The mutation: the links' velocities as PhysX leaves them after a step, not the ones the joints imply."""
-    monkeypatch.setattr("loader.actuator.refresh_link_velocities", lambda articulations: None)
+    monkeypatch.setattr("loader.build.actuators.refresh_link_velocities", lambda articulations: None)
     result = MJCFLoader().load(FIXTURE)
     model = result.model
     data = mujoco.MjData(model)

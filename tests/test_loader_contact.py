@@ -85,12 +85,12 @@ SWITCH_CONTACTS = """
 import sys, warnings
 import numpy as np
 warnings.simplefilter("ignore")
-import loader.physx
+import loader.runtime.contacts
 from loader import MJCFLoader
 result = MJCFLoader(ignore_classes=[]).load(sys.argv[1])
 before = (result.articulations[0].get_qpos().copy(), result.articulations[0].get_qvel().copy())
 if sys.argv[2] == "no-warm-up":  # the deliberate mistake: the groups zeroed with no step before
-    loader.physx.warm_up = lambda scene: None
+    loader.runtime.contacts.warm_up = lambda scene: None
 result.set_contacts(False)
 after = (result.articulations[0].get_qpos(), result.articulations[0].get_qvel())
 assert all(np.array_equal(a, b) for a, b in zip(before, after)), "switching contacts off moved the state"

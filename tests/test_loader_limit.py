@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from loader import MJCFLoader
-from loader.limit import LimitRow
+from loader.runtime.limits import LimitRow
 
 TOLERANCE = 1e-4  # rad over 1.2 s, measured 2.2e-5 at most
 PENDULUM = """<mujoco><option timestep="0.002"/><worldbody><body name="arm" pos="0 0 1">
@@ -151,9 +151,9 @@ def test_limit_rows_under_contact_stay_finite():
 
 def test_limit_rows_sized_on_speed_blow_up_under_contact(monkeypatch):
     """The deliberate mistake: the force limit sized on |target| + |v| and 1e3 rad/s^2 (the sizing before)."""
-    import loader.limit
+    import loader.runtime.limits
 
-    monkeypatch.setattr(loader.limit, "force_limit", lambda damping, target, v, timestep: max(
+    monkeypatch.setattr(loader.runtime.limits, "force_limit", lambda damping, target, v, timestep: max(
         1.0, damping * (abs(target) + abs(v) + timestep * 1e3)))
     sapien_speed, mujoco_speed = _humanoid_collapse_speed()
     assert not sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)

@@ -13,7 +13,7 @@ from models import FIXTURES, suite_path
 from test_loader_actuators import _contact_free, _replay
 
 from loader import MJCFLoader
-from loader.solver import drive_radii, gauss_seidel_radius, sweeps_needed
+from loader.build.solver_iterations import drive_radii, gauss_seidel_radius, sweeps_needed
 
 ROLLOUT_TOLERANCE = 5e-6  # rad, measured 4.0e-7
 

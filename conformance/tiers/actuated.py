@@ -27,7 +27,7 @@ from contextlib import contextmanager
 import mujoco
 import numpy as np
 
-from loader.tendon import fixed_tendon_terms
+from loader.build.fixed_tendons import fixed_tendon_terms
 
 from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of

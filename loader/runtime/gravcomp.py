@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import mj
-from .errors import Notes
-from .mapping import Mapping
+from .. import mj
+from ..build.mapping import Mapping
+from ..errors import Notes
 
 
 @dataclass(frozen=True)

@@ -21,11 +21,11 @@ import math
 import mujoco
 import numpy as np
 
-from . import mj
-from .actuator import Actuation
-from .drive import DofDrive
+from .. import mj
+from .actuators import Actuation
+from ..drive import DofDrive
 from .mapping import Mapping
-from .tendon import IMPLICIT
+from ..runtime.tendons import IMPLICIT
 
 RESIDUAL = 1e-6  # the fraction of a drive impulse's error left after the sweeps
 MAX_ITERATIONS = 255  # PhysX's limit for an articulation

@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sapien
 
-from .frames import cross, quat_conj, quat_mul
-from .impedance import SoftRow
+from ..frames import cross, quat_conj, quat_mul
+from ..soft_row import SoftRow
 
 FORCE_LIMIT = 1e30  # no force limit on the D6's drives
 

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .compile import MJMINVAL
-from .errors import Notes
-from .mapping import Mapping
+from ..build.compile import MJMINVAL
+from ..build.mapping import Mapping
+from ..errors import Notes
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from .frames import X_TO_Z, pose
+from ..frames import X_TO_Z, pose
 from .geom import (
     BOX,
     CAPSULE,

@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import mj
-from .drive import DofDrive
-from .errors import Notes
-from .impedance import SoftRow
-from .mapping import Mapping
+from .. import mj
+from ..build.mapping import Mapping
+from ..drive import DofDrive
+from ..errors import Notes
+from ..soft_row import SoftRow
 
 WIDEN = 0.25  # PhysX's hard limit sits this fraction of the range (at least 0.1 rad or m) beyond MuJoCo's ends
 ACCELERATION_BOUND = 100.0  # the row force covers row accelerations up to this (rad/s^2 or m/s^2) ...

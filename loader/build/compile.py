@@ -8,7 +8,7 @@ from pathlib import Path
 
 import mujoco
 
-from .errors import MissingAssetError, MJCFError
+from ..errors import MissingAssetError, MJCFError
 
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
 

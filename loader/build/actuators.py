@@ -31,20 +31,22 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from . import drive, mj
-from .activation import MAPPED as MAPPED_DYNAMICS
-from .activation import Activation
-from .drive import DofDrive
-from .errors import Notes
-from .fluid import Fluid
-from .friction import FrictionRow, friction_rows, note_coupled_friction
-from .gravcomp import GravityCompensation
+from .. import drive
+from .. import mj
+from ..runtime.activation import MAPPED as MAPPED_DYNAMICS
+from ..runtime.activation import Activation
+from ..drive import DofDrive
+from ..errors import Notes
+from ..runtime.fluid import Fluid
+from ..runtime.friction import FrictionRow, friction_rows, note_coupled_friction
+from ..runtime.gravcomp import GravityCompensation
 from .joint import dof_damping, joint_stiffness
-from .limit import limit_rows
+from ..runtime.limits import limit_rows
 from .mapping import Mapping
-from .physx import refresh_link_velocities
-from .slide import drive_offsets
-from .tendon import IMPLICIT, fixed_tendon_terms, tendon_state
+from ..runtime.state import refresh_link_velocities
+from ..runtime.slides import drive_offsets
+from ..runtime.tendons import IMPLICIT, tendon_state
+from .fixed_tendons import fixed_tendon_terms
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
 

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from .frames import euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
+from ..frames import euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
 from .joint import BALL, FREE
 
 

@@ -14,9 +14,9 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import mj
-from .errors import Notes
-from .frames import pose
+from .. import mj
+from ..errors import Notes
+from ..frames import pose
 from .joint import FREE, JointPlan, plan_joint
 
 # Helper links must have a positive mass for PhysX; this is far below any body MuJoCo would accept.

@@ -24,12 +24,12 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import mj
-from .connect import SoftConnect, SoftWeld
-from .errors import Notes
-from .impedance import SoftRow, diag_approx
+from .. import mj
+from ..runtime.equalities import SoftConnect, SoftWeld
+from ..errors import Notes
+from ..soft_row import SoftRow, diag_approx
 from .mapping import Mapping
-from .tendon import create_fixed_tendon, fixed_tendon_terms
+from .fixed_tendons import create_fixed_tendon, fixed_tendon_terms
 
 EQ = mujoco.mjtEq
 

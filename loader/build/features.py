@@ -5,8 +5,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from . import mj
-from .errors import Notes
+from .. import mj
+from ..errors import Notes
 
 
 def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:

@@ -10,7 +10,7 @@ import sapien
 from sapien.wrapper.actor_builder import ActorBuilder
 from sapien.wrapper.articulation_builder import ArticulationBuilder, LinkBuilder
 
-from . import physx
+from . import physx_settings as physx
 from .geom import ShapePlan
 from .tree import LinkPlan
 from .visual import attach_mesh_visuals

@@ -27,10 +27,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import mj
-from .drive import DofDrive
-from .errors import Notes
-from .mapping import Mapping
+from .. import mj
+from ..build.mapping import Mapping
+from ..drive import DofDrive
+from ..errors import Notes
 
 
 @dataclass(frozen=True)

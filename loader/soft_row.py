@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from . import mj
-from .compile import MJMINVAL
+from .build.compile import MJMINVAL
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from .compile import MJMINVAL
+from ..build.compile import MJMINVAL
 
 DYN = mujoco.mjtDyn
 MAPPED = {int(DYN.mjDYN_FILTER): "filter", int(DYN.mjDYN_FILTEREXACT): "filterexact",

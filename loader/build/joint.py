@@ -14,9 +14,9 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import mj
-from .errors import Notes
-from .frames import pose, quat_from_axis_angle, quat_x_to
+from .. import mj
+from ..errors import Notes
+from ..frames import pose, quat_from_axis_angle, quat_x_to
 
 HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)

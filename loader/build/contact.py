@@ -16,8 +16,8 @@ from itertools import combinations
 import mujoco
 import numpy as np
 
-from . import mj
-from .errors import Notes
+from .. import mj
+from ..errors import Notes
 from .tree import TreePlan
 
 GROUP_BITS = 32
