@@ -7,7 +7,8 @@ from .build.mapping import BodyLink, GeomShape, JointDofs, Mapping
 from .build.texture import MJCFTexture
 from .build.visual import NoRenderDeviceWarning, has_render_device
 from .errors import ControlError, MissingAssetError, MJCFError, Unsupported, UnsupportedFeatureWarning
-from .mjcf_loader import LoadResult, MJCFLoader
+from .mjcf_loader import MJCFLoader
+from .result import LoadResult
 
 __all__ = [
     "ActuatorMap", "BodyLink", "CameraConfig", "ControlError", "EqualityLink", "GeomShape", "JointDofs", "LoadResult", "MJCFError", "MJCFLoader", "MJCFTexture",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -16,155 +16,21 @@ import sapien
 
 from . import mj
 from .build import physx_settings
-from .build.actuators import Actuation, ActuatorMap, plan_actuation
 from .build.builders import MJCFActorBuilder, MJCFArticulationBuilder
-from .build.camera import CameraConfig, SiteConfig, cameras, sites
+from .build.camera import CameraConfig, cameras, sites
 from .build.compile import CompiledModel, compile_mjcf
 from .build.contact import plan_collision_filter
-from .build.equalities import EqualityLink, map_equalities
 from .build.features import find_unmapped
 from .build.geom import collides, plan_shape
 from .build.joint import FREE, KIND
 from .build.mapping import BodyLink, GeomShape, JointDofs, Mapping
 from .build.solver_iterations import tune_iterations
-from .build.texture import MJCFTexture, textures
+from .build.texture import textures
 from .build.tree import TreePlan, plan_tree
 from .build.visual import add_visual, visuals_available
-from .errors import Notes, Unsupported, UnsupportedFeatureWarning, command_vector
-from .runtime import contacts
-from .runtime.fluid import plan_fluid
-from .runtime.gravcomp import map_gravcomp
-from .runtime.slides import map_slides
-from .runtime.tendons import map_tendons
-
-
-@dataclass
-class LoadResult:
-    """Everything `MJCFLoader.load` built, with the compiled MuJoCo model it came from."""
-
-    path: str
-    spec: mujoco.MjSpec
-    model: mujoco.MjModel
-    scene: sapien.Scene
-    articulations: list[sapien.physx.PhysxArticulation]
-    actors: list[sapien.Entity]
-    cameras: list[CameraConfig]
-    sites: dict[str, SiteConfig]
-    textures: list[MJCFTexture]
-    mapping: Mapping
-    unsupported: list[Unsupported] = field(default_factory=list)
-    approximations: list[Unsupported] = field(default_factory=list)
-    actuators: list[ActuatorMap] = field(default_factory=list)
-    equalities: list[EqualityLink] = field(default_factory=list)
-    actuation: Actuation | None = field(default=None, repr=False)
-    held_ctrl: np.ndarray | None = field(default=None, init=False, repr=False)  # the ctrl `step` holds
-    _saved_collision_groups: list | None = field(default=None, init=False, repr=False)  # while contacts are off
-
-    @property
-    def articulation(self) -> sapien.physx.PhysxArticulation | None:
-        """The first articulation (what ManiSkill's loader returns)."""
-        return self.articulations[0] if self.articulations else None
-
-    def state(self, key: int | str | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """MuJoCo (qpos, qvel) of keyframe `key` (index or name), or of qpos0 when `key` is None."""
-        if key is None:
-            return self.model.qpos0.copy(), np.zeros(self.model.nv)
-        keyframe = self.model.keyframe(key)
-        return keyframe.qpos.copy(), keyframe.qvel.copy()
-
-    def ctrl(self, key: int | str | None = None) -> np.ndarray:
-        """MuJoCo ctrl of keyframe `key`, or zeros (MuJoCo's initial ctrl) when `key` is None."""
-        return np.zeros(self.model.nu) if key is None else self.model.keyframe(key).ctrl.copy()
-
-    def reset(self, key: int | str | None = None) -> None:
-        """Put the SAPIEN scene into the state (and ctrl and activation) of keyframe `key`, or qpos0 with zero
-        ctrl and activation; equalities back to their initial active state (as MuJoCo's mj_resetData)."""
-        for link in self.equalities:
-            if link.soft is not None:
-                link.soft.set_active(bool(self.model.eq_active0[link.soft.equality]))
-        self.mapping.set_state(self.articulations, *self.state(key))
-        self.set_act(None if key is None else self.model.keyframe(key).act)
-        self.set_ctrl(self.ctrl(key), advance=False)
-
-    @property
-    def act(self) -> np.ndarray:
-        """MuJoCo's `data.act`: the activation of actuators with dynamics (size `model.na`)."""
-        activation = self.actuation.activation if self.actuation is not None else None
-        return activation.act.copy() if activation is not None else np.zeros(self.model.na)
-
-    def set_act(self, act) -> None:
-        """Set the activation (MuJoCo's `data.act`; None: zeros), as part of setting a MuJoCo state."""
-        if self.actuation is not None and self.actuation.activation is not None:
-            self.actuation.activation.reset(act)
-
-    def set_ctrl(self, ctrl, qfrc_applied=None, advance: bool = True) -> None:
-        """Apply a MuJoCo control vector (size nu, or None for zeros) to the SAPIEN articulations: drive targets
-        and joint forces.
-
-        Clamped to ctrlrange as MuJoCo does. It writes every articulation's `qf` (SAPIEN keeps it across steps);
-        force-limited and tendon actuators, passive tendons, frictional joints (whose damping it carries as
-        armature plus a force) and, under Euler, actuator kv depend on the state, so call it before every step,
-        as MuJoCo reads `ctrl` every step. It owns the joint drives: it rewrites only settings it changed.
-        Actuators with activation dynamics use the activation and take it one step further (`advance`): call it
-        once per step, or with `advance=False` to re-apply the same step. `qfrc_applied`: MuJoCo's generalized
-        force (size nv) on top; write it here rather than with `set_qf`, which would overwrite the loader's terms.
-        A vector of the wrong size or with a non-finite entry raises ControlError and changes nothing.
-        """
-        ctrl = command_vector(self.path, "ctrl", ctrl, self.model.nu, "actuators (nu)")
-        qfrc_applied = command_vector(self.path, "qfrc_applied", qfrc_applied, self.model.nv, "DoFs (nv)")
-        if self.actuation is not None:
-            applied = None
-            if qfrc_applied is not None:
-                applied = self.mapping.qfrc_to_sapien(qfrc_applied, self.articulations)
-            self.actuation.set_ctrl(self.articulations, ctrl, applied, advance)
-
-    def step(self, ctrl=None, substeps: int = 1, qfrc_applied=None) -> None:
-        """`substeps` physics steps under one MuJoCo ctrl (None: the last one given), `set_ctrl` before each:
-        a controller running slower than the simulation keeps the state-dependent terms (friction, tendons,
-        force clamps, explicit gains, activations) of every step, as MuJoCo with the same ctrl held would."""
-        qfrc_applied = command_vector(self.path, "qfrc_applied", qfrc_applied, self.model.nv, "DoFs (nv)")
-        if ctrl is not None:
-            self.held_ctrl = command_vector(self.path, "ctrl", ctrl, self.model.nu, "actuators (nu)").copy()
-        for _ in range(substeps):
-            self.set_ctrl(self.held_ctrl, qfrc_applied)
-            self.scene.step()
-
-    def set_equality_active(self, key: int | str, active: bool) -> None:
-        """MuJoCo's `data.eq_active[key] = active` (key: the equality's index or name) for a connect or weld; the
-        next `set_ctrl` applies it. A joint or tendon coupling is a PhysX fixed tendon, which cannot be switched:
-        ValueError, as for an equality the loader did not map."""
-        index = key if isinstance(key, int) else mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_EQUALITY, key)
-        if not 0 <= index < self.model.neq:
-            raise KeyError(f"{self.path}: no equality {key!r} (the model has {self.model.neq})")
-        link = next((e for e in self.equalities if e.soft is not None and e.soft.equality == index), None)
-        if link is None:
-            raise ValueError(f"{self.path}: equality {key!r} cannot be switched in SAPIEN: only connect and weld "
-                             "equalities are (a joint or tendon coupling is a PhysX fixed tendon, fixed at load)")
-        link.soft.set_active(active)
-
-    def release(self) -> None:
-        """Leave the joints to a simulation that drives them with its own PhysX drive targets and never calls
-        `set_ctrl` (a ManiSkill controller): passive spring-damper drives, MuJoCo's armature, no joint forces.
-        What needs `set_ctrl` every step (frictionloss, tendons, clamps, fluid) is then not carried."""
-        if self.actuation is not None:
-            self.actuation.release(self.articulations)
-
-    def set_contacts(self, enabled: bool) -> None:
-        """Turn every collision shape of this load off (contact-free simulation) or back on with the groups it had;
-        the state is left as it is. Safe in any order with stepping (a plain restore of zeroed collision groups
-        can crash PhysX: `runtime.contacts`)."""
-        if not enabled and self._saved_collision_groups is None:
-            self._saved_collision_groups = contacts.disable_contacts(self)
-        elif enabled and self._saved_collision_groups is not None:
-            contacts.restore_contacts(self, self._saved_collision_groups)
-            self._saved_collision_groups = None
-
-    def disable_actuators(self, disabled: bool = True) -> None:
-        """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
-        spring-damper drives and `qf` is cleared; `disable_actuators(False)` puts them back."""
-        if self.actuation is not None:
-            self.actuation.enabled = not disabled
-            self.actuation.set_ctrl(self.articulations, None, advance=False)
+from .errors import Notes, UnsupportedFeatureWarning
+from .result import LoadResult
+from .runtime.controller import plan as runtime_plan
 
 
 @dataclass
@@ -216,21 +82,15 @@ class MJCFLoader:
         articulations = [builder.build() for builder in parsed.articulation_builders]
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
         mapping = _mapping(model, parsed, articulations)
-        actuation = plan_actuation(model, mapping, parsed.notes)
-        actuation.tendons = map_tendons(model, mapping, parsed.notes)
-        actuation.fluid = plan_fluid(model, mapping, parsed.notes)
-        actuation.gravcomp = map_gravcomp(model, mapping, articulations, parsed.notes)
-        actuation.slides = map_slides(articulations)
-        equalities = map_equalities(model, self.scene, articulations, mapping, parsed.notes)
-        actuation.connects = [link.soft for link in equalities if link.soft is not None]
+        controller, actuators, equalities = runtime_plan(model, mapping, self.scene, articulations, parsed.notes)
         if self.solver_iterations == "auto":
-            tune_iterations(articulations, model, actuation, mapping, parsed.notes)
+            tune_iterations(articulations, model, controller, mapping, parsed.notes)
         result = LoadResult(
             path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=self.scene,
             articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
             textures=textures(parsed.compiled.spec, model), mapping=mapping,
             unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
-            actuators=actuation.actuators, equalities=equalities, actuation=actuation,
+            actuators=actuators, equalities=equalities, controller=controller,
         )
         for entry in result.unsupported:
             warnings.warn(f"{result.path}: unsupported {entry}", UnsupportedFeatureWarning, stacklevel=2)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from test_tiers_actuated import ARM
 
-import loader.build.actuators
+import loader.runtime.controller
 from conformance import isolation, tolerances
 from conformance.manifest import load as load_manifest
 from conformance.summary import judge
@@ -46,15 +46,15 @@ def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm):
 
 def test_a_kp_error_survives_every_isolation(friction_arm, monkeypatch):
     """The mutation: the loader's servo stiffness 5 % high. Removing the friction no longer makes it pass."""
-    plan = loader.build.actuators.plan_actuation
+    plan = loader.runtime.controller.plan_actuators
 
-    def stiffer(model, mapping, notes):
-        actuation = plan(model, mapping, notes)
-        for drive in actuation.drives.values():
-            drive.stiffness *= 1.05 if drive.stiffness > 0 else 1.0
-        return actuation
+    def stiffer(model, mapping, passive, notes):
+        term, maps = plan(model, mapping, passive, notes)
+        for law in term.laws.values():
+            law.stiffness *= 1.05 if law.stiffness > 0 else 1.0
+        return term, maps
 
-    monkeypatch.setattr(loader.mjcf_loader, "plan_actuation", stiffer)
+    monkeypatch.setattr(loader.runtime.controller, "plan_actuators", stiffer)
     runs = isolation.isolate(friction_arm, mujoco.MjModel.from_xml_path(friction_arm), "actuated", 0, TOL)
     assert runs and all(r["outcome"] == "fail" for r in runs), runs
     assert not isolation.claim_holds(runs, ("frictionloss",))

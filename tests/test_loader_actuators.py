@@ -81,7 +81,7 @@ def test_panda_position_servos_track_like_mujoco():
 @needs_menagerie
 def test_a_five_percent_kp_error_is_caught():
     def mutate(result):
-        for drive in result.actuation.drives.values():
+        for drive in result.controller.laws().values():
             if drive.stiffness > 0:
                 drive.stiffness *= 1.05
 
@@ -215,9 +215,9 @@ def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     assert saturated > 50  # the run really sits on the limit
     errors = _replay(result, model, _clamping_ctrl, 1.0)
     assert errors.max() < CLAMP_TOLERANCE, errors.max()
-    from loader.build.actuators import Actuation
+    from loader.runtime.actuators import ActuatorTerm
 
-    monkeypatch.setattr(Actuation, "_clamped_step", lambda *args: None)  # the mutation: no explicit clamp
+    monkeypatch.setattr(ActuatorTerm, "clamped_step", lambda *args: None)  # the mutation: no explicit clamp
     unclamped, model = _contact_free(path)
     assert _replay(unclamped, model, _clamping_ctrl, 1.0).max() > 100 * CLAMP_TOLERANCE
 
@@ -252,13 +252,13 @@ def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator
         return result, model
 
     result, model = load()
-    assert len(result.actuation.tendons) == 1
+    assert len(result.controller.term("tendons").tendons) == 1
     errors = _replay(result, model, lambda step, data: np.zeros(0), 1.0)
     assert errors.max() < TENDON_TOLERANCE, errors.max()
-    import loader.build.actuators
+    import loader.runtime.controller
 
     implicit = (int(mujoco.mjtIntegrator.mjINT_EULER),) if integrator == "Euler" else ()
-    monkeypatch.setattr(loader.build.actuators, "IMPLICIT", implicit)  # set_ctrl reads the integrator rule there
+    monkeypatch.setattr(loader.runtime.controller, "IMPLICIT", implicit)  # set_ctrl reads the integrator rule there
     other, model = load()
     assert _replay(other, model, lambda step, data: np.zeros(0), 1.0).max() > 10 * TENDON_TOLERANCE
 
@@ -290,9 +290,9 @@ def test_a_tendon_servo_matches_mujoco(tmp_path, monkeypatch, forcerange):
     result, model = _contact_free(path)
     errors = _replay(result, model, square, 1.0)
     assert errors.max() < SERVO_TOLERANCE, errors.max()
-    from loader.build.actuators import Actuation
+    from loader.runtime.actuators import ActuatorTerm
 
-    monkeypatch.setattr(Actuation, "_implicit_tendon_kv", staticmethod(lambda actuator, saturated: 0.0))
+    monkeypatch.setattr(ActuatorTerm, "implicit_tendon_kv", staticmethod(lambda actuator, saturated: 0.0))
     explicit, model = _contact_free(path)
     assert _replay(explicit, model, square, 1.0).max() > 10 * SERVO_TOLERANCE
 
@@ -325,7 +325,7 @@ def test_frictionloss_matches_mujoco_on_free_and_damped_joints(tmp_path, frictio
     errors = _replay(result, model, lambda step, data: np.zeros(0), 1.0)
     assert errors.max() < FRICTION_TOLERANCE, errors.max()
     dropped, model = _contact_free(path)
-    dropped.actuation.friction.clear()
+    dropped.controller.without("friction")
     assert _replay(dropped, model, lambda step, data: np.zeros(0), 1.0).max() > 1e3 * FRICTION_TOLERANCE
 
 
@@ -529,7 +529,7 @@ def test_fluid_forces_match_mujoco(tmp_path, density, viscosity, wind):
     def one_step(keep: bool) -> float:
         result = MJCFLoader().load(path)
         if not keep:
-            result.actuation.fluid = None
+            result.controller.without("fluid")
         data = mujoco.MjData(result.model)
         data.qvel[:] = 2.0
         result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
@@ -559,9 +559,9 @@ def test_gravity_compensation_matches_mujoco(tmp_path, monkeypatch, upper, lower
     path.write_text(GRAVCOMP.format(upper=upper, lower=lower))
     result = MJCFLoader().load(path)
     assert _replay(result, result.model, lambda step, data: np.zeros(0), 1.0).max() < SERVO_TOLERANCE
-    import loader.mjcf_loader
+    import loader.runtime.controller
 
-    monkeypatch.setattr(loader.mjcf_loader, "map_gravcomp", lambda *args: None)
+    monkeypatch.setattr(loader.runtime.controller, "map_gravcomp", lambda *args: None)  # planned at load
     ignored = MJCFLoader().load(path)
     assert _replay(ignored, ignored.model, lambda step, data: np.zeros(0), 1.0).max() > 10 * SERVO_TOLERANCE
 

@@ -92,7 +92,7 @@ def _rollout(result, model, data, steps: int) -> float:
 
 def test_the_first_step_of_a_closed_loop_matches_mujoco():
     result = MJCFLoader().load(FIXTURE)
-    assert [e.kind for e in result.equalities] == ["D6 joint"] and result.actuation.connects
+    assert [e.kind for e in result.equalities] == ["D6 joint"] and result.controller.term("equalities").connects
     errors = _one_step_errors(result, result.model, _states(0.0) + _states(1e-4, speeds=(0.0,)))
     assert max(errors) < ONE_STEP, errors
 
@@ -108,7 +108,7 @@ def test_a_falling_loop_follows_mujoco_for_half_a_second():
 
 def test_rows_read_on_the_links_drifted_velocities_miss_the_falling_loop(monkeypatch):
     """The mutation: the links' velocities as PhysX leaves them after a step, not the ones the joints imply."""
-    monkeypatch.setattr("loader.build.actuators.refresh_link_velocities", lambda articulations: None)
+    monkeypatch.setattr("loader.runtime.controller.refresh_link_velocities", lambda articulations: None)
     result = MJCFLoader().load(FIXTURE)
     model = result.model
     data = mujoco.MjData(model)
@@ -140,7 +140,7 @@ def test_taking_both_ends_at_the_pin_matters_for_an_open_moving_loop(monkeypatch
 
 def test_the_rigid_joint_it_replaces_misses_mujocos_soft_loop(monkeypatch):
     result = MJCFLoader().load(FIXTURE)
-    for connect in result.actuation.connects:
+    for connect in result.controller.term("equalities").connects:
         connect.lock(result.model.opt.timestep)
     monkeypatch.setattr(SoftConnect, "update", lambda self, timestep: None)  # set_ctrl keeps it rigid
     errors = _one_step_errors(result, result.model, _states(1e-4, speeds=(0.0, 1.0)))
@@ -159,7 +159,7 @@ def test_after_release_the_loop_stays_closed_without_set_ctrl():
         result = MJCFLoader().load(FIXTURE)
         if release:
             result.release()
-        connect = result.actuation.connects[0]
+        connect = result.controller.term("equalities").connects[0]
         for _ in range(500):
             result.scene.step()
         gap = np.linalg.norm(_anchor(connect.child, connect.child_anchor)
@@ -170,11 +170,9 @@ def test_after_release_the_loop_stays_closed_without_set_ctrl():
 def test_the_connects_rows_count_in_the_solver_iterations():
     """A connect's three damped rows join its articulation's Gauss-Seidel system (loader/solver.py)."""
     result = MJCFLoader().load(FIXTURE)
-    actuation = result.actuation
-    with_rows = drive_radii(result.model, actuation, result.mapping)
-    actuation.connects, connects = [], actuation.connects
-    without = drive_radii(result.model, actuation, result.mapping)
-    actuation.connects = connects
+    with_rows = drive_radii(result.model, result.controller, result.mapping)
+    with result.controller.without("equalities"):
+        without = drive_radii(result.model, result.controller, result.mapping)
     assert with_rows and with_rows.get(0, 0.0) > without.get(0, 0.0)
 
 

@@ -32,8 +32,7 @@ def _bounce(name: str, hard: bool = False) -> float:
     data = mujoco.MjData(model)
     result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     if hard:  # the mapping before: PhysX's hard limit at MuJoCo's range
-        result.actuation.hold_limits([a.active_joints for a in result.articulations], soft=False)
-        result.actuation.limits = {}
+        result.controller.without("limits")
     worst = 0.0
     for step in range(600):
         ctrl = np.full(model.nu, np.sin(0.02 * step)) if model.nu else None
@@ -109,7 +108,7 @@ def test_frictional_and_coupled_joints_keep_the_hard_limit_and_say_so():
       <geom size=".1" pos=".2 0 0"/></body></body></body></worldbody>
       <equality><joint joint1="a" joint2="b"/></equality></mujoco>"""
     result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
-    assert not result.actuation.limits
+    assert result.controller.term("limits") is None
     kept = {e.name for e in result.approximations if "limit kept as PhysX's hard limit" in e.reason}
     assert kept == {"rough", "a", "b"}
 

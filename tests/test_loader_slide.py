@@ -80,17 +80,13 @@ def test_slides_on_a_turning_arm_match_mujoco_after_one_step(turning):
 
 def test_without_the_correction_each_slide_parts_from_mujoco(turning):
     """The mutation: PhysX's drives with MuJoCo's targets as they are."""
-    slides, turning.actuation.slides = turning.actuation.slides, []
-    try:
+    with turning.controller.without("slides"):
         errors = _one_step_errors(turning)
-    finally:
-        turning.actuation.slides = slides
-        turning.actuation.applied.clear()  # the drives were written without the offsets
     assert errors[-2:].min() > 5 * ONE_STEP_TOLERANCE, errors
 
 
 def test_only_slides_below_a_turning_joint_carry_an_offset(turning):
-    assert [s.joint.name for s in turning.actuation.slides] == ["damped", "sprung"]
+    assert [s.joint.name for s in turning.controller.term("slides").slides] == ["damped", "sprung"]
     spec = mujoco.MjSpec.from_file(str(FIXTURE))
     spec.delete(spec.joint("turn"))  # the arm is welded to the world: nothing above the slides turns
-    assert MJCFLoader().load(spec).actuation.slides == []
+    assert MJCFLoader().load(spec).controller.term("slides") is None

@@ -91,8 +91,8 @@ def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at
     """Measured from the stretched keyframe over 1 s: 4.8e-7 rad at the keyframe's 41 sweeps, 4.0e-5 at qpos0's 16
     (the mutation: the rule at qpos0 alone)."""
     result, model = _contact_free(FOLDING_ARM)
-    at_qpos0 = sweeps_needed(drive_radii(model, result.actuation, result.mapping)[0])
-    at_key = sweeps_needed(drive_radii(model, result.actuation, result.mapping, model.key_qpos[0])[0])
+    at_qpos0 = sweeps_needed(drive_radii(model, result.controller, result.mapping)[0])
+    at_key = sweeps_needed(drive_radii(model, result.controller, result.mapping, model.key_qpos[0])[0])
     assert at_key > at_qpos0
     assert result.articulations[0].solver_position_iterations == at_key
     assert _replay(result, model, _arm_ctrl, 1.0).max() < ROLLOUT_TOLERANCE

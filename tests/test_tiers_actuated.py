@@ -103,7 +103,7 @@ def test_actuator_forces_agree_when_the_states_agree(arm):
 
 def _kp_five_percent(session) -> None:
     changed = 0
-    for drive in session.result.actuation.drives.values():
+    for drive in session.result.controller.laws().values():
         if drive.stiffness > 0:
             drive.stiffness *= 1.05
             changed += 1
@@ -135,12 +135,12 @@ def test_the_scene_is_left_as_the_other_tiers_expect(arm):
     qpos_before, _ = result.mapping.get_state(result.articulations)
     contact = _tier(session, "actuated_contact")
     assert contact.status == "pass", contact.to_dict()
-    assert result.actuation.enabled is False  # actuators off again (the dynamics tier commands forces itself)
+    assert "actuators" not in result.controller.names  # actuators off again (the dynamics tier commands forces itself)
     groups = [list(s.get_collision_groups()) for art in result.articulations for link in art.links
               for s in link.collision_shapes]
     assert any(g[0] or g[1] for g in groups), "actuated_contact keeps contacts on for dynamics"
     _tier(session, "actuated")
-    assert result.actuation.enabled is False
+    assert "actuators" not in result.controller.names
     qpos_after, _ = result.mapping.get_state(result.articulations)
     np.testing.assert_allclose(qpos_after, qpos_before, atol=1e-6)
     for art in result.articulations:
@@ -197,13 +197,13 @@ def _spot() -> Path:
 
 
 def _flip_gears(session) -> None:
-    actuators = session.result.actuation.actuators  # the list result.actuators shows
+    actuators = session.result.controller.term("actuators").actuators  # the list result.actuators shows
     for i, actuator in enumerate(actuators):
         actuators[i] = dataclasses.replace(actuator, gear=-actuator.gear)
 
 
 def _halve_servo_gains(session) -> None:
-    for drive in session.result.actuation.drives.values():
+    for drive in session.result.controller.laws().values():
         drive.stiffness *= 0.5
 
 

@@ -85,14 +85,14 @@ def mutate_joint_limit(session) -> None:
     # PhysX ignores a switch to +-inf (a change of joint motion) once the articulation is in a scene,
     # so the limit is dropped by widening it far past any motion, and with it the soft limit rows the loader
     # drives (loader/limit.py).
-    limits = session.result.actuation.limits if session.result.actuation else {}
+    if session.result.controller is not None:
+        session.result.controller.without("limits")  # PhysX's hard limit back, then widened below
     for a, art in enumerate(session.result.articulations):
         for d, joint in enumerate(art.active_joints):
             lo, hi = np.asarray(joint.limit)[0]
             if np.isfinite(lo) and np.isfinite(hi):
                 joint.limit = [[-1e4, 1e4]]
                 assert np.asarray(joint.limit)[0, 1] == 1e4
-                limits.pop((a, d), None)
                 return
     raise AssertionError("no limited joint to drop")
 

@@ -92,6 +92,8 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
     axis_err, anchor_err, limit_err = [], [], []
     expected_dofs = 0
+    limits = result.controller.term("limits", on=True) if result.controller is not None else None
+    limit_rows = limits.rows if limits is not None else {}  # soft limit rows on the drives
     for j in range(model.njnt):
         kind = KIND[int(model.jnt_type[j])]
         name = _name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
@@ -127,7 +129,7 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
             anchor_err.append(np.linalg.norm(offset - np.dot(offset, data.xaxis[j]) * data.xaxis[j]))
         enforced = model.jnt_limited[j] and not limits_disabled(model)
         ref = tuple(model.jnt_range[j]) if enforced else (-np.inf, np.inf)
-        soft = result.actuation.limits.get((entry.articulation, entry.dofs[0])) if result.actuation else None
+        soft = limit_rows.get((entry.articulation, entry.dofs[0]))
         if soft is not None:  # MuJoCo's soft limit rows on the drive (loader/limit.py): their ends are the range,
             limit_err.append(_limit_error(ref, (soft.lower, soft.upper)))  # and PhysX's hard limit lies beyond
             low, high = np.asarray(joint.limit, dtype=float).ravel()

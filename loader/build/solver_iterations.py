@@ -16,16 +16,20 @@ tendon rows are not counted; a frictional DoF counts its friction row only (its 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 import mujoco
 import numpy as np
 
 from .. import mj
-from .actuators import Actuation
 from ..drive import DofDrive
 from .mapping import Mapping
 from ..runtime.tendons import IMPLICIT
+
+if TYPE_CHECKING:
+    from ..runtime.controller import Controller
 
 RESIDUAL = 1e-6  # the fraction of a drive impulse's error left after the sweeps
 MAX_ITERATIONS = 255  # PhysX's limit for an articulation
@@ -47,7 +51,7 @@ def sweeps_needed(radius: float, residual: float = RESIDUAL) -> int:
     return min(MAX_ITERATIONS, max(1, math.ceil(math.log(residual) / math.log(radius))))
 
 
-def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping,
+def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
                 qpos: np.ndarray | None = None) -> dict[int, float]:
     """Per articulation with at least two rows: the Gauss-Seidel radius of its drive and soft connect rows at
     qpos0 (or `qpos`)."""
@@ -56,25 +60,23 @@ def drive_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping,
     dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
     implicit = int(model.opt.integrator) in IMPLICIT
-    tendon_kv: dict[tuple[int, int], float] = {}  # tendon actuators' kv diagonal joins the drives every step
-    for a, terms in actuation.tendon_terms.items() if implicit else ():  # under Euler/RK4 kv is explicit
-        for art, dof, c in terms:
-            tendon_kv[(art, dof)] = tendon_kv.get((art, dof), 0.0) + actuation.actuators[a].damping * c * c
-    passive_diagonal: dict[tuple[int, int], float] = {}  # passive tendon dampers' diagonal, implicit integrators
-    for tendon in actuation.tendons if implicit else ():
-        for art, dof, c in tendon.terms:
-            passive_diagonal[(art, dof)] = passive_diagonal.get((art, dof), 0.0) + tendon.damping * c * c
+    actuators, tendons = controller.term("actuators", on=True), controller.term("tendons", on=True)
+    # under implicit integrators the tendon actuators' kv diagonal and the passive tendon dampers' join the drives
+    tendon_kv = actuators.tendon_kv_diagonal() if implicit and actuators is not None else {}
+    passive_diagonal = tendons.implicit_diagonal() if implicit and tendons is not None else {}
+    friction = controller.term("friction", on=True).rows if controller.term("friction", on=True) else {}
     rows: dict[int, list[tuple[np.ndarray, float]]] = {}  # per articulation: (row over MuJoCo's DoFs, compliance)
-    for key, dof_drive in actuation.drives.items():
+    for key, dof_drive in controller.laws().items():
         dof_drive = DofDrive(dof_drive.stiffness, dof_drive.damping + passive_diagonal.get(key, 0.0))
         damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
         weight = timestep * (damping + timestep * dof_drive.stiffness)
-        if key in actuation.friction:  # the drive carries only the friction (compliance R / s)
-            row = actuation.friction[key]
+        if key in friction:  # the drive carries only the friction (compliance R / s)
+            row = friction[key]
             weight = row.scale(dof_drive.damping + tendon_kv.get(key, 0.0), timestep) / row.regularizer
         if weight > 0 and key in dof_of:
             rows.setdefault(key[0], []).append((np.eye(model.nv)[dof_of[key]], 1.0 / weight))
-    for art, jacobian, compliance in connect_rows(model, data, actuation.connects):
+    equalities = controller.term("equalities", on=True)
+    for art, jacobian, compliance in connect_rows(model, data, equalities.connects if equalities is not None else []):
         rows.setdefault(art, []).extend((j, compliance) for j in jacobian)
     radii = {}
     for art, entries in rows.items():
@@ -113,18 +115,18 @@ def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[t
     return result
 
 
-def largest_radii(model: mujoco.MjModel, actuation: Actuation, mapping: Mapping) -> dict[int, float]:
+def largest_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping) -> dict[int, float]:
     """Per articulation, the largest drive radius over qpos0 and the keyframes."""
     largest: dict[int, float] = {}
     for qpos in (None, *model.key_qpos):
-        for art, radius in drive_radii(model, actuation, mapping, qpos).items():
+        for art, radius in drive_radii(model, controller, mapping, qpos).items():
             largest[art] = max(radius, largest.get(art, 0.0))
     return largest
 
 
-def tune_iterations(articulations, model: mujoco.MjModel, actuation: Actuation, mapping: Mapping, notes) -> None:
+def tune_iterations(articulations, model: mujoco.MjModel, controller: Controller, mapping: Mapping, notes) -> None:
     """Raise each articulation's position iterations to what its drives need (never lowers them)."""
-    for art, radius in largest_radii(model, actuation, mapping).items():
+    for art, radius in largest_radii(model, controller, mapping).items():
         articulation = articulations[art]
         needed = sweeps_needed(radius)
         articulation.solver_position_iterations = max(articulation.solver_position_iterations, needed)

@@ -233,3 +233,22 @@ class SoftWeld(SoftConnect):
         self.drive.set_drive_target(sapien.Pose())
         self.drive.set_drive_property_slerp(damping * self.row.stiffness * imp / self.row.damping, damping,
                                             FORCE_LIMIT, "force")
+
+
+@dataclass
+class EqualityTerm:
+    """The soft connect and weld equalities, updated once per `set_ctrl` after the joints' drives are written."""
+
+    connects: list[SoftConnect]
+    name: str = "equalities"
+
+    def contribute(self, step) -> None:
+        for connect in self.connects:
+            connect.update(step.timestep)
+
+    def release(self, joints, timestep: float) -> None:
+        for connect in self.connects:
+            connect.lock(timestep)
+
+    def velocity_links(self, articulations) -> list:
+        return [end for c in self.connects for end in (c.child, c.parent) if end is not None]

@@ -50,6 +50,16 @@ class Fluid:
             torque = torque - self.density * lever * np.abs(angular) * angular / 64.0
         return torque, force
 
+    name = "fluid"
+
+    def contribute(self, step) -> None:
+        """Link forces accumulate in PhysX until the step: added once per physics step."""
+        if step.advance:
+            self.apply(step.articulations)
+
+    def velocity_links(self, articulations) -> list:
+        return [articulations[b.articulation].links[b.link] for b in self.bodies]
+
     def apply(self, articulations) -> None:
         """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
         for body in self.bodies:

@@ -25,6 +25,13 @@ class GravityCompensation:
 
     forces: tuple[tuple[int, int, np.ndarray], ...]  # (articulation, link, world force)
 
+    name = "gravcomp"
+
+    def contribute(self, step) -> None:
+        """Link forces accumulate in PhysX until the step: added once per physics step."""
+        if step.advance:
+            self.apply(step.articulations)
+
     def apply(self, articulations) -> None:
         for art, link, force in self.forces:
             articulations[art].links[link].add_force_torque(force, np.zeros(3))

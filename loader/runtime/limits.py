@@ -15,7 +15,7 @@ A joint with frictionloss (its drive carries the friction) or coupled to other r
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -25,6 +25,7 @@ from ..build.mapping import Mapping
 from ..drive import DofDrive
 from ..errors import Notes
 from ..soft_row import SoftRow
+from .dof_step import ArmatureWriter, DofKey, Step
 
 WIDEN = 0.25  # PhysX's hard limit sits this fraction of the range (at least 0.1 rad or m) beyond MuJoCo's ends
 ACCELERATION_BOUND = 100.0  # the row force covers row accelerations up to this (rad/s^2 or m/s^2) ...
@@ -84,6 +85,64 @@ class LimitRow:
         """PhysX's hard limit while the rows are emulated: widened out of their way."""
         widen = max(0.1, WIDEN * (self.upper - self.lower))
         return self.lower - widen, self.upper + widen
+
+
+@dataclass
+class LimitTerm:
+    """The soft limit rows of every limited hinge/slide DoF that carries nothing else at its ends: a DoF past an
+    end (within its margin) has its row on the drive this step, its other terms in the armature form. PhysX's
+    hard limit of those DoFs is widened out of the rows' way while the term runs (`hold`)."""
+
+    rows: dict[DofKey, LimitRow]
+    armature: ArmatureWriter = field(default_factory=ArmatureWriter)
+    soft: bool = False  # PhysX's hard limits are widened
+    name: str = "limits"
+
+    def __post_init__(self) -> None:
+        keys = list(self.rows)
+        self._keys = keys
+        self._low = np.array([self.rows[k].lower + self.rows[k].margin for k in keys])
+        self._high = np.array([self.rows[k].upper - self.rows[k].margin for k in keys])
+
+    def contribute(self, step: Step) -> None:
+        if not self.soft:
+            self.hold(step.joints, soft=True)
+        for key in self.near(step.q):
+            row, record = self.rows[key], step.dofs[key]
+            art, dof = key
+            law = record.law
+            found = row.drive(step.q[art][dof], step.v[art][dof], step.timestep,
+                              row.scale(law.damping + record.implicit_extra, step.timestep))
+            if found is None:  # clear of its ends: the joint's own armature back, nothing to remember
+                self.armature.set(step.joints[art][dof], key, row.armature, row.armature)
+                self.armature.written.pop(key, None)
+                continue
+            self.armature.armature_form(step, key, row.armature, law, record.constant)
+            step.add(key, found[2])
+            record.law, record.constant = found[0], found[1]
+
+    def near(self, q) -> list[DofKey]:
+        """The DoFs to visit this step: past an end (within its margin), or whose armature still holds a row's
+        implicit damping from an earlier step (vectorised: most joints are clear)."""
+        values = np.array([q[art][dof] for art, dof in self._keys])
+        near = (values < self._low) | (values > self._high)
+        return [k for k, hit in zip(self._keys, near) if hit or k in self.armature.written]
+
+    def hold(self, joints, soft: bool) -> None:
+        """PhysX's hard limit of every DoF with soft rows: widened out of the rows' way (`soft`), or at MuJoCo's
+        range (for callers that do not call `set_ctrl`, and while the term is switched off)."""
+        for (art, dof), row in self.rows.items():
+            low, high = row.physx_limits() if soft else (row.lower, row.upper)
+            joints[art][dof].set_limit(np.array([[low, high]], np.float32))
+        self.soft = soft
+
+    def release(self, joints) -> None:
+        for (art, dof), row in self.rows.items():
+            joints[art][dof].set_armature(np.array([row.armature], np.float32))
+        self.hold(joints, soft=False)
+        self.armature.written.clear()
+
+    removed = release  # switched off: PhysX's hard limit at MuJoCo's range, as with no rows at all
 
 
 def coupled_joints(model: mujoco.MjModel) -> set[int]:

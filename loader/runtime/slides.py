@@ -80,3 +80,17 @@ def map_slides(articulations) -> list[SlideDrive]:
 def drive_offsets(slides: list[SlideDrive], timestep: float) -> dict[tuple[int, int], float]:
     """(articulation, dof) -> dt k, the velocity the DoF's drive is short of this step."""
     return {(s.articulation, s.dof): timestep * s.centripetal() for s in slides}
+
+
+@dataclass
+class SlideTerm:
+    """Every step, the velocity each turning slide's drive is short of joins its drive's targets."""
+
+    slides: list[SlideDrive]
+    name: str = "slides"
+
+    def contribute(self, step) -> None:
+        step.offsets = drive_offsets(self.slides, step.timestep)
+
+    def velocity_links(self, articulations) -> list:
+        return [s.parent for s in self.slides]

@@ -77,3 +77,27 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
             low, high = (float(x) for x in model.tendon_lengthspring[t])
             out.append(PassiveTendon(name, tuple(mapped), stiffness, damping, low, high))
     return out
+
+
+@dataclass
+class TendonTerm:
+    """The passive fixed tendons' forces every step; under implicit integrators their dampers' diagonal joins the
+    drives (`DofStep.implicit_extra`)."""
+
+    tendons: list[PassiveTendon]
+    name: str = "tendons"
+
+    def contribute(self, step) -> None:
+        for tendon in self.tendons:
+            for art, dof, force, diagonal in tendon.forces(step.q, step.v, not step.explicit_kv):
+                step.forces[art][dof] += force
+                if diagonal:
+                    step.dofs[(art, dof)].implicit_extra += diagonal
+
+    def implicit_diagonal(self) -> dict[tuple[int, int], float]:
+        """The dampers' diagonal D c^2 per DoF (what joins the drives under implicit integrators)."""
+        out: dict[tuple[int, int], float] = {}
+        for tendon in self.tendons:
+            for art, dof, c in tendon.terms:
+                out[(art, dof)] = out.get((art, dof), 0.0) + tendon.damping * c * c
+        return out

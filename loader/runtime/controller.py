@@ -1,0 +1,163 @@
+"""The per-step controller: `set_ctrl` runs named terms in MuJoCo's stage order over one `Step` record.
+
+state (joint positions and velocities, link velocities) -> ctrl clamp and activation -> passive forces (`tendons`)
+-> `actuators` -> PhysX correction of explicit stiffness (`stiffness`) -> constraint rows (`friction`, `limits`)
+-> PhysX correction of turning slides (`slides`) -> write drives and qf (`drives`) -> link forces (`fluid`,
+`gravcomp`) -> equality rows (`equalities`). `without(name)` switches a term off (the public switch tests and the
+isolation use); `release()` hands the joints to a caller that drives them itself. Layout: docs/architecture.md.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import mujoco
+import numpy as np
+
+from .. import mj
+from ..build.equalities import map_equalities
+from ..drive import DofDrive
+from .activation import MAPPED as MAPPED_DYNAMICS
+from .activation import Activation
+from .actuators import plan as plan_actuators
+from .dof_step import DofKey, DofStep, Step, passive_laws
+from .drive_writer import DriveWriter
+from .equalities import EqualityTerm
+from .fluid import plan_fluid
+from .friction import FrictionTerm, friction_rows, note_coupled_friction
+from .gravcomp import map_gravcomp
+from .limits import LimitTerm, limit_rows
+from .slides import SlideTerm, map_slides
+from .state import refresh_link_velocities
+from .stiffness import StiffnessTerm
+from .tendons import IMPLICIT, TendonTerm, map_tendons
+
+STAGES = ("tendons", "actuators", "stiffness", "friction", "limits", "slides", "drives", "fluid", "gravcomp",
+          "equalities")
+
+
+class Controller:
+    """The loaded model's per-step terms, in stage order (a term absent from a model is simply not there)."""
+
+    def __init__(self, model: mujoco.MjModel, articulations: list, passive: dict[DofKey, DofDrive], terms: list,
+                 activation: Activation | None = None):
+        self.model = model
+        self.articulations = articulations
+        self.joints = [art.active_joints for art in articulations]  # the property builds a new list per call
+        self.passive = passive
+        self.activation = activation
+        self.terms = sorted(terms, key=lambda term: STAGES.index(term.name))
+        self.off: dict[str, object] = {}  # terms switched off, by name
+        self._readers: list | None = None
+
+    @property
+    def names(self) -> list[str]:
+        return [term.name for term in self.terms]
+
+    def term(self, name: str, on: bool = False):
+        """The named term, switched on or off (`on`: only while on), or None where the model has none."""
+        found = next((t for t in self.terms if t.name == name), None)
+        return found if found is not None or on else self.off.get(name)
+
+    def laws(self) -> dict[DofKey, DofDrive]:
+        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps)."""
+        actuators = self.term("actuators")
+        return {**self.passive, **(actuators.laws if actuators is not None else {})}
+
+    def set_ctrl(self, ctrl, qfrc_applied: list[np.ndarray] | None = None, advance: bool = True) -> None:
+        """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (per articulation, SAPIEN's
+        DoF order). `advance`: the first call of this physics step (activations, link forces)."""
+        model, articulations = self.model, self.articulations
+        ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
+        if not mj.disabled(model, "clampctrl") and model.nu:
+            limited = model.actuator_ctrllimited.astype(bool)
+            ctrl[limited] = np.clip(ctrl[limited], *model.actuator_ctrlrange[limited].T)
+        inputs = ctrl
+        if self.activation is not None and "actuators" not in self.off:
+            inputs = self.activation.inputs(ctrl)  # what each gain multiplies: ctrl or act
+            if advance:
+                self.activation.advance(ctrl)
+        forces = [np.zeros(art.dof) for art in articulations]
+        if qfrc_applied is not None:
+            forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
+        refresh_link_velocities(self.velocity_readers())
+        step = Step(articulations, self.joints, [np.asarray(art.get_qpos(), np.float64) for art in articulations],
+                    [np.asarray(art.get_qvel(), np.float64) for art in articulations], forces,
+                    {key: DofStep(law, law.constant) for key, law in self.passive.items()}, inputs,
+                    float(model.opt.timestep), int(model.opt.integrator) not in IMPLICIT, advance)
+        for term in self.terms:
+            term.contribute(step)
+
+    def velocity_readers(self) -> list:
+        """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
+        if self._readers is None:
+            links = [link for t in self.terms if hasattr(t, "velocity_links") for link in t.velocity_links(
+                self.articulations)]
+            self._readers = [art for art in self.articulations if any(link in art.links for link in links)]
+        return self._readers
+
+    def release(self) -> None:
+        """Hand the joints to a caller that drives them itself: passive drives, own armature, PhysX's hard limits at
+        MuJoCo's range, no `qf`, equalities locked; the next `set_ctrl` takes them over again."""
+        timestep = float(self.model.opt.timestep)
+        for term in [*self.terms, *self.off.values()]:
+            if term.name == "drives":
+                term.release(self.joints, self.articulations, timestep)
+            elif term.name == "equalities":
+                term.release(self.joints, timestep)
+            elif hasattr(term, "release"):
+                term.release(self.joints)
+
+    @contextmanager
+    def _restoring(self, names: tuple[str, ...]):
+        try:
+            yield self
+        finally:
+            self.restore(*names)
+
+    def without(self, *names: str):
+        """Switch the named terms off (a term the model lacks is already off). As a context manager, they are
+        switched back on at its end. A term switched off undoes what it holds in PhysX (`removed`)."""
+        unknown = [n for n in names if n not in STAGES]
+        if unknown:
+            raise ValueError(f"no per-step term {unknown}: the terms are {', '.join(STAGES)}")
+        for term in [t for t in self.terms if t.name in names]:
+            self.terms.remove(term)
+            self.off[term.name] = term
+            if hasattr(term, "removed"):
+                term.removed(self.joints)
+        self._readers = None
+        return self._restoring(names)
+
+    def restore(self, *names: str) -> None:
+        """Switch the named terms (all, without names) back on; the next `set_ctrl` applies them."""
+        for name in names or list(self.off):
+            if name in self.off:
+                self.terms.append(self.off.pop(name))
+        self.terms.sort(key=lambda term: STAGES.index(term.name))
+        self._readers = None
+
+
+def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> tuple[Controller, list, list]:
+    """Every per-step term the compiled model needs, planned once at load: (controller, actuator maps, equality
+    links). The equalities' PhysX objects (fixed tendons, D6 joints) are built here too."""
+    passive = passive_laws(model, mapping)
+    friction = friction_rows(model, mapping)
+    limits = limit_rows(model, mapping, notes)
+    actuators, maps = plan_actuators(model, mapping, passive, notes)
+    note_coupled_friction(model, mapping, {**passive, **actuators.laws}, actuators, friction, notes)
+    activation = Activation(model) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
+    tendons = map_tendons(model, mapping, notes)
+    fluid = plan_fluid(model, mapping, notes)
+    gravcomp = map_gravcomp(model, mapping, articulations, notes)
+    slides = map_slides(articulations)
+    equalities = map_equalities(model, scene, articulations, mapping, notes)
+    connects = [link.soft for link in equalities if link.soft is not None]
+    terms = [actuators, StiffnessTerm(), DriveWriter(passive)]
+    terms += [TendonTerm(tendons)] if tendons else []
+    terms += [FrictionTerm(friction)] if friction else []
+    terms += [LimitTerm(limits)] if limits else []
+    terms += [SlideTerm(slides)] if slides else []
+    terms += [term for term in (fluid, gravcomp) if term is not None]
+    terms += [EqualityTerm(connects)] if connects else []
+    return Controller(model, articulations, passive, terms, activation), maps, equalities
