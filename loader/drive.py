@@ -49,9 +49,6 @@ class DofDrive:
         """The PhysX drive damping that reproduces MuJoCo's semi-implicit step (clamped at 0)."""
         return max(self.damping - self.stiffness * timestep, 0.0)
 
-    def exact(self, timestep: float) -> bool:
-        return self.damping - self.stiffness * timestep >= 0.0
-
 
 def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping: float = 0.0,
           written: dict | None = None, key=None, offset: float = 0.0) -> float:

@@ -33,11 +33,11 @@ class LoadResult:
     sites: dict[str, SiteConfig]
     textures: list[MJCFTexture]
     mapping: Mapping
+    controller: Controller = field(repr=False)  # the per-step terms (`runtime/`)
     unsupported: list[Unsupported] = field(default_factory=list)
     approximations: list[Unsupported] = field(default_factory=list)
     actuators: list[ActuatorMap] = field(default_factory=list)
     equalities: list[EqualityLink] = field(default_factory=list)
-    controller: Controller | None = field(default=None, repr=False)  # the per-step terms (`runtime/`)
     held_ctrl: np.ndarray | None = field(default=None, init=False, repr=False)  # the ctrl `step` holds
     _saved_collision_groups: list | None = field(default=None, init=False, repr=False)  # while contacts are off
 
@@ -70,12 +70,12 @@ class LoadResult:
     @property
     def act(self) -> np.ndarray:
         """MuJoCo's `data.act`: the activation of actuators with dynamics (size `model.na`)."""
-        activation = self.controller.activation if self.controller is not None else None
+        activation = self.controller.activation
         return activation.act.copy() if activation is not None else np.zeros(self.model.na)
 
     def set_act(self, act) -> None:
         """Set the activation (MuJoCo's `data.act`; None: zeros), as part of setting a MuJoCo state."""
-        if self.controller is not None and self.controller.activation is not None:
+        if self.controller.activation is not None:
             self.controller.activation.reset(act)
 
     def set_ctrl(self, ctrl, qfrc_applied=None, advance: bool = True) -> None:
@@ -83,9 +83,8 @@ class LoadResult:
         and joint forces.
 
         Clamped to ctrlrange as MuJoCo does. It writes every articulation's `qf` (SAPIEN keeps it across steps);
-        force-limited and tendon actuators, passive tendons, frictional joints (whose damping it carries as
-        armature plus a force) and, under Euler, actuator kv depend on the state, so call it before every step,
-        as MuJoCo reads `ctrl` every step. It owns the joint drives: it rewrites only settings it changed.
+        clamps, tendons, friction, limits and explicit gains depend on the state, so call it before every step, as
+        MuJoCo reads `ctrl` every step. It owns the joint drives: it rewrites only settings it changed.
         Actuators with activation dynamics use the activation and take it one step further (`advance`): call it
         once per step, or with `advance=False` to re-apply the same step. `qfrc_applied`: MuJoCo's generalized
         force (size nv) on top; write it here rather than with `set_qf`, which would overwrite the loader's terms.
@@ -93,11 +92,8 @@ class LoadResult:
         """
         ctrl = command_vector(self.path, "ctrl", ctrl, self.model.nu, "actuators (nu)")
         qfrc_applied = command_vector(self.path, "qfrc_applied", qfrc_applied, self.model.nv, "DoFs (nv)")
-        if self.controller is not None:
-            applied = None
-            if qfrc_applied is not None:
-                applied = self.mapping.qfrc_to_sapien(qfrc_applied, self.articulations)
-            self.controller.set_ctrl(ctrl, applied, advance)
+        applied = None if qfrc_applied is None else self.mapping.qfrc_to_sapien(qfrc_applied, self.articulations)
+        self.controller.set_ctrl(ctrl, applied, advance)
 
     def step(self, ctrl=None, substeps: int = 1, qfrc_applied=None) -> None:
         """`substeps` physics steps under one MuJoCo ctrl (None: the last one given), `set_ctrl` before each:
@@ -127,8 +123,7 @@ class LoadResult:
         """Leave the joints to a simulation that drives them with its own PhysX drive targets and never calls
         `set_ctrl` (a ManiSkill controller): passive spring-damper drives, MuJoCo's armature, no joint forces.
         What needs `set_ctrl` every step (frictionloss, tendons, clamps, fluid) is then not carried."""
-        if self.controller is not None:
-            self.controller.release()
+        self.controller.release()
 
     def set_contacts(self, enabled: bool) -> None:
         """Turn every collision shape of this load off (contact-free simulation) or back on with the groups it had;
@@ -143,9 +138,5 @@ class LoadResult:
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive
         spring-damper drives and `qf` is cleared; `disable_actuators(False)` puts them back."""
-        if self.controller is not None:
-            if disabled:
-                self.controller.without("actuators")
-            else:
-                self.controller.restore("actuators")
-            self.controller.set_ctrl(None, advance=False)
+        (self.controller.without if disabled else self.controller.restore)("actuators")
+        self.controller.set_ctrl(None, advance=False)

@@ -127,7 +127,7 @@ def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.nd
     law = ForceLaw(result)
     clipped = commands.clip_ctrl(model, ctrl)
     force = np.zeros((ctrl.shape[0], model.nu))
-    activation = result.controller.activation if result.controller is not None else None
+    activation = result.controller.activation
 
     def before_step(t: int, q: np.ndarray, v: np.ndarray) -> None:
         force[t] = law(clipped[t] if activation is None else activation.inputs(clipped[t]), q, v)

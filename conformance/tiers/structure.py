@@ -92,7 +92,7 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
     axis_err, anchor_err, limit_err = [], [], []
     expected_dofs = 0
-    limits = result.controller.term("limits", on=True) if result.controller is not None else None
+    limits = result.controller.term("limits", on=True)
     limit_rows = limits.rows if limits is not None else {}  # soft limit rows on the drives
     for j in range(model.njnt):
         kind = KIND[int(model.jnt_type[j])]

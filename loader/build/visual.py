@@ -68,12 +68,6 @@ def visuals_available(scene: sapien.Scene) -> bool:
     return False
 
 
-@dataclass
-class VisualPlan:
-    geom: int
-    rgba: np.ndarray
-
-
 def geom_rgba(model: mujoco.MjModel, g: int) -> np.ndarray:
     """The colour MuJoCo renders: the material's only when the geom's own rgba is the default."""
     rgba = model.geom_rgba[g].astype(np.float32)
