@@ -7,7 +7,7 @@ failure comes from: a model whose actuators are mapped right passes once the gap
 and a mapping error (a wrong kp, a flipped gear) survives every edit.
 The half timestep separates integrator differences from force errors: one-step velocity errors from a force
 mismatch halve with dt (order 1), an integration difference shrinks four times (order 2). Order 2 also fits a
-force error that is itself O(dt): the velocity-product drift PhysX's slide drives measured (loader/slide.py) was
+force error that is itself O(dt): the velocity-product drift PhysX's slide drives measured (loader/runtime/slides.py) was
 first read here as an integration difference, so an order-2 residual is a lead, not a verdict.
 A manifest expectation may claim `passes_without = [...]`: the run checks that the tier passes with exactly
 those gaps out, so the reason written there is measured on every run.
@@ -16,11 +16,12 @@ those gaps out, so the reason written there is measured on every run.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
+
+from .session import quiet_load
 
 ISOLATED_TIERS = ("dynamics", "actuated")
 FLAGS = mujoco.mjtDisableBit
@@ -89,12 +90,7 @@ def edited_spec(path: str, gaps: tuple[str, ...]) -> mujoco.MjSpec:
 
 
 def _load(spec: mujoco.MjSpec):
-    from loader import MJCFLoader, NoRenderDeviceWarning, UnsupportedFeatureWarning
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnsupportedFeatureWarning)
-        warnings.simplefilter("ignore", NoRenderDeviceWarning)
-        result = MJCFLoader(ignore_classes=[]).load(spec)
+    result = quiet_load(spec)
     result.disable_actuators()
     return result
 

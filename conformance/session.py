@@ -53,22 +53,31 @@ def _feature(item) -> dict:
     return {"kind": str(item.kind), "name": str(item.name), "reason": str(item.reason)}
 
 
-def open_session(path: str, fix_root_link: bool | None = None) -> Session:
-    """Compile with MuJoCo (timed), then load with the loader (timed); free joints stay floating roots."""
+IGNORE_CLASSES: list[str] = []  # the harness compares every geom MuJoCo has (the loader's default skips "motor")
+
+
+def quiet_load(source, fix_root_link: bool = True):
+    """The loader as the harness, the isolation, the fragment properties and the tests run it: `IGNORE_CLASSES`,
+    its warnings silenced (the result lists the same notes, and the reports show them)."""
     from loader import MJCFLoader, NoRenderDeviceWarning, UnsupportedFeatureWarning
 
+    loader = MJCFLoader(ignore_classes=IGNORE_CLASSES)
+    loader.fix_root_link = fix_root_link
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnsupportedFeatureWarning)
+        warnings.simplefilter("ignore", NoRenderDeviceWarning)
+        return loader.load(source if isinstance(source, mujoco.MjSpec) else str(source))
+
+
+def open_session(path: str, fix_root_link: bool | None = None) -> Session:
+    """Compile with MuJoCo (timed), then load with the loader (timed); free joints stay floating roots."""
     t0 = time.perf_counter()
     mujoco.MjModel.from_xml_path(str(path))  # MuJoCo's own compile of the same file, timed for comparison
     compile_seconds = time.perf_counter() - t0
     if fix_root_link is None:
         fix_root_link = True  # free joints float whatever this says; jointless roots are welded, as in MuJoCo
-    ld = MJCFLoader(ignore_classes=[])  # compare every geom MuJoCo has
-    ld.fix_root_link = fix_root_link
     t0 = time.perf_counter()
-    with warnings.catch_warnings():  # the same features are recorded in the result and the report
-        warnings.simplefilter("ignore", UnsupportedFeatureWarning)
-        warnings.simplefilter("ignore", NoRenderDeviceWarning)
-        result = ld.load(str(path))
+    result = quiet_load(path, fix_root_link)
     load_seconds = time.perf_counter() - t0
     # the reference runs with actuation disabled and commands generalized forces (conformance.reference)
     result.disable_actuators()

@@ -76,4 +76,4 @@ def test_armature_from_a_default_class_dropped_is_caught(blind, monkeypatch):
 
     monkeypatch.setattr(loader.build.tree, "plan_joint", class_blind_plan)
     message = _fails("conformance")
-    assert "dynamics tier fails" in message, message[:2000]
+    assert "dynamics tier fails" in message or "dynamics tier diverged" in message, message[:2000]

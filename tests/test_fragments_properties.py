@@ -10,16 +10,16 @@ from types import SimpleNamespace
 
 import pytest
 
-from conformance.fragments import TALLY
+from conformance.fragments import Tally
 from conformance.fragments.fuzz import CI_EXAMPLES, ci_settings, hypothesis_test
 
 log = logging.getLogger(__name__)
 
 
 def _run(name: str) -> dict[str, int]:
-    before = TALLY.copy()
-    hypothesis_test(name, ci_settings(CI_EXAMPLES[name]))()
-    delta = {key: TALLY[key] - before.get(key, 0) for key in TALLY if TALLY[key] != before.get(key, 0)}
+    tally = Tally()
+    hypothesis_test(name, ci_settings(CI_EXAMPLES[name]), tally=tally)()
+    delta = {key: count for key, count in tally.items() if count}
     log.info("%s property: %s", name, ", ".join(f"{k}: {v}" for k, v in sorted(delta.items())))
     return delta
 

@@ -8,11 +8,26 @@ properties (`check_document`, `assert_conforms`) compare the loader with MuJoCo 
 
 from .corner_cases import CORNER_CASES, CornerCase
 from .document import Body, DefaultClass, Document, Element, MeshAsset, RawDocument, write
-from .properties import TALLY, Outcome, assert_conforms, check_document, check_path
+from .properties import Outcome, assert_conforms, check_document, check_path
 from .strategies import broken_documents, documents, kinematic_trees
+from .tally import Tally
 
 __all__ = [
-    "CORNER_CASES", "TALLY", "Body", "CornerCase", "DefaultClass", "Document", "Element", "MeshAsset", "Outcome",
-    "RawDocument", "assert_conforms", "broken_documents", "check_document", "check_path", "documents",
-    "kinematic_trees", "write",
+    "CORNER_CASES",
+    "Body",
+    "CornerCase",
+    "DefaultClass",
+    "Document",
+    "Element",
+    "MeshAsset",
+    "Outcome",
+    "RawDocument",
+    "Tally",
+    "assert_conforms",
+    "broken_documents",
+    "check_document",
+    "check_path",
+    "documents",
+    "kinematic_trees",
+    "write",
 ]

@@ -54,11 +54,9 @@ def _range(model_limited, model_range) -> tuple[float, float] | None:
 
 def actuator_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], list[str], int]:
     """(mismatches, skipped, checked) of `result.actuators` against the compiled actuators."""
-    actuators = getattr(result, "actuators", None)
+    actuators = result.actuators
     if model.nu == 0:
         return [], [], 0
-    if actuators is None:
-        return [], [f"actuators: the loader has no result.actuators ({model.nu} not checked)"], 0
     if len(actuators) != model.nu:
         return [f"{len(actuators)} actuator entries for {model.nu} MuJoCo actuators"], [], 0
     out, skipped, checked = [], [], 0
@@ -176,14 +174,11 @@ def _close32(a: float, b: float) -> bool:
     return abs(a - b) <= 1e-6 * max(1.0, abs(a), abs(b))  # PhysX stores float32
 
 
-def check_actuators(result, outcome) -> None:
+def check_actuators(result, outcome) -> tuple[int, int]:
     """Add actuator and drive mismatches and skips to a properties `Outcome` (call before the actuators are
-    disabled for the tiers)."""
-    from .properties import TALLY
-
+    disabled for the tiers); returns (actuators checked, DoFs whose drive gains were checked)."""
     mismatches, skipped, checked = actuator_mismatches(result, result.model)
     drives, dofs = drive_mismatches(result, result.model)
     outcome.failures += mismatches + drives
     outcome.skipped += skipped
-    TALLY["actuators checked"] += checked
-    TALLY["drive gains checked (dofs)"] += dofs
+    return checked, dofs

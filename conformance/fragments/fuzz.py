@@ -18,8 +18,9 @@ from hypothesis.database import DirectoryBasedExampleDatabase
 
 from .corner_cases import CORNER_CASES
 from .document import RawDocument
-from .properties import STATIC_TIERS, TALLY, assert_conforms
+from .properties import STATIC_TIERS, assert_conforms
 from .strategies import broken_documents, documents, kinematic_trees
+from .tally import Tally
 
 log = logging.getLogger(__name__)
 DATABASE = Path(".hypothesis") / "fragments"
@@ -43,20 +44,20 @@ def mutation_settings(examples: int) -> settings:
     return settings(ci_settings(examples), phases=[Phase.explicit, Phase.generate], report_multiple_bugs=False)
 
 
-def conformance_property(document) -> None:
+def conformance_property(document, tally: Tally) -> None:
     """Compiles in MuJoCo -> loads and passes the tiers, actuators map to MuJoCo's gains; else error parity."""
-    assert_conforms(document, property_name="conformance")
+    assert_conforms(document, property_name="conformance", tally=tally)
 
 
-def error_parity_property(document) -> None:
+def error_parity_property(document, tally: Tally) -> None:
     """A document with a mistake MuJoCo rejects: the loader raises MJCFError with MuJoCo's message."""
-    assert_conforms(document, property_name="error_parity")
+    assert_conforms(document, property_name="error_parity", tally=tally)
 
 
-def kinematics_property(document) -> None:
+def kinematics_property(document, tally: Tally) -> None:
     """Random orientations and joint axes: structure and forward kinematics agree with MuJoCo."""
     assert_conforms(document, tiers=("structure", "kinematics"), dynamics=False, actuators=False,
-                    property_name="kinematics")
+                    property_name="kinematics", tally=tally)
 
 
 PROPERTIES: dict[str, tuple[Callable, Callable]] = {
@@ -71,12 +72,15 @@ def corner_examples(error: bool) -> list[RawDocument]:
     return [case.document for case in CORNER_CASES if (case.expect is None) == error]
 
 
-def hypothesis_test(name: str, profile: settings, with_examples: bool = True) -> Callable[[], None]:
-    """The named property as a runnable hypothesis test under `profile`, seeded with the corner cases."""
+def hypothesis_test(name: str, profile: settings, with_examples: bool = True,
+                    tally: Tally | None = None) -> Callable[[], None]:
+    """The named property as a runnable hypothesis test under `profile`, seeded with the corner cases; what it
+    exercises is counted in `tally` (None: not counted)."""
     strategy, prop = PROPERTIES[name]
+    tally = Tally() if tally is None else tally
 
     def test(document) -> None:
-        prop(document)
+        prop(document, tally)
 
     test.__name__ = f"{name}_property"
     test = given(strategy())(test)
@@ -94,19 +98,19 @@ def split(examples: int, names: list[str]) -> dict[str, int]:
 
 def run(examples: int, names: list[str], database: Path = DATABASE) -> float:
     """Run `examples` in total over the properties; returns examples per second (and prints the summary)."""
-    TALLY.clear()
+    tally = Tally()
     count = 0
     start = time.perf_counter()
     for name, share in split(examples, names).items():
-        before = sum(TALLY[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo"))
+        before = sum(tally[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo"))
         t0 = time.perf_counter()
-        hypothesis_test(name, fuzz_settings(share, database))()
-        done = sum(TALLY[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo")) - before
+        hypothesis_test(name, fuzz_settings(share, database), tally=tally)()
+        done = sum(tally[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo")) - before
         count += done
         log.info("%s: %d examples in %.1f s", name, done, time.perf_counter() - t0)
     elapsed = time.perf_counter() - start
     rate = count / elapsed if elapsed else 0.0
-    for key, value in sorted(TALLY.items()):
+    for key, value in sorted(tally.items()):
         print(f"  {key}: {value}")
     print(f"fuzz: {count} examples in {elapsed:.1f} s = {rate:.1f} examples/s ({', '.join(names)})")
     return rate

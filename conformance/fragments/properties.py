@@ -4,7 +4,7 @@
   (`actuators.py`); and the harness's own tiers pass (structure, kinematics, inertia, collision, and short
   contact-free `actuated` and `dynamics` runs). Failures confined to elements the loader itself lists in
   `result.unsupported` / `result.approximations`, or explained by an open bug on record (`known_bugs.py`), are
-  excused; every excuse and skip is counted in `TALLY`.
+  excused; every excuse and skip is counted in the run's `Tally`.
 - MuJoCo rejects it: the loader raises `MJCFError` carrying MuJoCo's message (`MissingAssetError` for a missing
   file), never another exception, and never a model.
 """
@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import tempfile
 import warnings
-from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,11 +20,14 @@ import mujoco
 import numpy as np
 
 from ..report import TierReport
+from ..session import quiet_load
 from ..tiers import TIERS
 from ..tolerances import Tolerances
 from ..tolerances import load as load_tolerances
+from .actuators import check_actuators
 from .document import Document, RawDocument, write
 from .known_bugs import known_bug
+from .tally import Tally
 
 STATIC_TIERS = ("structure", "kinematics", "inertia", "collision")
 # A short contact-free run is enough to see joint damping/armature/inertia mistakes in the one-step error.
@@ -61,16 +63,6 @@ VELOCITY_SCALED = ("dynamics.one_step_qvel_fixed", "dynamics.one_step_qvel_float
 SINGULAR_TOLERANCE = 1e-9  # singular value of the stacked body Jacobians below which DoFs are redundant
 _FREE_SPAN = 0.5  # m: how far the kinematics tier moves a free joint (conformance.sampling)
 _SLIDE_SPAN = 0.2  # m: its span for an unlimited slide
-
-
-class Tally(Counter):
-    """Across examples: documents compiled or rejected, tiers passed, skipped or excused, with reasons."""
-
-    def summary(self) -> str:
-        return ", ".join(f"{key}: {count}" for key, count in sorted(self.items()))
-
-
-TALLY = Tally()
 
 
 @dataclass
@@ -198,12 +190,11 @@ def compile_with_mujoco(path: Path) -> tuple[mujoco.MjModel | None, str | None]:
 
 
 def load(path: Path):
-    """The loader on `path` (default options), its warnings silenced: the result lists the same notes."""
-    from loader import MJCFLoader
-
+    """The loader on `path` as the harness runs it (`session.quiet_load`); MuJoCo's own compiler warnings on
+    generated documents (near-singular inertia and the like) are silenced too."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return MJCFLoader().load(str(path))
+        return quiet_load(path)
 
 
 def check_error_parity(path: Path, mujoco_error: str) -> list[str]:
@@ -321,15 +312,17 @@ def _reason(entry) -> str:
 
 
 def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators: bool = True,
-               strict: bool = False) -> Outcome:
+               strict: bool = False, tally: Tally | None = None) -> Outcome:
     """Every property on the document at `path` (meshes beside it). `strict` (regression replays): a tier that
-    raises is a failure and open bugs on record are not excused; otherwise both are counted in the tally."""
+    raises is a failure and open bugs on record are not excused; otherwise both are counted in `tally` (the
+    run's; None: not counted)."""
     path = Path(path)
+    tally = Tally() if tally is None else tally
     model, mujoco_error = compile_with_mujoco(path)
     if model is None:
-        TALLY["rejected by MuJoCo"] += 1
+        tally["rejected by MuJoCo"] += 1
         return Outcome(path, False, failures=check_error_parity(path, mujoco_error))
-    TALLY["compiled by MuJoCo"] += 1
+    tally["compiled by MuJoCo"] += 1
     from loader import MJCFError
 
     try:
@@ -338,11 +331,10 @@ def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators:
         return Outcome(path, True, failures=[f"MuJoCo compiles the document but the loader raised {error}"])
     outcome = Outcome(path, True, result=result)
     if actuators:
-        from .actuators import check_actuators
-
-        check_actuators(result, outcome)
-    if hasattr(result, "disable_actuators"):
-        result.disable_actuators()  # the tiers' reference runs with actuation disabled (conformance.reference)
+        checked, dofs = check_actuators(result, outcome)
+        tally["actuators checked"] += checked
+        tally["drive gains checked (dofs)"] += dofs
+    result.disable_actuators()  # the tiers' reference runs with actuation disabled (conformance.reference)
     reports, failures, excused, skipped, errors = check_tiers(result, result.model, tiers, dynamics,
                                                               known_bugs=not strict)
     outcome.tier_errors = errors
@@ -353,32 +345,32 @@ def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators:
     outcome.excused += excused
     outcome.skipped += skipped
     for name, report in reports.items():
-        TALLY[f"tier {name} {report.status}"] += 1
+        tally[f"tier {name} {report.status}"] += 1
     for entry in excused:
         tier, why = entry.split(": ", 1)
         listed = why.startswith(("known bug", "joint limits", "one_step_qacc only"))
-        TALLY[f"excused {tier}: {why if listed else 'element the loader lists'}"] += 1
+        tally[f"excused {tier}: {why if listed else 'element the loader lists'}"] += 1
     for entry in outcome.skipped:
-        TALLY[f"skipped {entry}"] += 1
+        tally[f"skipped {entry}"] += 1
     for entry in errors:
-        TALLY[f"harness error {entry.split(':', 2)[0]}: {entry.split(':', 2)[1].strip()}"] += 1
+        tally[f"harness error {entry.split(':', 2)[0]}: {entry.split(':', 2)[1].strip()}"] += 1
     return outcome
 
 
 def check_document(document: Document | RawDocument, tiers=STATIC_TIERS, dynamics: bool = True,
-                   actuators: bool = True) -> Outcome:
+                   actuators: bool = True, tally: Tally | None = None) -> Outcome:
     """Write `document` (meshes beside it) into a temporary folder and check it with `check_path`."""
     with tempfile.TemporaryDirectory(prefix="fragment-") as folder:
-        outcome = check_path(write(document, folder), tiers, dynamics, actuators)
+        outcome = check_path(write(document, folder), tiers, dynamics, actuators, tally=tally)
         outcome.result = None  # the scene outlives the folder only as long as needed
         return outcome
 
 
 def assert_conforms(document: Document | RawDocument, tiers=STATIC_TIERS, dynamics: bool = True,
-                    actuators: bool = True, property_name: str = "fragment") -> Outcome:
+                    actuators: bool = True, property_name: str = "fragment", tally: Tally | None = None) -> Outcome:
     """`check_document`, raising AssertionError with the document on failure (and saving the shrunk
     counterexample into the regression corpus on hypothesis's final replay)."""
-    outcome = check_document(document, tiers, dynamics, actuators)
+    outcome = check_document(document, tiers, dynamics, actuators, tally)
     if outcome.failures:
         from .regressions import save_if_final
 
