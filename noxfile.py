@@ -15,8 +15,10 @@ def tests(session: nox.Session) -> None:
 
 @nox.session
 def lint(session: nox.Session) -> None:
-    """Static checks."""
+    """Static checks: ruff, and the house rules (no measured number in a loader docstring, no import cycle, no class
+    over 120 lines in the loader, no private attribute read across objects)."""
     session.run("python", "-m", "ruff", "check", "loader", "conformance", "tests", "noxfile.py")
+    session.run("python", "tests/support/house.py")
 
 
 @nox.session

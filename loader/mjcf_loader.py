@@ -50,8 +50,8 @@ class MJCFLoader:
     `visual_groups`: geom groups that become visual shapes where a render device exists (ManiSkill's: 0 and 2).
     `fix_root_link`: trees whose root has no free joint are fixed to the world (a free joint always floats).
     `solver_iterations`: "auto" (default) raises an articulation's PhysX position iterations until its joint
-    drives converge (`solver.py`: dm_control finger gets 20, where SAPIEN's 10 leave a 9e-5 rad/s one-step
-    error); a (position, velocity) pair sets them; None keeps SAPIEN's (10, 1).
+    drives converge (`build/solver_iterations.py`); a (position, velocity) pair sets them; None keeps SAPIEN's
+    (10, 1).
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):

@@ -1,11 +1,6 @@
-"""MuJoCo's soft-constraint law (solref, solimp) for one constraint row, as the loader maps it onto PhysX drives.
-
-MuJoCo solves a bilateral row for the force f = (A + R)^-1 (aref - a0): A = J M^-1 J^T, a0 the unconstrained
-acceleration along the row, aref = -B v - K imp r (minus the velocity-product acceleration J' qdot), and the
-regularizer R = (1 - imp) / imp * diagApprox, diagApprox fixed at compile time (body_invweight0). After one step
-of length dt, J v1 = J v0 + dt (a0 + A f), which is exactly what an implicit damper of D = 1 / (dt R) along the row
-does when it pulls the row's velocity towards J v0 + dt aref: f = D (target - J v1). That damper needs neither A
-nor a0, so PhysX's own solver reproduces MuJoCo's soft row whatever the inertia (`equality.py`).
+"""MuJoCo's soft-constraint law (solref, solimp) for one constraint row: after one step a row is exactly an
+implicit damper 1 / (dt R) pulling the row's velocity to J v0 + dt aref, which a PhysX drive is, whatever the
+inertia. Derivation: docs/mapping.md#soft-rows.
 """
 
 from __future__ import annotations

@@ -1,28 +1,18 @@
-import sys
-import warnings
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent))
-
-from loader import MJCFLoader
+from conformance.session import quiet_load
 
 
 @pytest.fixture(scope="module")
 def load():
-    """Load an MJCF file or string into a fresh CPU scene (warnings about approximations silenced)."""
+    """Load an MJCF file as the harness does (`conformance.session.quiet_load`), once per module."""
     cache = {}
 
     def _load(path, fix_root_link=True):
         key = (str(path), fix_root_link)
         if key not in cache:
-            loader = MJCFLoader(ignore_classes=[])
-            loader.fix_root_link = fix_root_link
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                cache[key] = loader.load(path)
+            cache[key] = quiet_load(path, fix_root_link)
         return cache[key]
 
     return _load

@@ -2,7 +2,7 @@
 
 Contact is off on both sides and MuJoCo integrates with implicitfast, the integrator the drive mapping assumes.
 Tolerances are measured: unsaturated panda servos agree to 3e-6 rad over 1 s; the coupled-joint fixture to
-4.4e-3 rad over 2 s (MuJoCo's soft equality as a PhysX tendon spring: see loader/equality.py); the panda and
+4.4e-3 rad over 2 s (MuJoCo's soft equality as a PhysX tendon spring: see loader/build/equalities.py); the panda and
 2f85 grippers to 5e-4 and 3.3e-4 while closing.
 """
 
@@ -13,7 +13,7 @@ import copy
 import mujoco
 import numpy as np
 import pytest
-from models import FIXTURES, menagerie_root
+from support.corpus import FIXTURES, menagerie_root
 
 from loader import MJCFLoader
 

@@ -1,5 +1,5 @@
-"""connect and weld equalities as MuJoCo's soft law on a PhysX D6 joint's drives (loader/impedance.py,
-loader/connect.py).
+"""connect and weld equalities as MuJoCo's soft law on a PhysX D6 joint's drives (loader/soft_row.py,
+loader/runtime/equalities.py).
 
 MuJoCo is the oracle. The fixture closes a five-bar loop between two moving links of one articulation, without
 joint damping or contacts, where the soft law is exact. Measured (mujoco 3.17.0, sapien 3.0.3): first step from a
@@ -17,7 +17,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-from models import menagerie_root
+from support.corpus import menagerie_root
 
 from loader import MJCFLoader
 from loader.build.solver_iterations import drive_radii
@@ -168,7 +168,7 @@ def test_after_release_the_loop_stays_closed_without_set_ctrl():
 
 
 def test_the_connects_rows_count_in_the_solver_iterations():
-    """A connect's three damped rows join its articulation's Gauss-Seidel system (loader/solver.py)."""
+    """A connect's three damped rows join its articulation's Gauss-Seidel system (loader/build/solver_iterations.py)."""
     result = MJCFLoader().load(FIXTURE)
     with_rows = drive_radii(result.model, result.controller, result.mapping)
     with result.controller.without("equalities"):

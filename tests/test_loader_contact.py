@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from models import FIXTURES
-from reference import collision_filter_mismatches, component_of
+from support.corpus import FIXTURES
+from support.oracle import collision_filter_mismatches, component_of
 
 from loader import MJCFLoader
 
@@ -109,7 +109,7 @@ def _switch_contacts(mistake: str) -> int:
     import subprocess
     import sys
 
-    from models import suite_path
+    from support.corpus import suite_path
 
     proc = subprocess.run([sys.executable, "-c", SWITCH_CONTACTS, str(suite_path("manipulator")), mistake],
                           capture_output=True, text=True, timeout=120, check=False)

@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 import sapien
-from models import corpus_params
-from reference import (
+from support.corpus import corpus_params
+from support.oracle import (
     POSE_TOLERANCE,
     collision_filter_mismatches,
     component_of,

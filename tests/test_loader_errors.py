@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from models import FIXTURES
+from support.corpus import FIXTURES
 
 from loader import MissingAssetError, MJCFError, MJCFLoader
 

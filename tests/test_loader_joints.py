@@ -5,8 +5,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from models import FIXTURES
-from reference import POSE_TOLERANCE, link_of, link_pose_errors, random_qpos
+from support.corpus import FIXTURES
+from support.oracle import POSE_TOLERANCE, link_of, link_pose_errors, random_qpos
 
 
 def test_ball_joint_is_three_revolutes_with_matching_poses(load, rng):
@@ -180,7 +180,7 @@ def test_a_light_body_on_a_vertical_hinge_stays_at_rest_under_gravity(monkeypatc
     """loader/frames.py: a joint frame onto a coordinate axis is a quaternion float32 holds exactly, so gravity has
     no lever about a vertical hinge. dm_control swimmer's 10 g head, 0.5 s from rest: MuJoCo's stays still;
     measured 0 with the exact frame, 8.8e-6 rad with the shortest rotation's rounded sqrt(1/2) (the mutation)."""
-    from models import suite_path
+    from support.corpus import suite_path
 
     import loader.frames
     from loader import MJCFLoader

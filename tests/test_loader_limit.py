@@ -1,4 +1,4 @@
-"""MuJoCo's soft joint limits on the joint drives (loader/limit.py); MuJoCo is the oracle.
+"""MuJoCo's soft joint limits on the joint drives (loader/runtime/limits.py); MuJoCo is the oracle.
 
 A pendulum swings through +-30 degrees of range and bounces on both soft ends for 1.2 s. Measured (mujoco 3.17.0,
 sapien 3.0.3): 4.4e-7 rad without damping, 2.6e-7 with damping 0.05 (its implicit part as armature, the row
@@ -117,7 +117,7 @@ def _humanoid_collapse_speed() -> tuple[float, float]:
     """dm_control's humanoid collapsing onto its floor for 1 s under zero ctrl, through set_ctrl, from the
     harness's start (qpos0, limited joints 5 % inside their ranges): the fastest SAPIEN joint and the fastest
     MuJoCo joint (rad/s or m/s)."""
-    from models import suite_path
+    from support.corpus import suite_path
 
     from conformance.reference import initial_state
 

@@ -1,4 +1,4 @@
-"""Slide joints on turning links (loader/slide.py): PhysX's prismatic drive acts on a velocity short of the
+"""Slide joints on turning links (loader/runtime/slides.py): PhysX's prismatic drive acts on a velocity short of the
 centripetal term of the child's centre of mass about the parent's; `set_ctrl` puts it back.
 
 MuJoCo is the oracle: one step from random states of tests/fixtures/turning_slide.xml (a damped slide and a sprung
@@ -13,7 +13,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from models import FIXTURES
+from support.corpus import FIXTURES
 
 from loader import MJCFLoader
 

@@ -1,4 +1,4 @@
-"""PhysX solver iterations from the coupling of an articulation's drives (loader/solver.py).
+"""PhysX solver iterations from the coupling of an articulation's drives (loader/build/solver_iterations.py).
 
 MuJoCo is the oracle: dm_control finger's two damped, motor-driven hinges couple strongly (Gauss-Seidel radius
 0.49), and SAPIEN's default 10 position iterations leave its drives unconverged. Measured over 1 s of
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-from models import FIXTURES, suite_path
+from support.corpus import FIXTURES, suite_path
 from test_loader_actuators import _contact_free, _replay
 
 from loader import MJCFLoader

@@ -6,8 +6,8 @@ import warnings
 
 import numpy as np
 import pytest
-from models import FIXTURES, suite_path
-from reference import POSE_TOLERANCE, link_pose_errors
+from support.corpus import FIXTURES, suite_path
+from support.oracle import POSE_TOLERANCE, link_pose_errors
 
 from loader import MJCFLoader, UnsupportedFeatureWarning
 

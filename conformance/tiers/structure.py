@@ -130,7 +130,7 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         enforced = model.jnt_limited[j] and not limits_disabled(model)
         ref = tuple(model.jnt_range[j]) if enforced else (-np.inf, np.inf)
         soft = limit_rows.get((entry.articulation, entry.dofs[0]))
-        if soft is not None:  # MuJoCo's soft limit rows on the drive (loader/limit.py): their ends are the range,
+        if soft is not None:  # MuJoCo's soft limit rows on the drive (loader/runtime/limits.py): their ends are the range,
             limit_err.append(_limit_error(ref, (soft.lower, soft.upper)))  # and PhysX's hard limit lies beyond
             low, high = np.asarray(joint.limit, dtype=float).ravel()
             if not (low < ref[0] and high > ref[1]):

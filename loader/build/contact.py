@@ -1,11 +1,6 @@
-"""Which pairs of bodies may touch: MuJoCo's contype/conaffinity bits and its pair filters, as PhysX groups.
-
-A SAPIEN shape carries four 32-bit words [g0, g1, g2, g3]. Two shapes collide iff (g0a & g1b) or (g1a & g0b),
-unless (g2a & g2b) != 0 and the low 16 bits of g3 agree. So g0 = contype and g1 = conaffinity reproduce
-MuJoCo's bit rule exactly, and g2/g3 express the body pairs MuJoCo filters (same weld, weld parent, <exclude>)
-that PhysX does not filter by itself (PhysX only skips a link and its direct parent): each set bit of g2 stands
-for a group of bodies that must never touch each other, and g3 numbers the connected groups, so the 32 bits are
-reused for every independent cluster and the number of bodies is unlimited.
+"""Which pairs of bodies may touch: MuJoCo's contype/conaffinity bits and its pair filters, as PhysX's four
+collision-group words (g0 = contype, g1 = conaffinity; g2/g3 carry the body pairs MuJoCo filters and PhysX does
+not). Derivation: docs/mapping.md#collision-filter.
 """
 
 from __future__ import annotations

@@ -1,19 +1,6 @@
-"""Equality constraints: joint and tendon couplings as PhysX fixed tendons, connect and weld as PhysX D6 joints
-driven by MuJoCo's soft law every step (`connect.py`).
-
-MuJoCo's equalities are soft: solref (timeconst, dampratio) gives a reference acceleration -b v - k r with
-k = 1 / (dmax^2 timeconst^2 dampratio^2) and b = 2 / (dmax timeconst), and the impedance d (solimp) mixes it
-with the unconstrained acceleration a0: the constraint accelerates as (1 - d) a0 + d (-b v - k r). A spring and
-damper on the constraint's effective mass m = 1 / (J M^-1 J^T) behave the same when their gains are
-m d / (1 - d) times k and b. For couplings the loader takes m at qpos0 and d at small violations (solimp's dmin).
-That equivalence is approximate: a spring-damper does not take up the unconstrained acceleration a0 the way
-MuJoCo's constraint does (measured 4.4e-3 rad over 2 s on the coupled-joint fixture). An exact form exists (a
-tendon damping 1 / (dt R) with R MuJoCo's regularizer, stiffness K d / R, and an explicit force
-(1/dt - B) / R x rate every step), but it needs PhysX's iterative tendon solve to converge at strong gains: on
-dm_control manipulator it reaches one-step 4.5e-6 rad/s only at 200 position iterations, and with coupling
-ratio 2 (the fixture) PhysX's tendon solve diverges (`tendon.py`). Not used for couplings; a connect or weld takes
-it on a D6 joint's drives, which PhysX solves one row each (`connect.py`). A D6 can be switched (MuJoCo's
-eq_active, `LoadResult.set_equality_active`); a fixed tendon cannot, so an inactive coupling is listed.
+"""Equality constraints: joint and tendon couplings as PhysX fixed tendons (a spring and damper on the
+constraint's effective mass at qpos0, approximate), connect and weld as PhysX D6 joints that
+`runtime/equalities.py` drives with MuJoCo's soft row every step. Derivation: docs/mapping.md#equalities.
 """
 
 from __future__ import annotations
@@ -42,7 +29,7 @@ class EqualityLink:
     kind: str
     mapped: bool
     reason: str = ""
-    soft: SoftConnect | None = None  # a connect's or weld's per-step soft law (`connect.py`)
+    soft: SoftConnect | None = None  # a connect's or weld's per-step soft law (`runtime/equalities.py`)
 
 
 def soft_gains(model: mujoco.MjModel, e: int, jacobian: np.ndarray, data: mujoco.MjData) -> tuple[float, float]:
@@ -202,5 +189,5 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     kind = "weld" if weld else "connect"
     notes.approximate("equality", name, f"{kind} as MuJoCo's soft law (solref, solimp) on a PhysX D6 joint's drives "
                       "that set_ctrl updates every step; exact on a closed loop, first order in its violation and "
-                      "in joint damping off (connect.py)")
+                      "in joint damping off (runtime/equalities.py)")
     return EqualityLink(name, "D6 joint", True, soft=soft)

@@ -32,7 +32,7 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
                        "actuator damping/armature (passive terms on the transmission) are not mapped")
     if any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"):
         notes.approximate("joint", "limits", "MuJoCo's soft limit rows ride on the joint drives one row at a time "
-                          "(loader/limit.py, set_ctrl every step): rows MuJoCo solves together (joints at their "
+                          "(loader/runtime/limits.py, set_ctrl every step): rows MuJoCo solves together (joints at their "
                           "limits that move together) are approximate; PhysX's hard limits after release()")
     integrator = int(model.opt.integrator)
     if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and mj.disabled(model, "eulerdamp") and np.any(model.dof_damping):

@@ -1,20 +1,6 @@
-"""Fixed tendons: linear combinations of joint positions. MuJoCo's passive `<tendon><fixed>` springs and dampers
-are applied as MuJoCo applies them (`PassiveTendon`, exact); the linear part of joint and tendon equalities becomes
-a PhysX fixed tendon (`create_fixed_tendon`, `equality.py`).
-
-A PhysX fixed tendon is a tree of links whose incoming joints carry coefficients; its length is
-sum(coefficient * q) and its spring force reaches each joint scaled by the joint's `recip_coefficient`. Setting
-that to the coefficient itself gives MuJoCo's J^T f (measured: two equal links coupled q_a - 0.5 q_b = 0.3 settle
-at 0.24 and -0.12, as J^T f predicts).
-PhysX divides a tendon's stiffness and damping among the tendon's joints (every link below its root, those with
-coefficient 0 included): measured on 1-4 sibling hinges, the force is 1/n of the stated gains. Times n, one step
-is implicit, f = -K (L + dt J v') - D J v' (J v' the rate after the step),
-to 1e-8 on two hinges with coefficients (1, -1), (1, 0.5), (-0.5, 1), (2, 3) at small gains. PhysX solves the
-tendon iteratively: with mixed-sign coefficients and strong gains (dt D J M^-1 J^T of 3 to 6) it needs about 50
-position iterations to reach 1e-5, and with coefficients (1, -2) at 12 it diverges.
-MuJoCo (implicit and implicitfast) treats a tendon's damping implicitly only through its diagonal D J_i^2 in the
-joint-space step (measured to 1e-16 on three hinges), where a PhysX tendon is implicit in the whole D J J^T and in
-its spring: 2.3e-3 rad over 1 s on a three-hinge fixture, 4.2e-7 with `PassiveTendon`.
+"""PhysX fixed tendons for the linear part of joint and tendon equalities: each joint's `recip_coefficient` is
+its coefficient (so the force reaches the joints as J^T f), and the gains are multiplied by the number of joints
+PhysX divides them among. Derivation: docs/mapping.md#equalities.
 """
 
 from __future__ import annotations

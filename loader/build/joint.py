@@ -61,7 +61,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     damping = dof_damping(model, dof)
     armature = float(model.dof_armature[dof])
     stiffness = joint_stiffness(model, j)
-    if model.dof_frictionloss[dof] > 0 and jtype not in (HINGE, SLIDE):  # hinges and slides: `actuator.py`
+    if model.dof_frictionloss[dof] > 0 and jtype not in (HINGE, SLIDE):  # hinges and slides: `runtime/actuators.py`
         notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
                    "scales with the joint reaction force, MuJoCo's is a constant torque")
     if jtype == FREE:

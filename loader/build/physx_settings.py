@@ -1,8 +1,6 @@
-"""PhysX settings that differ from MuJoCo's behaviour, set so that SAPIEN simulates what MuJoCo does.
-
-Measured (FACTS.md): PhysX damps links (0.05), adds joint friction (0.05), caps link speeds (10 m/s, 50 rad/s)
-and joint speeds (100), puts slow bodies to sleep (0.005) and pushes penetrating bodies apart without limit.
-MuJoCo does none of these.
+"""PhysX settings that differ from MuJoCo's behaviour (link damping, joint friction, speed caps, sleeping,
+unbounded depenetration, the TGS solver), set so that SAPIEN simulates what MuJoCo does. Derivation:
+docs/mapping.md#physx-settings.
 """
 
 from __future__ import annotations
@@ -24,7 +22,7 @@ MAX_DEPENETRATION_VELOCITY = 1.0  # m/s; MuJoCo's soft contacts never push harde
 def configure(model: mujoco.MjModel) -> None:
     """Process-global PhysX configuration matched to `model`; call before creating a PhysX system.
 
-    PGS (not TGS): TGS adds an O(timestep) gap to MuJoCo's semi-implicit Euler (FACTS.md).
+    PGS (not TGS): TGS adds a gap of order dt to MuJoCo's semi-implicit Euler.
     """
     gravity = np.zeros(3) if mj.disabled(model, "gravity") else model.opt.gravity
     sapien.physx.set_scene_config(gravity=np.asarray(gravity, np.float32), enable_tgs=False)

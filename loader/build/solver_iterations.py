@@ -1,17 +1,7 @@
-"""PhysX solver iterations per articulation, from how strongly its joint drives couple.
-
-PhysX solves an articulation's joint drives as rows of a Gauss-Seidel sweep. A drive row on DoF i takes an
-impulse whose velocity response is the joint-space inverse inertia M^-1 plus the drive's own compliance
-1/(dt * (D'_i + dt * K_i)) (D' the PhysX damping, `drive.py`). Gauss-Seidel on that matrix leaves rho^n of the
-error after n sweeps, rho the spectral radius of its iteration matrix: stiff drives on light, strongly coupled
-links (rho near 1) need many sweeps, weak drives or decoupled DoFs (rho near 0) converge in one.
-The loader raises an articulation's position iterations until rho^n <= RESIDUAL, at the largest radius over qpos0
-and the model's keyframes (MuJoCo's `mj_fullM` there): the coupling moves with the configuration, and a keyframe is
-where a model is meant to start. Measured on dm_control finger (rho 0.49): one-step velocity error 9.1e-5 at
-SAPIEN's 10 sweeps, 2.0e-7 at the 20 this rule picks; the panda needs 10 at qpos0 (rho 0.23) but 21 at its home
-keyframe (rho 0.51), where its servos moving the arm left 4e-5 rad/s at 10 sweeps and 8e-7 at 21. Equality and
-tendon rows are not counted; a frictional DoF counts its friction row only (its damping is armature there,
-`friction.py`).
+"""PhysX solver iterations per articulation, from how strongly its joint drives couple: the Gauss-Seidel
+spectral radius of the drive rows (M^-1 plus each drive's compliance), at qpos0 and the keyframes, decides how many
+position iterations leave at most `RESIDUAL` of a drive impulse's error. Derivation:
+docs/mapping.md#solver-iterations.
 """
 
 from __future__ import annotations
@@ -86,7 +76,7 @@ def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
 
 
 def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[tuple[int, np.ndarray, float]]:
-    """Per soft connect or weld (`connect.py`): its articulation, its three linear rows J1(p1) - J2(p2) at qpos0
+    """Per soft connect or weld (`runtime/equalities.py`): its articulation, its three linear rows J1(p1) - J2(p2) at qpos0
     and their compliance R (PhysX's damper 1 / (dt R) leaves R per unit impulse), at a closed loop's impedance; a
     weld's three rotational rows as a second entry (a row's sign does not change the radius)."""
     result = []

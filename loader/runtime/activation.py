@@ -1,13 +1,6 @@
 """Actuator activation dynamics: MuJoCo's `filter`, `filterexact` and `integrator` actuators, stepped as MuJoCo
-steps them.
-
-An actuator with dynamics scales its gain by its activation `act` instead of `ctrl`. The activation obeys an ODE in
-ctrl alone, act_dot = (ctrl - act) / tau (filter, filterexact) or ctrl (integrator), which MuJoCo advances after the
-step: act += dt act_dot (filterexact: the exact exponential, act += (ctrl - act)(1 - exp(-dt / tau))), clamped to
-`actrange` where `actlimited`. The force of a step uses the activation before it (`actearly`: after it). Nothing
-here depends on the physics state, so `Activation` reproduces MuJoCo's act exactly and `set_ctrl` feeds it to the
-actuator's force law; PhysX itself has no activation. Muscles (whose force also depends on the activation
-nonlinearly) and user dynamics are not mapped.
+steps them (the ODE depends on ctrl alone, so the activation is MuJoCo's exactly). Muscles and user dynamics are
+not mapped. Derivation: docs/mapping.md#activation.
 """
 
 from __future__ import annotations

@@ -1,22 +1,7 @@
-"""connect and weld equalities as MuJoCo's soft law on a PhysX D6 joint, rewritten by `set_ctrl` every step.
-
-A MuJoCo row solves f = (A + R)^-1 (aref - a0); after one step that is exactly an implicit damper 1 / (dt R) on the
-row's velocity with the target J v0 + dt aref (`impedance.py`), which a D6 drive is. The connect's three rows are
-the D6's linear drives; a weld adds three rotational rows on its slerp drive. PhysX details in the target, measured
-on four-bar, five-bar and welded two-leg fixtures (hinge joints):
-- the D6 applies both ends' forces and measures both velocities at the child's anchor, MuJoCo each body's at its own
-  anchor: the anchor is moved to the pin each step (`pin`: the child's anchor against a static body, else the
-  midpoint), and the velocity is taken there;
-- PhysX's step leaves the linear row's velocity short of w x (w x r) of the anchor about each end's centre of mass,
-  and carries the rest of MuJoCo's velocity-product term J' qdot itself (so aref enters without it);
-- a weld's rotational rows (residual ts imag(e), e = conj(q2) q1 relquat; row velocity G R2^T (w1 - w2) with
-  G = ts/2 (e_w I - [e_v]x)) meet PhysX's slerp drive through G^T G = (ts/2)^2 (I - e_v e_v^T), taken as
-  (ts/2)^2 I, and only the frame part of their J' qdot (G' and R2') enters the target.
-The first step then matches MuJoCo to float32 on a closed loop (2e-7 rad/s at 3 rad/s). Left: terms first order in
-the loop's violation (PhysX applies both ends' forces at the child's anchor; the e_v e_v^T part), and MuJoCo solving
-a constraint with M before integrating joint damping with M + dt D where PhysX solves both together (1.9e-2 rad/s
-on the 2f85's linkage). `release` (no more `set_ctrl`) locks the D6's translation and holds a weld's rotation with
-a slerp spring-damper (approximate); `set_active` is MuJoCo's eq_active.
+"""connect and weld equalities as MuJoCo's soft row on a PhysX D6 joint, rewritten by `set_ctrl` every step:
+the connect's three rows on the D6's linear drives, a weld's rotational rows on its slerp drive, the anchor moved
+to the pin and the centripetal term the step leaves out put into the target. `release` locks the D6;
+`set_active` is MuJoCo's eq_active. Derivation: docs/mapping.md#equalities.
 """
 
 from __future__ import annotations
@@ -83,7 +68,7 @@ class SoftConnect:
     row: SoftRow
     diag_approx: np.ndarray  # MuJoCo's diagApprox per row (3 for a connect, 6 for a weld)
     equality: int  # MuJoCo's equality id
-    child_body: int  # MuJoCo body ids of the ends (solver iterations, `solver.py`)
+    child_body: int  # MuJoCo body ids of the ends (solver iterations, `build/solver_iterations.py`)
     parent_body: int
     articulation: int | None  # the child's articulation
     child_rotation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))  # D6 frame in child
@@ -119,8 +104,8 @@ class SoftConnect:
     def pin(self, child_point: np.ndarray, parent_point: np.ndarray) -> np.ndarray:
         """Where the D6 acts: PhysX applies both ends' forces at the child's anchor, MuJoCo each body's at its own.
         Against a body that does not move, the child's anchor is exact; between two moving bodies the midpoint
-        cancels the first-order error at rest (measured on an asymmetric five-bar open by 3.6e-5 m: 4.1e-6 rad/s
-        against 2.4e-5 at either anchor)."""
+        cancels the first-order error at rest
+        (tests/test_loader_connect.py::test_taking_both_ends_at_the_pin_matters_for_an_open_moving_loop)."""
         return child_point if self.parent is None else 0.5 * (child_point + parent_point)
 
     @staticmethod
@@ -223,8 +208,8 @@ class SoftWeld(SoftConnect):
     def lock(self, timestep: float) -> None:
         """For callers that stop calling `update`: translation locked, rotation held by the slerp drive (PhysX's D6
         locks only twist, not swing) as a spring-damper: the closed loop's damper, and a spring that closes an
-        opening at MuJoCo's reference rate K imp / B. Approximate (welded legs, 1 s without set_ctrl: relative
-        rotation 8.8e-3 rad against MuJoCo's 4.8e-3, joints 5e-3 apart)."""
+        opening at MuJoCo's reference rate K imp / B. Approximate
+        (tests/test_loader_connect.py::test_after_release_a_weld_keeps_its_relative_rotation)."""
         super().lock(timestep)
         if not self.active or self.torquescale == 0:
             return

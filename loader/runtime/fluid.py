@@ -1,14 +1,6 @@
-"""MuJoCo's inertia-box fluid model (`<option density viscosity wind>`) as per-step forces on the links.
-
-For every body with mass, MuJoCo takes the box of uniform density with the body's inertia (sides
-b_i = sqrt(6 (I_j + I_k - I_i) / m)) and applies at its centre of mass, in its inertial frame, from the body's
-velocity relative to the wind there: viscous drag -3 pi d mu v and torque -pi d^3 mu w (d the mean side), and
-quadratic drag -rho/2 b_j b_k |v_i| v_i and torque -rho b_i (b_j^4 + b_k^4) |w_i| w_i / 64. Those are explicit
-forces of the state at the start of the step, which `set_ctrl` computes from the links' velocities and adds with
-`add_force_torque` (PhysX clears them after the step): exact under MuJoCo's Euler (a blade on a hinge: 4e-8 rad/s
-after one step). Under implicitfast MuJoCo also takes the forces' velocity derivatives into its implicit step,
-which is not mapped (listed; the same blade: 1.4e-3 of a 3.7e-2 rad/s change). Geoms with
-`fluidshape="ellipsoid"` use MuJoCo's other fluid model, which is not mapped (listed).
+"""MuJoCo's inertia-box fluid model (`<option density viscosity wind>`) as per-step link forces: viscous and
+quadratic drag and torque on each body's equivalent box, from its velocity relative to the wind at the start of
+the step, added once per step. Derivation: docs/mapping.md#fluid.
 """
 
 from __future__ import annotations

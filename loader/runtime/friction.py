@@ -1,23 +1,7 @@
-"""Joint frictionloss on a PhysX joint drive, where the drive carries nothing else.
-
-MuJoCo's friction row on a DoF is a box-constrained solve: f = clip(-(a0 + B v) / (A + R), -F, F), with a0 the
-unconstrained acceleration, A = (M^-1)_ii, and B and R from its constraint row (`efc_KBIP`, `efc_R`; rows coupled
-through M^-1 when several joints have friction). A PhysX drive with damping C, velocity target v* and force limit
-F gives f = clip(C (v* - v'), -F, F) with v' = v + dt (a0 + A f), solved in the same Gauss-Seidel sweep: with
-C = 1 / (R dt) and v* = v (1 - B dt) the two problems are the same. Measured on a two-link pendulum falling
-against its frictionloss: 1.3e-6 rad over 1 s sliding, 3.6e-7 sticking (0.93 and 2.6 with friction dropped).
-A drive holds one law, so where a joint also has damping, a spring or servo gains, those leave the drive (the
-"armature form", `Actuation.set_ctrl`): springs and kp are explicit in MuJoCo and become generalized forces; the
-implicit damping D (passive damping, and kv under implicitfast) becomes armature dt*D plus the explicit force -D v,
-which is MuJoCo's implicit step (M + dt D) qacc = f exactly, with no solver row (measured to 1e-16 inside MuJoCo).
-MuJoCo still solves its friction rows with M alone, while PhysX solves the drive with M + dt D: with
-s = 1 + (M^-1)_ii dt D, damping s / (R dt) and target v (1 - B dt / s) make the two the same for one DoF. With
-several DoFs, MuJoCo's rows couple through the off-diagonal (M^-1)_ij dt D_j, which a per-DoF drive cannot see:
-an approximation, listed. It matters while a joint sticks, and where implicit damping outweighs the links' inertia
-(dt D (M^-1)_ii up to 14 on the Menagerie's leap hand): MuJoCo's friction then opposes an acceleration computed
-without that damping, whose sign differs from the step's velocity change on 12 % of the hand's DoF-steps.
-Measured: one damped servo hinge 3e-7 rad over 2 s (5e-4..7e-3 with s = 1); barkour's and go1's rollouts
-7e-3 -> 1.6e-4 and 4.2e-3 -> 7e-4 rad against friction dropped; the leap hand 5.6e-4 -> 7.6e-4 (worse).
+"""Joint frictionloss on a PhysX joint drive: MuJoCo's friction row is a box-constrained solve that a drive with
+damping s / (R dt), velocity target v (1 - B dt / s) and force limit F reproduces; the joint's other terms leave
+the drive in the armature form. Several frictional DoFs coupled through M^-1 are approximate (listed).
+Derivation: docs/mapping.md#frictionloss.
 """
 
 from __future__ import annotations

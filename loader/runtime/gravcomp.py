@@ -1,10 +1,5 @@
-"""Body gravity compensation (`<body gravcomp>`): MuJoCo's passive force -gravcomp * m * g at the body's centre of
-mass.
-
-gravcomp = 1 cancels gravity exactly: the link does not feel PhysX's gravity (`disable_gravity`), nothing per step.
-Any other value keeps PhysX's gravity and adds -gravcomp * m * g with `add_force_torque` once per step from
-`set_ctrl` (PhysX clears link forces after the step). A joint with `actuatorgravcomp` takes its share through the
-actuators in MuJoCo, where `actuatorfrcrange` clamps it; the loader applies it as a passive force (listed).
+"""Body gravity compensation (`<body gravcomp>`): gravcomp = 1 turns PhysX's gravity off for the link; any other
+value adds -gravcomp m g at the centre of mass once per step. Derivation: docs/mapping.md#gravity-compensation.
 """
 
 from __future__ import annotations

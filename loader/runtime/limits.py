@@ -1,16 +1,7 @@
-"""MuJoCo's soft joint limits on the joint's PhysX drive, where the drive carries nothing else at the limit.
-
-A limit row (J = +1 at the lower end, -1 at the upper) exists while the joint is within `margin` of the end and
-pushes only: f = max(0, (A + R)^-1 (aref - a0)), aref = -B v_row - K imp (r - margin). As for a friction row
-(`friction.py`), a drive with damping s / (R dt) pulling the joint velocity to the target v + dt aref / s is that
-row, unclamped (s = 1 + (M^-1)_ii dt D where the joint's implicit damping D rides as armature). One-sided: the
-drive's force limit L and an explicit force sign * L around a target shifted by -sign * L / (its damping) make the
-total force clamp(row force, 0, 2 L). L is sized each step to the row's force bound (`force_limit`), no larger:
-PhysX cancels the offset only to a residual that grows with L when contacts share the solve. PhysX's own limit
-then has to stay out of the way: the loader widens it (`WIDEN`) and puts it back on `release`, whose callers do
-not call `set_ctrl`. Measured on a pendulum bouncing on both ends of its range for
-1.2 s: 1.3e-8 rad from MuJoCo with L = 10, 8.5e-7 with L = 1000 (float32); PhysX's hard limit there: 1e-2.
-A joint with frictionloss (its drive carries the friction) or coupled to other rows keeps PhysX's hard limit: listed.
+"""MuJoCo's soft joint limits on the joint's PhysX drive: a one-sided limit row as a drive with damping
+s / (R dt), a force limit L sized to the row's force bound and an explicit offset, PhysX's hard limit widened out
+of the rows' way while `set_ctrl` runs. Frictional and coupled joints keep the hard limit (listed). Derivation:
+docs/mapping.md#joint-limits.
 """
 
 from __future__ import annotations
@@ -148,8 +139,8 @@ class LimitTerm:
 def coupled_joints(model: mujoco.MjModel) -> set[int]:
     """Joints another constraint row couples to: in a joint or tendon equality, or on a tendon. MuJoCo solves
     their limit rows together with those rows, which a per-DoF drive cannot see (the panda's fingers, held against
-    their limits by a tendon servo and coupled by an equality: 2.5e-4 m with soft rows, 3e-6 with PhysX's hard
-    limit), so they keep the hard limit."""
+    their limits by a tendon servo and coupled by an equality, are closer to MuJoCo with PhysX's hard limit:
+    tests/test_loader_actuators.py::test_panda_finger_tendon_and_equality_hold_while_closing), so they keep it."""
     out = set()
     for e in range(model.neq):
         if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):

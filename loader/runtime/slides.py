@@ -1,22 +1,6 @@
-"""Slide joints on turning links: the velocity a PhysX prismatic drive acts on, put back to MuJoCo's qdot.
-
-Measured: PhysX's drive on a prismatic joint acts on the joint's end-of-step velocity less dt k, where
-k = (w x (w x d)) . a, w is the parent's angular velocity, d the child's centre of mass less the parent's and a the
-joint's axis, all at the start of the step: the centripetal acceleration of the child's centre of mass about the
-parent's along the axis, which the drive row (taken on the two centres of mass with the step's start geometry)
-does not see. The joint's own motion is right (no drive: float32 agreement); a damped slide on a turning link is
-not: a 15 g finger with damping 1 on a hand turning at 2 rad/s, 0.1 m from the hand's centre of mass, is 1.4e-5
-m/s off MuJoCo after one step, as dt^2 D w^2 d / (m + armature + dt D) says (panda and aloha grippers at 2 rad/s
-joint speeds: up to 1e-3 and 7e-3 m/s). PhysX's source agrees: a drive row measures the joint's velocity from the
-two links' spatial velocities (at their centres of mass, rows taken at the start of the step), and its unconstrained
-step has added dt times each link's velocity-product acceleration to them, of which w x (w x d) lies along a slide's
-axis. A revolute drive does not see it (its row is angular: the drift's angular part w x axis qdot is normal to the
-axis).
-`set_ctrl` therefore adds dt k to the drive's velocity target and dt^2 k to its position target every step
-(`drive.apply`), which puts the drive's force back to MuJoCo's (K dt + D) qdot form: one-step errors drop to
-float32 (panda 1.0e-3 -> 4e-7, aloha 6.6e-3 -> 1e-6 m/s). A drive the caller sets after `release()` goes without
-the offset: second order in dt per step.
-The connect rows of `connect.py` carry the same term for a D6's linear drives.
+"""Slide joints on turning links: PhysX's prismatic drive misses the centripetal acceleration of the child's
+centre of mass along the axis, so `set_ctrl` adds dt k to its velocity target and dt^2 k to its position target
+every step. Derivation: docs/mapping.md#slides-on-turning-links.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ MENAGERIE = [
     "google_barkour_vb/barkour_vb.xml", "leap_hand/right_hand.xml", "robotiq_2f85_v4/2f85.xml",
     "tetheria_aero_hand_open/right_hand.xml", "unitree_go1/go1.xml",
 ]
-FIXTURES = Path(__file__).parent / "fixtures"
+FIXTURES = Path(__file__).parent.parent / "fixtures"
 
 
 def _package_dir(name: str) -> Path | None:

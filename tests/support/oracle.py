@@ -69,7 +69,7 @@ def link_pose_errors(result, rng: np.random.Generator, random_configurations: in
 
 
 def _physx_collides(shape_a, shape_b) -> bool:
-    """PhysX's group rule as SAPIEN's filter applies it (FACTS.md)."""
+    """PhysX's group rule as SAPIEN's filter applies it (docs/mapping.md#collision-filter)."""
     ga, gb = shape_a.get_collision_groups(), shape_b.get_collision_groups()
     if (ga[2] & gb[2]) and (ga[3] & 0xFFFF) == (gb[3] & 0xFFFF):
         return False

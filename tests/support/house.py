@@ -1,0 +1,121 @@
+"""The house rules `nox -s lint` and tests/test_house.py check on the source tree:
+
+- no measured number (e-notation) in a docstring under `loader/`: it belongs in the test that measures it;
+- no import cycle between the project's modules (function-local imports included);
+- no class over `MAX_CLASS_LINES` lines in `loader/`;
+- no module reading another object's private (`_name`) attribute.
+
+Run as `python tests/support/house.py` from the project root; exits non-zero on a finding."""
+
+from __future__ import annotations
+
+import ast
+import re
+import sys
+from pathlib import Path
+
+E_NOTATION = re.compile(r"(?<![\w.])\d+(?:\.\d+)?[eE][-+]?\d+\b")
+MAX_CLASS_LINES = 120
+PACKAGES = ("loader", "conformance")
+
+
+def _docstring_nodes(tree: ast.AST):
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(
+                    first.value.value, str):
+                yield first
+
+
+def docstring_numbers(files: dict[str, str]) -> list[str]:
+    """`path:line: <number>` for every e-notation number inside a docstring."""
+    out = []
+    for path, text in files.items():
+        for node in _docstring_nodes(ast.parse(text)):
+            for offset, line in enumerate(node.value.value.splitlines()):
+                for number in E_NOTATION.findall(line):
+                    out.append(f"{path}:{node.lineno + offset}: {number} in a docstring; name the test that "
+                               "measures it instead")
+    return out
+
+
+def _module_name(path: str) -> str:
+    parts = list(Path(path).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_cycles(files: dict[str, str]) -> list[str]:
+    """Every import cycle between the given modules (module-level and function-local imports)."""
+    modules = {_module_name(p): p for p in files}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        package = name if Path(path).name == "__init__.py" else name.rpartition(".")[0]
+        deps = set()
+        for node in ast.walk(ast.parse(files[path])):
+            if isinstance(node, ast.ImportFrom):
+                base = package.split(".")[: len(package.split(".")) - (node.level - 1)] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else [])) if node.level else node.module
+                subs = [f"{target}.{a.name}" for a in node.names if f"{target}.{a.name}" in modules]
+                deps.update(subs)
+                if len(subs) < len(node.names) and target in modules:
+                    deps.add(target)
+            elif isinstance(node, ast.Import):
+                deps.update(a.name for a in node.names if a.name in modules)
+        graph[name] = deps - {name}
+    cycles, state = [], {}
+
+    def visit(node: str, stack: list[str]) -> None:
+        state[node] = "open"
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == "open":
+                cycles.append(" -> ".join(stack[stack.index(nxt):] + [nxt]))
+            elif nxt not in state:
+                visit(nxt, stack)
+        stack.pop()
+        state[node] = "done"
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [])
+    return [f"import cycle: {cycle}" for cycle in cycles]
+
+
+def long_classes(files: dict[str, str], limit: int = MAX_CLASS_LINES) -> list[str]:
+    out = []
+    for path, text in files.items():
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > limit:
+                out.append(f"{path}:{node.lineno}: class {node.name} is {node.end_lineno - node.lineno + 1} lines "
+                           f"(at most {limit})")
+    return out
+
+
+def private_reads(files: dict[str, str]) -> list[str]:
+    """`obj._name` where obj is not `self`, `cls` or `super()` (dunder names aside)."""
+    out = []
+    for path, text in files.items():
+        for node in ast.walk(ast.parse(text)):
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))
+                    and not (isinstance(node.value, ast.Call) and getattr(node.value.func, "id", "") == "super")):
+                out.append(f"{path}:{node.lineno}: reads private attribute {node.attr}")
+    return out
+
+
+def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
+    return {str(p.relative_to(root)): p.read_text() for package in packages
+            for p in sorted((root / package).rglob("*.py"))}
+
+
+def findings(root: Path) -> list[str]:
+    every = sources(root)
+    loader = {p: t for p, t in every.items() if p.startswith("loader")}
+    return (docstring_numbers(loader) + import_cycles(every) + long_classes(loader) + private_reads(every))
+
+
+if __name__ == "__main__":
+    found = findings(Path.cwd())
+    print("\n".join(found) or "house rules: clean")
+    sys.exit(1 if found else 0)

@@ -1,0 +1,38 @@
+"""The house rules (tests/support/house.py) hold on the tree, and each check bites on a small deliberate mistake."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from support import house
+
+ROOT = Path(__file__).parent.parent
+
+
+def test_the_tree_keeps_the_house_rules():
+    assert house.findings(ROOT) == []
+
+
+def test_a_measured_number_in_a_loader_docstring_is_found_and_one_in_code_is_not():
+    text = '"""Module."""\n\nLIMIT = 1e-6\n\n\ndef f():\n    """Measured 4.2e-7 rad over 1 s."""\n    return 2.5E3\n'
+    assert house.docstring_numbers({"loader/x.py": text}) == [
+        "loader/x.py:7: 4.2e-7 in a docstring; name the test that measures it instead"]
+
+
+def test_an_import_cycle_is_found_even_through_a_function_local_import():
+    files = {"pkg/__init__.py": "", "pkg/a.py": "from .b import g\n",
+             "pkg/b.py": "def g():\n    from .a import h\n    return h\n"}
+    assert house.import_cycles(files) == ["import cycle: pkg.a -> pkg.b -> pkg.a"]
+    assert house.import_cycles({**files, "pkg/b.py": "def g():\n    return 1\n"}) == []
+
+
+def test_a_class_over_the_limit_is_found():
+    body = "class Big:\n" + "    x = 1\n" * house.MAX_CLASS_LINES
+    assert house.long_classes({"loader/big.py": body}) == [
+        f"loader/big.py:1: class Big is {house.MAX_CLASS_LINES + 1} lines (at most {house.MAX_CLASS_LINES})"]
+    assert house.long_classes({"loader/big.py": body.replace("    x = 1\n", "", 1)}) == []
+
+
+def test_reading_another_objects_private_attribute_is_found():
+    text = "def f(result):\n    return result._cache\n\n\nclass A:\n    def g(self):\n        return self._own\n"
+    assert house.private_reads({"m.py": text}) == ["m.py:2: reads private attribute _cache"]
