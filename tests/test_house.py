@@ -36,3 +36,24 @@ def test_a_class_over_the_limit_is_found():
 def test_reading_another_objects_private_attribute_is_found():
     text = "def f(result):\n    return result._cache\n\n\nclass A:\n    def g(self):\n        return self._own\n"
     assert house.private_reads({"m.py": text}) == ["m.py:2: reads private attribute _cache"]
+
+
+def test_a_link_to_a_missing_anchor_or_file_is_found():
+    docs = {"README.md": "see [limits](docs/mapping.md#joint-limits) and [x](docs/mapping.md#joint-limit)\n",
+            "docs/mapping.md": "# Mapping\n\n## Joint limits\n\n[back](../README.md), [gone](../nothere.py)\n"}
+    assert house.broken_links(docs) == ["README.md:1: broken link docs/mapping.md#joint-limit",
+                                        "docs/mapping.md:5: broken link ../nothere.py"]
+    docs["nothere.py"] = ""
+    docs["README.md"] = docs["README.md"].replace("#joint-limit)", "#joint-limits)")
+    assert house.broken_links(docs) == []
+
+
+def test_a_heading_with_punctuation_has_githubs_anchor():
+    docs = {"a.md": "## Visuals, cameras and sites\n## `set_ctrl` and `release()`\n[v](#visuals-cameras-and-sites) "
+                    "[s](#set_ctrl-and-release)\n"}
+    assert house.broken_links(docs) == []
+
+
+def test_a_readme_over_the_limit_is_found():
+    assert house.long_readme("x\n" * house.MAX_README_LINES) == []
+    assert house.long_readme("x\n" * (house.MAX_README_LINES + 1)) != []

@@ -3,20 +3,25 @@
 - no measured number (e-notation) in a docstring under `loader/`: it belongs in the test that measures it;
 - no import cycle between the project's modules (function-local imports included);
 - no class over `MAX_CLASS_LINES` lines in `loader/`;
-- no module reading another object's private (`_name`) attribute.
+- no module reading another object's private (`_name`) attribute;
+- every relative link in README.md and docs/*.md resolves (file and `#anchor`), and README.md stays under
+  `MAX_README_LINES` lines.
 
 Run as `python tests/support/house.py` from the project root; exits non-zero on a finding."""
 
 from __future__ import annotations
 
 import ast
+import os
 import re
 import sys
 from pathlib import Path
 
 E_NOTATION = re.compile(r"(?<![\w.])\d+(?:\.\d+)?[eE][-+]?\d+\b")
 MAX_CLASS_LINES = 120
+MAX_README_LINES = 120
 PACKAGES = ("loader", "conformance")
+LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
 def _docstring_nodes(tree: ast.AST):
@@ -104,6 +109,45 @@ def private_reads(files: dict[str, str]) -> list[str]:
     return out
 
 
+def _anchor(heading: str) -> str:
+    """GitHub's anchor for a markdown heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def broken_links(docs: dict[str, str]) -> list[str]:
+    """`path:line: link` for every relative link whose file or `#anchor` is not in `docs` (paths relative to the
+    root; links to files other than markdown only need the file to be listed)."""
+    anchors = {path: {_anchor(line.lstrip("#")) for line in text.splitlines() if line.startswith("#")}
+               for path, text in docs.items() if path.endswith(".md")}
+    out = []
+    for path, text in docs.items():
+        for number, line in enumerate(text.splitlines(), 1):
+            for link in LINK.findall(line):
+                if "://" in link or link.startswith("mailto:"):
+                    continue
+                target, _, anchor = link.partition("#")
+                resolved = os.path.normpath(os.path.join(os.path.dirname(path), target)) if target else path
+                if resolved not in docs or (anchor and anchor not in anchors.get(resolved, set())):
+                    out.append(f"{path}:{number}: broken link {link}")
+    return out
+
+
+def long_readme(text: str, limit: int = MAX_README_LINES) -> list[str]:
+    lines = len(text.splitlines())
+    return [f"README.md is {lines} lines (at most {limit}): move detail into docs/"] if lines > limit else []
+
+
+def documents(root: Path) -> dict[str, str]:
+    """README.md, docs/*.md and every other file they may link to (by path relative to the root)."""
+    files = {"README.md": (root / "README.md").read_text()}
+    files.update({str(p.relative_to(root)): p.read_text() for p in sorted((root / "docs").glob("*.md"))})
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root)
+        if p.is_file() and rel.parts[0] not in (".git", "reports", ".nox") and str(rel) not in files:
+            files[str(rel)] = ""
+    return files
+
+
 def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
     return {str(p.relative_to(root)): p.read_text() for package in packages
             for p in sorted((root / package).rglob("*.py"))}
@@ -112,7 +156,9 @@ def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
 def findings(root: Path) -> list[str]:
     every = sources(root)
     loader = {p: t for p, t in every.items() if p.startswith("loader")}
-    return (docstring_numbers(loader) + import_cycles(every) + long_classes(loader) + private_reads(every))
+    docs = documents(root)
+    return (docstring_numbers(loader) + import_cycles(every) + long_classes(loader) + private_reads(every)
+            + broken_links(docs) + long_readme(docs["README.md"]))
 
 
 if __name__ == "__main__":
