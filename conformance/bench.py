@@ -31,7 +31,7 @@ def _best(fn, repeats: int = REPEATS) -> tuple[float, object]:
 
 def bench_model(path: str, steps: int) -> dict:
     from .session import open_session
-    from .tiers.dynamics import disable_contacts, sapien_rollout
+    from .tiers.rollouts import disable_contacts, sapien_rollout
 
     compile_s, _ = _best(lambda: mujoco.MjModel.from_xml_path(path))
     with warnings.catch_warnings():

@@ -21,14 +21,12 @@ from dataclasses import dataclass
 
 import mujoco
 
+from loader import mj
+
 from .session import quiet_load
 
 ISOLATED_TIERS = ("dynamics", "actuated")
 FLAGS = mujoco.mjtDisableBit
-
-
-def _disabled(model: mujoco.MjModel, *bits) -> bool:
-    return bool(model.opt.disableflags & sum(int(b) for b in bits))
 
 
 def _zero_frictionloss(spec: mujoco.MjSpec) -> None:
@@ -64,12 +62,11 @@ GAPS = {gap.name: gap for gap in (
         lambda m: bool(m.dof_frictionloss.any()), _zero_frictionloss),
     Gap("equality", "equality constraints disabled (soft in MuJoCo; couplings are PhysX tendon springs, and "
         "connect/weld rows are exact alone but coupled with joint damping)",
-        lambda m: bool(m.neq and m.eq_active0.any()) and not _disabled(m, FLAGS.mjDSBL_EQUALITY,
-                                                                         FLAGS.mjDSBL_CONSTRAINT),
+        lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
         _disable(FLAGS.mjDSBL_EQUALITY)),
     Gap("limits", "joint limits disabled (soft rows on the drives are exact alone but coupled through implicit "
         "damping; PhysX's hard limit where kept)",
-        lambda m: bool(m.jnt_limited.any()) and not _disabled(m, FLAGS.mjDSBL_LIMIT, FLAGS.mjDSBL_CONSTRAINT),
+        lambda m: bool(m.jnt_limited.any()) and not mj.disabled(m, "limit", "constraint"),
         _disable(FLAGS.mjDSBL_LIMIT)),
     Gap("fluid", "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
         lambda m: m.opt.density > 0 or m.opt.viscosity > 0, _no_fluid),

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from loader import mj
+
 _INT = mujoco.mjtIntegrator
 # PhysX integrates semi-implicitly with implicit drives: RK4 has no counterpart, Euler/implicitfast do.
 _MATCHED_INTEGRATOR = {_INT.mjINT_RK4: _INT.mjINT_EULER, _INT.mjINT_IMPLICIT: _INT.mjINT_IMPLICITFAST}
@@ -44,17 +46,14 @@ def settings(model: mujoco.MjModel, ref: mujoco.MjModel) -> dict:
     }
 
 
-_DSBL = mujoco.mjtDisableBit
-
-
 def contacts_disabled(model: mujoco.MjModel) -> bool:
     """MuJoCo computes no contact: `<flag contact="disable"/>` or `<flag constraint="disable"/>`."""
-    return bool(model.opt.disableflags & (int(_DSBL.mjDSBL_CONTACT) | int(_DSBL.mjDSBL_CONSTRAINT)))
+    return mj.disabled(model, "contact", "constraint")
 
 
 def limits_disabled(model: mujoco.MjModel) -> bool:
     """MuJoCo enforces no joint limit: `<flag limit="disable"/>` or `<flag constraint="disable"/>`."""
-    return bool(model.opt.disableflags & (int(_DSBL.mjDSBL_LIMIT) | int(_DSBL.mjDSBL_CONSTRAINT)))
+    return mj.disabled(model, "limit", "constraint")
 
 
 def limited_dofs(model: mujoco.MjModel) -> list[tuple[int, int, float, float]]:

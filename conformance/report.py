@@ -119,11 +119,13 @@ class TierReport:
         return out
 
 
-def verdict(metrics: list[Metric], chaotic: bool = False, divergence: Divergence | None = None) -> str:
-    """A simulated tier's status: diverged when SAPIEN left the finite, physical states or a metric is not finite
-    (whatever else holds), else fail when a metric is past its tolerance, chaotic when MuJoCo cannot predict
-    itself, else pass."""
-    if divergence is not None or any(not math.isfinite(m.max) for m in metrics):
+def verdict(metrics: list[Metric], chaotic: bool = False, divergence: Divergence | None = None,
+            simulated: bool = True) -> str:
+    """Every tier's status. A simulated tier is diverged when SAPIEN left the finite, physical states or a metric is
+    not finite (whatever else holds); fail when a metric is past its tolerance; chaotic when MuJoCo cannot predict
+    itself; else pass. A static tier (`simulated=False`) never diverges: an infinite error there, such as a finite
+    limit against an infinite one, is a failure of the mapping."""
+    if simulated and (divergence is not None or any(not math.isfinite(m.max) for m in metrics)):
         return "diverged"
     if not all(m.passed for m in metrics):
         return "fail"
@@ -131,10 +133,8 @@ def verdict(metrics: list[Metric], chaotic: bool = False, divergence: Divergence
 
 
 def judged(tier: str, metrics: list[Metric], notes: list[str] | None = None, **extra) -> TierReport:
-    """A static tier's report: pass exactly when every metric is within tolerance (an infinite error, such as a
-    finite limit against an infinite one, is a failure of the mapping, not a divergence)."""
-    status = "pass" if all(m.passed for m in metrics) else "fail"
-    return TierReport(tier, status, metrics, list(notes or []), **extra)
+    """A static tier's report, judged by `verdict`."""
+    return TierReport(tier, verdict(metrics, simulated=False), metrics, list(notes or []), **extra)
 
 
 def skipped(tier: str, reason: str) -> TierReport:

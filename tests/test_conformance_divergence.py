@@ -14,7 +14,7 @@ import pytest
 from conformance import summary
 from conformance.divergence import SpeedBound, first_divergence
 from conformance.manifest import BAND_FACTOR, Expectation, ModelEntry
-from conformance.report import Metric, verdict
+from conformance.report import Metric, judged, verdict
 
 ROOT = Path(__file__).resolve().parents[1]
 SELFTEST = ROOT / "corpus" / "selftest.toml"
@@ -67,6 +67,13 @@ def test_a_divergence_or_a_non_finite_metric_outranks_every_other_status():
     assert verdict([good]) == "pass" and verdict([bad]) == "fail" and verdict([good], chaotic=True) == "chaotic"
     assert verdict([good], divergence=found) == "diverged"
     assert verdict([good, Metric("one_step_qvel", float("inf"), float("inf"), 1e-5, "rad/s")]) == "diverged"
+
+
+def test_an_infinite_error_of_a_static_tier_is_a_mapping_failure_not_a_divergence():
+    infinite = Metric("limit", float("inf"), float("inf"), 1e-6, "rad")  # a finite range mapped as unlimited
+    assert verdict([infinite], simulated=False) == "fail"
+    assert judged("structure", [infinite]).status == "fail"
+    assert judged("structure", [Metric("limit", 1e-8, 1e-8, 1e-6, "rad")]).status == "pass"
 
 
 def _entry(seen: float) -> ModelEntry:

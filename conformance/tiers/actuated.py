@@ -33,8 +33,7 @@ from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of
 from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped, verdict
 from ..tolerances import Tolerances
-from .contact import floating_roots, settled
-from .dynamics import disable_contacts, is_floating, settings_mismatches
+from .rollouts import compare_settled, disable_contacts, is_floating, settings_metric, settings_mismatches
 
 
 def unmapped(result) -> list[int]:
@@ -240,7 +239,7 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
     judged = gate.judged_steps + 1
     metrics: list[Metric] = [
-        Metric("settings_mismatches", float(len(mismatched)), float(len(mismatched)), 0.0, "count", 3),
+        settings_metric(mismatched),
         metric("one_step_qvel", one_step, tolerances[f"actuated.one_step_qvel_{kind}"], "rad/s or m/s",
                floor=one_step_floor),
         metric("rollout_qpos", err[:judged], tolerances[f"actuated.rollout_qpos_{kind}"], "rad or m",
@@ -284,16 +283,11 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     with actuated_scene(result, qpos0, qvel0, contacts=True):
         sp = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
-    sp_poses = sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, model.nbody))
-    bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
-    mj_final, sp_final, own = settled(run.body_pose), settled(sp_poses), settled(other.body_pose)
-    band = np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1)
-    spread = np.linalg.norm(own[bodies] - mj_final[bodies], axis=1)
-    roots = floating_roots(model)
+    poses = compare_settled(result, model, run.body_pose, other.body_pose, sp)
+    spread = poses.spread
     metrics = [
-        metric("final_pose_band", band, tolerances["actuated_contact.final_pose_band"], "m"),
-        metric("rest_height", np.abs(sp_final[roots, 2] - mj_final[roots, 2]),
-               tolerances["actuated_contact.rest_height"], "m"),
+        metric("final_pose_band", poses.band, tolerances["actuated_contact.final_pose_band"], "m"),
+        metric("rest_height", poses.rest, tolerances["actuated_contact.rest_height"], "m"),
     ]
     notes = removal + _ctrl_notes(scale, left, steps, smooth=False)
     limit = tolerances.setting("contact", "spread_fraction") * tolerances["actuated_contact.final_pose_band"]
@@ -305,7 +299,6 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     return TierReport("actuated_contact", verdict(metrics, chaotic, diverged), metrics, notes, divergence=diverged,
                       settings={**matched, "steps": steps, "start": start, "ctrl_scale": scale,
                                 "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "mujoco_self_spread": float(spread.max(initial=0.0))},
-                      series={"final_pose_band": np.nanmax(np.linalg.norm(
-                          sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)},
+                      series={"final_pose_band": poses.series},
                       actuators=ActuatorTrace([a.name for a in result.actuators], time[:-1],
                                               commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp.force))

@@ -14,17 +14,7 @@ from .. import chaos, reference, sapien_side
 from ..divergence import SpeedBound, first_divergence
 from ..report import TierReport, metric, skipped, verdict
 from ..tolerances import Tolerances
-from .dynamics import sapien_rollout
-
-
-def settled(poses: np.ndarray) -> np.ndarray:
-    """Mean body positions (nbody, 3) over the last quarter of a rollout."""
-    tail = max(1, poses.shape[0] // 4)
-    return poses[-tail:, :, :3].mean(axis=0)  # NaN rows (bodies without a link) stay NaN
-
-
-def floating_roots(model: mujoco.MjModel) -> list[int]:
-    return [int(model.jnt_bodyid[j]) for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+from .rollouts import compare_settled, sapien_rollout
 
 
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -46,19 +36,14 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
                               qvel0, steps, None)
     sp = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
-    sp_poses = sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, model.nbody))
     sapien_side.set_state(result, qpos0, qvel0)
-    bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
-    mj_final, sp_final, own = settled(run.body_pose), settled(sp_poses), settled(other.body_pose)
-    band = np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1)
-    spread = np.linalg.norm(own[bodies] - mj_final[bodies], axis=1)
-    roots = floating_roots(model)
-    rest = np.abs(sp_final[roots, 2] - mj_final[roots, 2])
+    poses = compare_settled(result, model, run.body_pose, other.body_pose, sp)
     metrics = [
-        metric("final_pose_band", band, tolerances["contact.final_pose_band"], "m"),
-        metric("rest_height", rest, tolerances["contact.rest_height"], "m"),
+        metric("final_pose_band", poses.band, tolerances["contact.final_pose_band"], "m"),
+        metric("rest_height", poses.rest, tolerances["contact.rest_height"], "m"),
     ]
     notes = []
+    spread = poses.spread
     chaotic = spread.size and spread.max() > tolerances.setting("contact", "spread_fraction") * \
         tolerances["contact.final_pose_band"]
     if chaotic:
@@ -66,5 +51,4 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
                      f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable")
     return TierReport("contact", verdict(metrics, bool(chaotic), diverged), metrics, notes, divergence=diverged,
                       settings={**matched, "steps": steps, "start": start, "chaos": gate.to_dict(), "mujoco_self_spread": float(spread.max(initial=0.0))},
-                      series={"final_pose_band": np.nanmax(np.linalg.norm(
-                          sp_poses[:, bodies, :3] - run.body_pose[:, bodies, :3], axis=2), axis=1)})
+                      series={"final_pose_band": poses.series})

@@ -14,23 +14,7 @@ from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of
 from ..report import Metric, TierReport, Trace, metric, skipped, verdict
 from ..tolerances import Tolerances
-
-
-def is_floating(model: mujoco.MjModel) -> bool:
-    return bool((model.jnt_type == mujoco.mjtJoint.mjJNT_FREE).any())
-
-
-def disable_contacts(result) -> None:
-    """Contacts off for the contact-free tiers; they stay off (later tiers run contact-free or are ordered before)."""
-    result.set_contacts(False)
-
-
-def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray) -> sapien_side.Run:
-    """Replay `command` (steps, nv), a generalized force per step, on SAPIEN from (qpos0, qvel0)."""
-    run = sapien_side.rollout(result, qpos0, qvel0, command.shape[0],
-                              lambda t, q, v: sapien_side.apply_generalized_force(result, command[t]))
-    sapien_side.apply_generalized_force(result, np.zeros(model.nv))
-    return run
+from .rollouts import disable_contacts, is_floating, sapien_rollout, settings_metric, settings_mismatches
 
 
 def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
@@ -56,22 +40,6 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
     return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}, found
 
 
-def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
-    """Timestep, gravity and solver of the SAPIEN scene against the MuJoCo reference."""
-    import sapien
-
-    config = sapien.physx.get_scene_config()
-    gravity = np.zeros(3) if ref.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else ref.opt.gravity
-    out = []
-    if abs(result.scene.timestep - ref.opt.timestep) > 1e-6 * ref.opt.timestep:  # SAPIEN stores float32
-        out.append(f"timestep {result.scene.timestep} in SAPIEN, {ref.opt.timestep} in MuJoCo")
-    if np.max(np.abs(np.asarray(config.gravity) - gravity)) > 1e-6:
-        out.append(f"gravity {list(config.gravity)} in SAPIEN, {list(gravity)} in MuJoCo")
-    if config.enable_tgs:
-        out.append("SAPIEN uses TGS; the harness expects PGS (TGS adds an O(dt) gap)")
-    return out
-
-
 def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     if model.nv == 0:
         return skipped("dynamics", "the model has no degrees of freedom")
@@ -88,8 +56,7 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     pd = commands.PDTracking(ref, qpos0, steps, seed, tolerances.setting("dynamics", "pd_amplitude"),
                              tolerances.setting("dynamics", "pd_freq_hz"))
     mismatched = settings_mismatches(result, ref)
-    metrics: list[Metric] = [Metric("settings_mismatches", float(len(mismatched)), float(len(mismatched)), 0.0,
-                                    "count", 3)]
+    metrics: list[Metric] = [settings_metric(mismatched)]
     notes: list[str] = list(mismatched)
     series: dict[str, np.ndarray] = {}
     traces: list[Trace] = []

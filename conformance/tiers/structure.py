@@ -5,6 +5,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from loader import mj
+
 from .. import sapien_side
 from ..reference import limits_disabled
 from ..report import Metric, TierReport, judged, metric
@@ -17,10 +19,6 @@ KIND = {int(_JT.mjJNT_FREE): "free", int(_JT.mjJNT_BALL): "ball", int(_JT.mjJNT_
 SAPIEN_TYPES = {"hinge": {"revolute", "revolute_unwrapped", "continuous"}, "slide": {"prismatic"},
                 "ball": {"revolute", "revolute_unwrapped", "continuous"}}
 _MAX_NOTES = 25
-
-
-def _name(model, kind, i) -> str:
-    return mujoco.mj_id2name(model, kind, i) or f"#{i}"
 
 
 def _link_index(result) -> dict[tuple[int, int], int]:
@@ -78,16 +76,16 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         link = sapien_side.body_link(result, b)
         if link is None:
             if moving[b]:
-                mismatches.append(f"moving body {_name(model, mujoco.mjtObj.mjOBJ_BODY, b)!r} has no link")
+                mismatches.append(f"moving body {mj.name(model, 'body', b)!r} has no link")
             continue
         body_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b)
         if body_name and link.name != body_name:
             mismatches.append(f"body {body_name!r} is carried by link named {link.name!r}")
-        sp, mj = _sapien_parent_body(result, b, carried), _mujoco_parent_body(result, model, b)
-        if sp != mj:
-            mismatches.append(f"body {_name(model, mujoco.mjtObj.mjOBJ_BODY, b)!r}: parent "
-                              f"{_name(model, mujoco.mjtObj.mjOBJ_BODY, sp)!r} in SAPIEN, "
-                              f"{_name(model, mujoco.mjtObj.mjOBJ_BODY, mj)!r} in MuJoCo")
+        sp, ref = _sapien_parent_body(result, b, carried), _mujoco_parent_body(result, model, b)
+        if sp != ref:
+            mismatches.append(f"body {mj.name(model, 'body', b)!r}: parent "
+                              f"{mj.name(model, 'body', sp)!r} in SAPIEN, "
+                              f"{mj.name(model, 'body', ref)!r} in MuJoCo")
 
     # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
     axis_err, anchor_err, limit_err = [], [], []
@@ -96,7 +94,7 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     limit_rows = limits.rows if limits is not None else {}  # soft limit rows on the drives
     for j in range(model.njnt):
         kind = KIND[int(model.jnt_type[j])]
-        name = _name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+        name = mj.name(model, 'joint', j)
         entry = result.mapping.joints[j] if j < len(result.mapping.joints) else None
         if entry is None:
             mismatches.append(f"joint {name!r} ({kind}) is not in the mapping")

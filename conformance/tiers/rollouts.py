@@ -1,0 +1,87 @@
+"""What the simulated tiers share: the SAPIEN side of a rollout, the scene checks before one, and the settled-pose
+comparison the contact tiers judge by."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .. import sapien_side
+from ..report import Metric
+
+
+def is_floating(model: mujoco.MjModel) -> bool:
+    return bool((model.jnt_type == mujoco.mjtJoint.mjJNT_FREE).any())
+
+
+def floating_roots(model: mujoco.MjModel) -> list[int]:
+    return [int(model.jnt_bodyid[j]) for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+
+
+def disable_contacts(result) -> None:
+    """Contacts off for the contact-free tiers; they stay off (later tiers run contact-free or are ordered before)."""
+    result.set_contacts(False)
+
+
+def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray) -> sapien_side.Run:
+    """Replay `command` (steps, nv), a generalized force per step, on SAPIEN from (qpos0, qvel0)."""
+    run = sapien_side.rollout(result, qpos0, qvel0, command.shape[0],
+                              lambda t, q, v: sapien_side.apply_generalized_force(result, command[t]))
+    sapien_side.apply_generalized_force(result, np.zeros(model.nv))
+    return run
+
+
+def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
+    """Timestep, gravity and solver of the SAPIEN scene against the MuJoCo reference."""
+    import sapien
+
+    config = sapien.physx.get_scene_config()
+    gravity = np.zeros(3) if ref.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else ref.opt.gravity
+    out = []
+    if abs(result.scene.timestep - ref.opt.timestep) > 1e-6 * ref.opt.timestep:  # SAPIEN stores float32
+        out.append(f"timestep {result.scene.timestep} in SAPIEN, {ref.opt.timestep} in MuJoCo")
+    if np.max(np.abs(np.asarray(config.gravity) - gravity)) > 1e-6:
+        out.append(f"gravity {list(config.gravity)} in SAPIEN, {list(gravity)} in MuJoCo")
+    if config.enable_tgs:
+        out.append("SAPIEN uses TGS; the harness expects PGS (TGS adds an O(dt) gap)")
+    return out
+
+
+def settings_metric(mismatched: list[str]) -> Metric:
+    """The count of scene settings that differ from MuJoCo's, judged against zero."""
+    return Metric("settings_mismatches", float(len(mismatched)), float(len(mismatched)), 0.0, "count", 3)
+
+
+def settled(poses: np.ndarray) -> np.ndarray:
+    """Mean body positions (nbody, 3) over the last quarter of a rollout."""
+    tail = max(1, poses.shape[0] // 4)
+    return poses[-tail:, :, :3].mean(axis=0)  # NaN rows (bodies without a link) stay NaN
+
+
+@dataclass
+class Settled:
+    """Both sides' settled poses compared: per body the distance of SAPIEN's from MuJoCo's (`band`), per floating
+    root the height difference (`rest`), MuJoCo's own distance under a perturbed start (`spread`), and the
+    per-step largest body distance (`series`)."""
+
+    band: np.ndarray
+    rest: np.ndarray
+    spread: np.ndarray
+    series: np.ndarray
+
+
+def compare_settled(result, model: mujoco.MjModel, mujoco_poses: np.ndarray, perturbed_poses: np.ndarray,
+                    run: sapien_side.Run) -> Settled:
+    """MuJoCo's body poses (T, nbody, 7), those of MuJoCo's perturbed run, and SAPIEN's run, compared over the
+    bodies SAPIEN carries on a link."""
+    poses = sapien_side.bodies_from_links(run.link_pose, sapien_side.body_link_rows(result, model.nbody))
+    bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
+    mj_final, sp_final, own = settled(mujoco_poses), settled(poses), settled(perturbed_poses)
+    roots = floating_roots(model)
+    return Settled(band=np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1),
+                   rest=np.abs(sp_final[roots, 2] - mj_final[roots, 2]),
+                   spread=np.linalg.norm(own[bodies] - mj_final[bodies], axis=1),
+                   series=np.nanmax(np.linalg.norm(poses[:, bodies, :3] - mujoco_poses[:, bodies, :3], axis=2),
+                                    axis=1))
