@@ -16,6 +16,7 @@ from tqdm import tqdm
 
 from . import corpus, summary
 from .manifest import TIER_NAMES, ModelEntry
+from .results import ModelResult
 from .versions import versions
 from .worker import Job, main, result_path
 
@@ -56,20 +57,20 @@ def _describe_exit(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def _collect(job: Job, exitcode: int | None, timed_out: bool, seconds: float) -> dict:
+def _collect(job: Job, exitcode: int | None, timed_out: bool, seconds: float) -> ModelResult:
     partial = Path(job.run_dir) / f".{job.entry.id}.rrd.partial"  # a recording the worker did not finish
     partial.unlink(missing_ok=True)
     if timed_out:
-        return {"id": job.entry.id, "status": "timeout", "seconds": round(seconds, 3),
-                "reason": f"worker exceeded its {job.entry.timeout_s:g} s timeout and was killed"}
+        return ModelResult(job.entry.id, "timeout", seconds=round(seconds, 3),
+                           reason=f"worker exceeded its {job.entry.timeout_s:g} s timeout and was killed")
     path = result_path(job.run_dir, job.entry.id)
     if path.is_file():
         try:
-            return json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            return {"id": job.entry.id, "status": "crashed", "reason": f"unreadable result file: {exc}"}
-    return {"id": job.entry.id, "status": "crashed", "seconds": round(seconds, 3),
-            "reason": f"worker died without a result ({_describe_exit(exitcode)})"}
+            return ModelResult.from_dict(json.loads(path.read_text()))
+        except (json.JSONDecodeError, TypeError, ValueError) as exc:
+            return ModelResult(job.entry.id, "crashed", reason=f"unreadable result file: {exc}")
+    return ModelResult(job.entry.id, "crashed", seconds=round(seconds, 3),
+                       reason=f"worker died without a result ({_describe_exit(exitcode)})")
 
 
 def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
@@ -82,12 +83,12 @@ def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
     if options.tiers:
         entries = [replace(e, tiers=tuple(options.tiers)) for e in entries]
     tier_names = [t for t in TIER_NAMES if any(t in e.tiers for e in entries)]
-    results: dict[str, dict] = {}
+    results: dict[str, ModelResult] = {}
     jobs: list[Job] = []
     for entry in entries:
         resolved = corpus.resolve(entry)
         if resolved.path is None:
-            results[entry.id] = {"id": entry.id, "status": "skipped", "reason": resolved.skip_reason}
+            results[entry.id] = ModelResult(entry.id, "skipped", reason=resolved.skip_reason)
             continue
         jobs.append(Job(entry, str(resolved.path), str(run_dir), options.seed, entry.tiers,
                         options.tolerance_file, options.record))
@@ -123,7 +124,7 @@ def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
                 proc.join()
                 results[model_id] = _collect(job, proc.exitcode, timed_out, elapsed)
                 del running[model_id]
-                status = results[model_id].get("status", "")
+                status = results[model_id].status
                 bar.set_postfix_str(f"{model_id}: " + (summary.headline(status, summary.judge(job.entry, results[model_id]))
                                                        if status == "ok" else status))
                 bar.update(1)

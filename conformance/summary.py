@@ -11,6 +11,7 @@ from pathlib import Path
 from .divergence import Divergence
 from .isolation import claim_holds, order_in_timestep
 from .manifest import OUTCOME_RANK, Expectation, ModelEntry
+from .results import ModelResult
 
 
 @dataclass(frozen=True)
@@ -39,15 +40,15 @@ def _left_band(expectation: Expectation, detail: dict) -> str | None:
             f"{expectation.seen:.3g} the manifest's reason was measured at: re-measure the reason")
 
 
-def judge(entry: ModelEntry, result: dict) -> list[Verdict]:
+def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
     """Compare a worker result with what the manifest expects, tier by tier. A divergence is worse than any
     expectation; an expected failure whose metric left its band is `changed`, also worse."""
     verdicts = []
     for tier in entry.tiers:
-        report = result.get("tiers", {}).get(tier)
+        report = result.tiers.get(tier)
         if report is None:  # the worker never reached the tier: its model-level status decides
-            raw = "skipped" if result.get("status") == "skipped" else "fail"
-            detail = {"notes": [result.get("reason", "tier did not run")], "metrics": []}
+            raw = "skipped" if result.status == "skipped" else "fail"
+            detail = {"notes": [result.reason or "tier did not run"], "metrics": []}
         else:
             raw, detail = report["status"], report
         expected = entry.expected(tier)
@@ -132,21 +133,20 @@ def _cell(v: Verdict) -> str:
             f"margin {_fmt(worst['margin'])})")
 
 
-def build(run: dict, entries: list[ModelEntry], results: dict[str, dict]) -> dict:
+def build(run: dict, entries: list[ModelEntry], results: dict[str, ModelResult]) -> dict:
     """The summary document: run metadata, per-model results and verdicts, and the overall judgement."""
     models, worse, better = [], [], []
     for entry in entries:
-        result = results.get(entry.id, {"status": "pending", "reason": "not finished"})
-        verdicts = judge(entry, result) if result.get("status") != "pending" else []
+        result = results.get(entry.id) or ModelResult(entry.id, "pending", reason="not finished")
+        verdicts = judge(entry, result) if result.status != "pending" else []
         worse += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _why_worse(entry, v) for v in verdicts
                   if v.worse]
         better += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts
                    if OUTCOME_RANK[v.raw] < OUTCOME_RANK[v.expected]]
         models.append({
-            "id": entry.id, "source": entry.source, "status": result.get("status"),
-            "reason": result.get("reason", ""), "recording": result.get("recording"),
-            "seconds": result.get("seconds"), "settings": result.get("settings", {}),
-            "load": result.get("load", {}),
+            "id": entry.id, "source": entry.source, "status": result.status, "reason": result.reason,
+            "recording": result.recording, "seconds": result.seconds, "settings": result.settings,
+            "load": result.load,
             "verdicts": {v.tier: {"outcome": v.outcome, "raw": v.raw, "expected": v.expected,
                                   "expected_reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
                                   "worse_than_expected": v.worse, "metrics": v.detail.get("metrics", []),

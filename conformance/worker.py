@@ -13,6 +13,7 @@ from . import tolerances as tolerances_mod
 from .isolation import ISOLATED_TIERS, isolate
 from .manifest import TIER_NAMES, ModelEntry
 from .report import TierReport
+from .results import ModelResult
 from .summary import atomic_write_json
 from .versions import versions
 
@@ -65,14 +66,13 @@ def _poison_steps(result) -> None:
     result.scene.step = poisoned
 
 
-def evaluate(job: Job) -> dict:
-    """Run the job in this process and return the result document (also used in-process by tests)."""
+def evaluate(job: Job) -> ModelResult:
+    """Run the job in this process and return its result (also used in-process by tests)."""
     from .tiers import TIERS  # heavy imports happen in the worker, not in the parent
 
     entry = job.entry
     started = time.perf_counter()
-    result: dict = {"id": entry.id, "source": entry.source, "path": job.path, "versions": versions(),
-                    "seed": job.seed, "tiers": {}}
+    result = ModelResult(entry.id, "ok", source=entry.source, path=job.path, versions=versions(), seed=job.seed)
     _inject_fault(entry.fault)
     tol = tolerances_mod.load(job.tolerance_file).with_overrides(entry.tolerances, entry.settings,
                                                                  why=entry.override_reason)
@@ -81,13 +81,12 @@ def evaluate(job: Job) -> dict:
 
         session = open_session(job.path)
     except Exception as exc:  # noqa: BLE001 - the loader's failure on this model is this model's failure
-        result.update(status="error", reason=f"load failed: {type(exc).__name__}: {exc}",
-                      traceback=traceback.format_exc(), seconds=time.perf_counter() - started)
+        result.status, result.reason = "error", f"load failed: {type(exc).__name__}: {exc}"
+        result.traceback, result.seconds = traceback.format_exc(), round(time.perf_counter() - started, 3)
         return result
     if entry.fault == "nan":
         _poison_steps(session.result)
-    result["load"] = session.load_info()
-    result["settings"] = session.settings()
+    result.load, result.settings = session.load_info(), session.settings()
     reports: dict[str, TierReport] = {}
     for tier in sorted(job.tiers, key=TIER_NAMES.index):  # contact before dynamics, which disables it
         t0 = time.perf_counter()
@@ -99,29 +98,28 @@ def evaluate(job: Job) -> dict:
                                                      traceback.format_exc(limit=4)])
         report.settings = {**report.settings, "seconds": round(time.perf_counter() - t0, 3)}
         reports[tier] = report
-        result["tiers"][tier] = report.to_dict()
+        result.tiers[tier] = report.to_dict()
         if report.status in ("fail", "diverged") and tier in ISOLATED_TIERS:
             expectation = entry.expect.get(tier)
             claimed = (expectation.passes_without,) if expectation and expectation.passes_without else ()
             t0 = time.perf_counter()
-            result["tiers"][tier]["isolation"] = isolate(job.path, session.model, tier, job.seed, tol, claimed)
-            result["tiers"][tier]["settings"]["isolation_seconds"] = round(time.perf_counter() - t0, 3)
-    result["status"] = "ok"
+            result.tiers[tier]["isolation"] = isolate(job.path, session.model, tier, job.seed, tol, claimed)
+            result.tiers[tier]["settings"]["isolation_seconds"] = round(time.perf_counter() - t0, 3)
     if job.record:
         from .recording import write_recording
 
         rrd = Path(job.run_dir) / f"{entry.id}.rrd"
         try:
-            isolation = {t: r.get("isolation") for t, r in result["tiers"].items() if r.get("isolation")}
+            isolation = {t: r.get("isolation") for t, r in result.tiers.items() if r.get("isolation")}
             write_recording(rrd, session, reports, {"model": entry.id, "seed": job.seed,
-                                                      "versions": result["versions"],
-                                                      "settings": result["settings"], "isolation": isolation})
-            result["recording"] = rrd.name
+                                                      "versions": result.versions,
+                                                      "settings": result.settings, "isolation": isolation})
+            result.recording = rrd.name
         except Exception as exc:  # noqa: BLE001 - a failed recording is noted, the verdicts stand
             log.warning("model %s: recording failed: %s", entry.id, exc)
-            result["recording"] = None
-            result["reason"] = f"recording failed: {type(exc).__name__}: {exc}"
-    result["seconds"] = round(time.perf_counter() - started, 3)
+            result.recording = None
+            result.reason = f"recording failed: {type(exc).__name__}: {exc}"
+    result.seconds = round(time.perf_counter() - started, 3)
     return result
 
 
@@ -129,18 +127,5 @@ def main(job: Job) -> None:
     """Worker process entry point: evaluate and write the result file atomically."""
     logging.basicConfig(level=logging.WARNING)
     result = evaluate(job)
-    atomic_write_json(result_path(job.run_dir, job.entry.id), _jsonable(result))
+    atomic_write_json(result_path(job.run_dir, job.entry.id), result.to_dict())
 
-
-def _jsonable(obj):
-    import math
-
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if hasattr(obj, "item") and callable(obj.item):
-        return _jsonable(obj.item())
-    return obj

@@ -15,6 +15,7 @@ from conformance import summary
 from conformance.divergence import SpeedBound, first_divergence
 from conformance.manifest import BAND_FACTOR, Expectation, ModelEntry
 from conformance.report import Metric, judged, verdict
+from conformance.results import ModelResult
 
 ROOT = Path(__file__).resolve().parents[1]
 SELFTEST = ROOT / "corpus" / "selftest.toml"
@@ -81,12 +82,12 @@ def _entry(seen: float) -> ModelEntry:
         "dynamics", "fail", "a known gap", metric="rollout_zero_qpos", seen=seen)})
 
 
-def _measured(value: float | None, status: str = "fail", divergence: dict | None = None) -> dict:
+def _measured(value: float | None, status: str = "fail", divergence: dict | None = None) -> ModelResult:
     report = {"status": status, "metrics": [{"name": "rollout_zero_qpos", "max": value, "tolerance": 1e-5}],
               "notes": []}
     if divergence:
         report["divergence"] = divergence
-    return {"status": "ok", "tiers": {"dynamics": report}}
+    return ModelResult("m", "ok", tiers={"dynamics": report})
 
 
 @pytest.mark.parametrize("factor,outcome", [

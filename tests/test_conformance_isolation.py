@@ -12,6 +12,7 @@ from test_tiers_actuated import ARM
 import loader.runtime.controller
 from conformance import isolation, tolerances
 from conformance.manifest import load as load_manifest
+from conformance.results import ModelResult
 from conformance.summary import judge
 
 TOL = tolerances.load()
@@ -72,10 +73,10 @@ def test_a_claim_the_run_cannot_reproduce_is_worse_than_expected(tmp_path):
     entry = _manifest(tmp_path, '["frictionloss"]').models[0]
     failing = {"status": "fail", "metrics": [{"name": "one_step_qvel", "max": 0.02, "tolerance": 1e-5}], "notes": [],
                "isolation": [{"without": ["frictionloss"], "outcome": "fail", "metrics": []}]}
-    verdict = next(v for v in judge(entry, {"tiers": {"actuated": failing}}) if v.tier == "actuated")
+    verdict = next(v for v in judge(entry, ModelResult("arm", "ok", tiers={"actuated": failing})) if v.tier == "actuated")
     assert verdict.worse and verdict.outcome == "fail"
     holding = {**failing, "isolation": [{"without": ["frictionloss"], "outcome": "pass", "metrics": []}]}
-    verdict = next(v for v in judge(entry, {"tiers": {"actuated": holding}}) if v.tier == "actuated")
+    verdict = next(v for v in judge(entry, ModelResult("arm", "ok", tiers={"actuated": holding})) if v.tier == "actuated")
     assert not verdict.worse and verdict.outcome == "expected-fail"
 
 
@@ -92,8 +93,8 @@ def test_the_worker_records_the_isolation_in_the_result_and_the_recording(fricti
 
     entry = ModelEntry(id="friction_arm", source=friction_arm, tiers=("actuated",))
     result = evaluate(Job(entry, friction_arm, str(tmp_path), 0, entry.tiers, record=True))
-    runs = result["tiers"]["actuated"]["isolation"]
-    assert result["tiers"]["actuated"]["status"] == "fail"
+    runs = result.tiers["actuated"]["isolation"]
+    assert result.tiers["actuated"]["status"] == "fail"
     assert {"without": ["frictionloss"], "outcome": "pass"}.items() <= next(
         r for r in runs if r["without"] == ["frictionloss"]).items()
     text = read_rrd(tmp_path / "friction_arm.rrd")["/verdict"]["TextDocument:text"][-1][0]

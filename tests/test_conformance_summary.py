@@ -9,13 +9,14 @@ import pytest
 
 from conformance import summary
 from conformance.manifest import Expectation, ModelEntry
+from conformance.results import ModelResult
 
 SEEN = [{"name": "rollout_zero_qpos", "max": 0.3, "tolerance": 1e-5, "margin": -0.3}]  # inside `_gap`'s band
 
 
-def _result(status: str, metrics: list | None = None, **tiers: str) -> dict:
-    return {"status": status, "tiers": {t: {"status": s, "metrics": metrics or [], "notes": []}
-                                        for t, s in tiers.items()}}
+def _result(status: str, metrics: list | None = None, **tiers: str) -> ModelResult:
+    return ModelResult("m", status, tiers={t: {"status": s, "metrics": metrics or [], "notes": []}
+                                            for t, s in tiers.items()})
 
 
 def _gap(tier: str = "dynamics", outcome: str = "fail") -> Expectation:
@@ -45,7 +46,7 @@ def test_worse_than_expected(raw, expected, worse):
 
 def test_a_crashed_worker_fails_every_tier():
     entry = ModelEntry(id="m", source="x", tiers=("structure", "dynamics"))
-    verdicts = summary.judge(entry, {"status": "crashed", "reason": "killed by SIGSEGV"})
+    verdicts = summary.judge(entry, ModelResult("m", "crashed", reason="killed by SIGSEGV"))
     assert [v.outcome for v in verdicts] == ["fail", "fail"] and all(v.worse for v in verdicts)
 
 
@@ -70,7 +71,7 @@ def test_markdown_cell_shows_error_tolerance_and_margin():
     entry = ModelEntry(id="a", source="x", tiers=("inertia",))
     metrics = [{"name": "mass", "max": 2e-7, "rms": 1e-7, "tolerance": 1e-5, "margin": 1e-5 - 2e-7, "unit": "relative"},
                {"name": "com", "max": 4e-6, "rms": 1e-6, "tolerance": 5e-6, "margin": 1e-6, "unit": "m"}]
-    result = {"status": "ok", "tiers": {"inertia": {"status": "pass", "metrics": metrics, "notes": []}}}
+    result = ModelResult("a", "ok", tiers={"inertia": {"status": "pass", "metrics": metrics, "notes": []}})
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"a": result})
     assert "| a | pass: com 4e-06 (tol 5e-06, margin 1e-06) |" in summary.markdown(doc, ["inertia"])
 
@@ -100,11 +101,11 @@ def test_summary_lists_integrator_switch_ctrl_scaling_and_saturation_of_the_actu
     entry = ModelEntry(id="arm", source="x", tiers=("actuated", "actuated_contact"))
     settings = {"integrator_authored": "mjINT_EULER", "integrator_reference": "mjINT_IMPLICITFAST",
                 "ctrl_scale": 0.25, "saturated_steps": 3, "limit_steps": 0}
-    result = {"status": "ok", "tiers": {
+    result = ModelResult("arm", "ok", tiers={
         "actuated": {"status": "pass", "metrics": [], "notes": [], "settings": settings},
         "actuated_contact": {"status": "pass", "metrics": [], "notes": [],
                              "settings": {**settings, "integrator_authored": "mjINT_IMPLICITFAST",
-                                          "ctrl_scale": 1.0, "saturated_steps": 0}}}}
+                                          "ctrl_scale": 1.0, "saturated_steps": 0}}})
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"arm": result})
     text = summary.markdown(doc, ["actuated", "actuated_contact"])
     assert ("- arm/actuated: MuJoCo mjINT_IMPLICITFAST instead of the authored mjINT_EULER; ctrl deviations "
@@ -121,6 +122,18 @@ def test_a_float32_floor_is_subtracted_before_judging_and_the_raw_error_kept():
     assert judged.to_dict()["raw_max"] == 3e-6
     assert "raw_max" not in metric("rollout_qpos", [1e-6], 5e-7, "rad").to_dict()
     entry = ModelEntry(id="a", source="x", tiers=("actuated",))
-    result = {"status": "ok", "tiers": {"actuated": {"status": "fail", "metrics": [judged.to_dict()], "notes": []}}}
+    result = ModelResult("a", "ok", tiers={"actuated": {"status": "fail", "metrics": [judged.to_dict()], "notes": []}})
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"a": result})
     assert "rollout_qpos 1e-06 (raw 3e-06, tol 5e-07" in summary.markdown(doc, ["actuated"])
+
+
+def test_a_model_result_round_trips_through_json_and_rejects_an_unknown_status():
+    import numpy as np
+
+    result = ModelResult("m", "ok", seconds=np.float64(1.5), tiers={"dynamics": {"status": "diverged",
+                                                                                 "metrics": [{"max": float("nan")}]}})
+    doc = json.loads(json.dumps(result.to_dict(), allow_nan=False))
+    assert doc["seconds"] == 1.5 and doc["tiers"]["dynamics"]["metrics"][0]["max"] is None
+    assert ModelResult.from_dict({**doc, "written_by": "a later version"}) == ModelResult.from_dict(doc)
+    with pytest.raises(ValueError, match="unknown status 'okay'"):
+        ModelResult("m", "okay")
