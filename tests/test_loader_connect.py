@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 import pytest
 from support.corpus import menagerie_root
+from support.lockstep import one_step, paired_rollout
 
 from loader import MJCFLoader
 from loader.build.solver_iterations import drive_radii
@@ -59,18 +60,12 @@ def test_soft_row_reproduces_mujocos_stiffness_damping_impedance_and_regularizer
 
 
 def _one_step_errors(result, model, states) -> list[float]:
-    data = mujoco.MjData(model)
+    """The worst first-step velocity error from each (shift of the first joint, joint velocities) state."""
     errors = []
     for shift, qvel in states:
-        data.qpos[:] = model.qpos0
-        data.qpos[0] += shift
-        data.qvel[:] = qvel
-        mujoco.mj_forward(model, data)
-        result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
-        result.set_ctrl(None)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        errors.append(float(np.abs(result.mapping.get_state(result.articulations)[1] - data.qvel).max()))
+        qpos = model.qpos0.copy()
+        qpos[0] += shift
+        errors.append(float(one_step(result, model, qpos, qvel).max()))
     return errors
 
 
@@ -81,13 +76,7 @@ def _states(shift: float, speeds=(0.0, 1.0, 3.0), nv: int = 4):
 
 def _rollout(result, model, data, steps: int) -> float:
     """Step both simulators from their current states; the worst |qpos| difference."""
-    worst = 0.0
-    for _ in range(steps):
-        result.set_ctrl(None)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
-    return worst
+    return float(paired_rollout(result, model, data, steps).qpos.max())
 
 
 def test_the_first_step_of_a_closed_loop_matches_mujoco():
@@ -194,12 +183,8 @@ def _gripper_one_step_worst(damping: bool) -> float:
     for step in range(300):
         data.ctrl[:] = 100.0 + 100.0 * np.sin(0.02 * step)
         if step % 5 == 0:
-            probe.qpos[:], probe.qvel[:], probe.ctrl[:] = data.qpos, data.qvel, data.ctrl
-            result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
-            result.set_ctrl(data.ctrl.copy(), advance=False)
-            mujoco.mj_step(model, probe)
-            result.scene.step()
-            worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[1] - probe.qvel).max()))
+            worst = max(worst, float(one_step(result, model, data.qpos, data.qvel, data.ctrl, data=probe,
+                                              advance=False).max()))
         mujoco.mj_step(model, data)
     return worst
 
@@ -289,9 +274,7 @@ def _released_weld_angles() -> tuple[float, float]:
     result = MJCFLoader().load(WELD)
     model, data = result.model, mujoco.MjData(result.model)
     result.release()
-    for _ in range(500):
-        mujoco.mj_step(model, data)
-        result.scene.step()
+    paired_rollout(result, model, data, 500, set_ctrl=False)
     links = {link.name: link for link in result.articulations[0].links}
     left, right = (np.asarray(links[n].entity_pose.q) for n in ("left_lower", "right_lower"))
     mujoco_angle = 2 * np.arccos(min(1.0, abs(float(np.dot(data.xquat[model.body("left_lower").id],

@@ -10,6 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from support.lockstep import one_step, paired_rollout
 
 from loader import MJCFLoader
 from loader.runtime.limits import LimitRow
@@ -33,15 +34,8 @@ def _bounce(name: str, hard: bool = False) -> float:
     result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     if hard:  # the mapping before: PhysX's hard limit at MuJoCo's range
         result.controller.without("limits")
-    worst = 0.0
-    for step in range(600):
-        ctrl = np.full(model.nu, np.sin(0.02 * step)) if model.nu else None
-        if model.nu:
-            data.ctrl[:] = ctrl
-        result.set_ctrl(ctrl)
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        worst = max(worst, float(np.abs(result.mapping.get_state(result.articulations)[0] - data.qpos).max()))
+    worst = float(paired_rollout(result, model, data, 600, lambda step, data: np.full(
+        model.nu, np.sin(0.02 * step)) if model.nu else None).qpos.max())
     assert data.qpos.min() < -0.5 or data.qpos.max() > 0.5 or name == "servo"  # it reached a soft end
     return worst
 
@@ -67,11 +61,7 @@ def _leaving_the_limit() -> float:
     data.qpos[0], data.qvel[0] = model.jnt_range[0][0] - 0.002, 3.0
     mujoco.mj_forward(model, data)
     assert data.nefc == 1 and data.efc_force[0] == 0.0  # the row exists and does not push
-    result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
-    result.set_ctrl(None)
-    mujoco.mj_step(model, data)
-    result.scene.step()
-    return float(np.abs(result.mapping.get_state(result.articulations)[1] - data.qvel).max())
+    return float(one_step(result, model, data.qpos, data.qvel, data=data).max())
 
 
 def test_a_limit_row_only_pushes(monkeypatch):
@@ -127,15 +117,8 @@ def _humanoid_collapse_speed() -> tuple[float, float]:
     result.disable_actuators()
     data.qpos[:], data.qvel[:], _ = initial_state(model)
     result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
-    fastest_sapien = fastest_mujoco = 0.0
-    for _ in range(round(1.0 / model.opt.timestep)):
-        result.set_ctrl(None)
-        result.scene.step()
-        mujoco.mj_step(model, data)
-        speed = np.abs(result.mapping.get_state(result.articulations)[1])
-        fastest_sapien = max(fastest_sapien, float(speed.max()) if np.isfinite(speed).all() else np.inf)
-        fastest_mujoco = max(fastest_mujoco, float(np.abs(data.qvel).max()))
-    return fastest_sapien, fastest_mujoco
+    run = paired_rollout(result, model, data, round(1.0 / model.opt.timestep))
+    return float(run.sapien_speed.max()), float(run.mujoco_speed.max())
 
 
 COLLAPSE_SPEED_RATIO = 3.0  # measured 2.2 (33.5 against 15.2 rad/s; mujoco 3.17.0, sapien 3.0.3); blown up: 150+

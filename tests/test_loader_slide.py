@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 from support.corpus import FIXTURES
+from support.lockstep import one_step
 
 from loader import MJCFLoader
 
@@ -24,7 +25,6 @@ ONE_STEP_TOLERANCE = 1e-6  # m/s; measured 8.3e-8 with the correction, >= 1.1e-5
 def _one_step_errors(result, samples: int = 6, seed: int = 0) -> np.ndarray:
     """Worst |SAPIEN - MuJoCo| velocity per DoF after one step from random states."""
     model = result.model
-    data = mujoco.MjData(model)
     rng = np.random.default_rng(seed)
     free = int(model.jnt_type[0]) == int(mujoco.mjtJoint.mjJNT_FREE)
     worst = np.zeros(model.nv)
@@ -36,14 +36,7 @@ def _one_step_errors(result, samples: int = 6, seed: int = 0) -> np.ndarray:
         else:
             qpos[0] += rng.normal()
             qvel[0] = rng.normal() * 2.0
-        mujoco.mj_resetData(model, data)
-        data.qpos[:], data.qvel[:] = qpos, qvel
-        mujoco.mj_step(model, data)
-        result.mapping.set_state(result.articulations, qpos, qvel)
-        result.set_ctrl(None)
-        result.scene.step()
-        _, velocity = result.mapping.get_state(result.articulations)
-        worst = np.maximum(worst, np.abs(velocity - data.qvel))
+        worst = np.maximum(worst, one_step(result, model, qpos, qvel))
     return worst
 
 
