@@ -11,7 +11,7 @@ import copy
 import mujoco
 import numpy as np
 import pytest
-from support.corpus import menagerie_root
+from support.corpus import menagerie_root, mjcf_file
 from support.lockstep import contact_free, paired_rollout, replay
 from test_loader_friction import FRICTION_TOLERANCE, SERVO_FRICTION
 
@@ -98,8 +98,7 @@ def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     """Servos driven far into their force limits (forcerange, or the joint's actuatorfrcrange): MuJoCo clamps the
     explicit actuator force and drops a saturated actuator's kv from its implicit step; the loader applies the
     same clamped force on those steps. Without that (drive force limits alone) the error is over 1e-2."""
-    path = tmp_path / "clamped.xml"
-    path.write_text(CLAMPED.format(**limits))
+    path = mjcf_file(tmp_path, CLAMPED.format(**limits), "clamped.xml")
     result, model = contact_free(path)
     data = mujoco.MjData(model)
     saturated = 0
@@ -137,8 +136,7 @@ def test_a_tendon_servo_matches_mujoco(tmp_path, monkeypatch, forcerange):
     """A position-like servo on a fixed tendon (the panda's finger "split"): its kv is implicit in MuJoCo through
     the diagonal of kv J^T J only, which the loader puts into the drives; a saturated one is explicit. Over 1 s of
     a square-wave ctrl: 3.5e-7 rad (4.0e-7 saturating); the mutation (kv all explicit) 1e-2 (1.9e-3)."""
-    path = tmp_path / "tendon_servo.xml"
-    path.write_text(TENDON_SERVO.format(forcerange=forcerange))
+    path = mjcf_file(tmp_path, TENDON_SERVO.format(forcerange=forcerange), "tendon_servo.xml")
 
     def square(step, data):
         return np.array([0.8 if (step // 100) % 2 else -0.8])
@@ -172,8 +170,7 @@ def test_servo_gains_follow_the_models_integrator(tmp_path, integrator, damping,
     """Under Euler MuJoCo applies kv explicitly, under implicitfast implicitly; kp is always explicit. The loader
     follows the model's integrator (measured 5.6e-7, 8.9e-7, 1.9e-6 rad over 1 s). Mutation: the SAPIEN side told
     the other integrator while MuJoCo keeps the model's (3.2e-2, 3.4e-2, 0.15)."""
-    path = tmp_path / "servo_arm.xml"
-    path.write_text(SERVO_ARM.format(integrator=integrator, damping=damping, kp=kp, kv=kv))
+    path = mjcf_file(tmp_path, SERVO_ARM.format(integrator=integrator, damping=damping, kp=kp, kv=kv), "servo_arm.xml")
     targets = np.random.default_rng(1).uniform(-1, 1, (10, 2))
     result = MJCFLoader().load(path)
     model = result.model
@@ -216,8 +213,7 @@ def test_activation_dynamics_match_mujoco(tmp_path, monkeypatch, integrator):
     activation as MuJoCo does and feeds it to the force law (from the keyframe's act, under random ctrl steps).
     Measured: act equal to MuJoCo's bit for bit, qpos 1.3e-6 rad over 1 s. Mutation: the gain fed ctrl instead of
     the activation (1.4 rad)."""
-    path = tmp_path / "activated.xml"
-    path.write_text(ACTIVATED.format(integrator=integrator))
+    path = mjcf_file(tmp_path, ACTIVATED.format(integrator=integrator), "activated.xml")
     targets = np.random.default_rng(2).uniform(-1, 1, (10, 4))
     result = MJCFLoader().load(path)
     assert all(a.mapped for a in result.actuators), [a.reason for a in result.actuators]
@@ -235,8 +231,7 @@ def test_step_holds_the_ctrl_over_substeps_with_every_step_s_terms(tmp_path):
     """result.step(ctrl, substeps=n) equals MuJoCo with the ctrl held for n steps, on a damped frictional servo
     hinge (whose kp and damping the loader writes as per-step forces): 4.5e-8 rad over 10 targets of 25 steps.
     Mutation: set_ctrl once, then n bare scene.step() calls (the forces of the first step frozen): 220 rad."""
-    path = tmp_path / "servo_friction.xml"
-    path.write_text(SERVO_FRICTION.format(damping=0.1, kv=0.05, friction=0.05))
+    path = mjcf_file(tmp_path, SERVO_FRICTION.format(damping=0.1, kv=0.05, friction=0.05), "servo_friction.xml")
     targets = np.random.default_rng(3).uniform(-1, 1, (10, 1))
 
     def run(held: bool) -> float:
@@ -268,8 +263,7 @@ def test_release_leaves_passive_drives_that_need_no_set_ctrl(tmp_path):
     """After result.release(), bare scene.step() calls simulate the joints' passive spring-dampers exactly (MuJoCo
     with its actuators off and without the frictionloss the drives no longer carry): 2.3e-8 rad over 1 s. Mutation:
     no release, so the frictional joint keeps armature dt*D without the force that goes with it: 0.37 rad."""
-    path = tmp_path / "servo_friction.xml"
-    path.write_text(SERVO_FRICTION.format(damping=0.5, kv=0.05, friction=0.05))
+    path = mjcf_file(tmp_path, SERVO_FRICTION.format(damping=0.5, kv=0.05, friction=0.05), "servo_friction.xml")
 
     def run(release: bool) -> float:
         result = MJCFLoader().load(path)

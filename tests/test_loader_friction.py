@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from support.corpus import mjcf_file
 from support.lockstep import contact_free, no_ctrl, replay
 
 FRICTIONAL = """<mujoco><option timestep="0.002" integrator="implicitfast"/>
@@ -28,8 +29,7 @@ def test_frictionloss_matches_mujoco_on_free_and_damped_joints(tmp_path, frictio
     """A two-link pendulum falling against joint frictionloss (sliding, or mostly stuck) and a damped frictional
     hinge beside it: a PhysX drive (damping s/(R dt), velocity target v (1 - B dt/s), force limit F) solves
     MuJoCo's friction rows, the damped joint's damping riding as armature. Mutation: friction dropped."""
-    path = tmp_path / "frictional.xml"
-    path.write_text(FRICTIONAL.format(**friction))
+    path = mjcf_file(tmp_path, FRICTIONAL.format(**friction), "frictional.xml")
     result, model = contact_free(path)
     listed = {(entry.kind, entry.name) for entry in result.unsupported + result.approximations}
     assert not listed & {("joint", "damped"), ("joint", "upper"), ("joint", "lower")}, listed
@@ -55,8 +55,7 @@ def test_frictionloss_on_a_damped_servo_joint_matches_mujoco(tmp_path, monkeypat
     damping and kv ride as armature dt D with the explicit force -D v, kp as an explicit force; the friction drive
     is scaled by s = 1 + (M^-1)_ii dt D for MuJoCo's friction row, which sees M alone (measured 2.5e-7..3e-7 rad
     over 2 s). Mutation: s = 1 (the friction row solved with PhysX's M + dt D): 5e-4..6.7e-3."""
-    path = tmp_path / "servo_friction.xml"
-    path.write_text(SERVO_FRICTION.format(damping=damping, kv=kv, friction=friction))
+    path = mjcf_file(tmp_path, SERVO_FRICTION.format(damping=damping, kv=kv, friction=friction), "servo_friction.xml")
     targets = np.random.default_rng(0).uniform(-1, 1, (20, 1))
     result, model = contact_free(path)
     assert not {(e.kind, e.name) for e in result.unsupported + result.approximations} & {("joint", "hinge")}
@@ -77,8 +76,7 @@ def test_a_motor_on_a_frictional_joint_keeps_its_force(tmp_path, forcerange):
     text = FRICTIONAL.format(upper=0.3, lower=0.05).replace(
         "</worldbody>", f'</worldbody><actuator><motor joint="upper" gear="2" ctrlrange="-1 1" {forcerange}/>'
         '</actuator>')
-    path = tmp_path / "motor.xml"
-    path.write_text(text)
+    path = mjcf_file(tmp_path, text, "motor.xml")
     result, model = contact_free(path)
     assert ("joint", "upper") not in {(e.kind, e.name) for e in result.unsupported + result.approximations}
     errors = replay(result, model, lambda step, data: np.array([np.sin(step * 0.02)]), 1.0)

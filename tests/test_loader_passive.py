@@ -5,6 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from support.corpus import mjcf_file
 from support.lockstep import contact_free, no_ctrl, one_step, replay
 from test_loader_actuators import SERVO_TOLERANCE
 
@@ -33,8 +34,7 @@ def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator
     """A tendon spring-damper over three hinges (coefficients 1, -0.5, 0.5): MuJoCo's implicit integrators treat
     the tendon's damping implicitly through its diagonal only, Euler explicitly; the loader follows the model's
     integrator. The mutation (the other treatment) must fail."""
-    path = tmp_path / "tendon.xml"
-    path.write_text(PASSIVE_TENDON.format(integrator=integrator))
+    path = mjcf_file(tmp_path, PASSIVE_TENDON.format(integrator=integrator), "tendon.xml")
 
     def load():
         result, model = contact_free(path)
@@ -65,8 +65,7 @@ FLUID = """<mujoco><option timestep="0.002" integrator="Euler" density="{density
 def test_fluid_forces_match_mujoco(tmp_path, density, viscosity, wind):
     """A blade spinning on a hinge through MuJoCo's inertia-box fluid: the loader's per-step link forces equal
     MuJoCo's qfrc_fluid (one step from 2 rad/s: 4e-8 rad/s on a 4e-2 change). Mutation: fluid dropped."""
-    path = tmp_path / "fluid.xml"
-    path.write_text(FLUID.format(density=density, viscosity=viscosity, wind=wind))
+    path = mjcf_file(tmp_path, FLUID.format(density=density, viscosity=viscosity, wind=wind), "fluid.xml")
 
     def first_step(keep: bool) -> float:
         result = MJCFLoader().load(path)
@@ -92,8 +91,7 @@ def test_gravity_compensation_matches_mujoco(tmp_path, monkeypatch, upper, lower
     """An arm whose links compensate gravity fully (PhysX gravity off for the link), partly or more than fully
     (a per-step force at the centre of mass): 1.6e-15, 1.5e-6, 8.7e-7 rad over 1 s. Mutation: the loader ignoring
     gravcomp (the arm falls)."""
-    path = tmp_path / "gravcomp.xml"
-    path.write_text(GRAVCOMP.format(upper=upper, lower=lower))
+    path = mjcf_file(tmp_path, GRAVCOMP.format(upper=upper, lower=lower), "gravcomp.xml")
     result = MJCFLoader().load(path)
     assert replay(result, result.model, no_ctrl, 1.0).max() < SERVO_TOLERANCE
     import loader.runtime.controller

@@ -44,3 +44,10 @@ def corpus_params() -> list:
         path = root / relative if root else Path(relative)
         params.append(pytest.param(path, id=f"menagerie/{relative}", marks=marks))
     return params
+
+
+def mjcf_file(folder: Path, text: str, name: str = "model.xml") -> Path:
+    """An inline MJCF document written to `folder/name` (a test's tmp_path), for loaders that take a path."""
+    path = Path(folder) / name
+    path.write_text(text)
+    return path
