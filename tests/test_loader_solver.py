@@ -10,7 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 from support.corpus import FIXTURES, suite_path
-from test_loader_actuators import _contact_free, _replay
+from support.lockstep import contact_free, replay
 
 from loader import MJCFLoader
 from loader.build.solver_iterations import drive_radii, gauss_seidel_radius, sweeps_needed
@@ -35,20 +35,20 @@ def _finger(iterations):
         if iterations is not None:
             for articulation in result.articulations:
                 articulation.solver_position_iterations = iterations
-    return _contact_free(suite_path("finger"), mutate)
+    return contact_free(suite_path("finger"), mutate)
 
 
 def test_finger_drives_converge_with_the_iterations_the_loader_picks():
     result, model = _finger(None)
     assert result.articulations[0].solver_position_iterations >= 20
-    errors = _replay(result, model, _finger_ctrl, 1.0)
+    errors = replay(result, model, _finger_ctrl, 1.0)
     assert errors.max() < ROLLOUT_TOLERANCE, errors.max()
 
 
 def test_sapiens_default_iterations_leave_the_finger_unconverged():
     """The mutation: the same replay at SAPIEN's 10 iterations fails the tolerance."""
     result, model = _finger(10)
-    errors = _replay(result, model, _finger_ctrl, 1.0)
+    errors = replay(result, model, _finger_ctrl, 1.0)
     assert errors.max() > ROLLOUT_TOLERANCE, errors.max()
 
 
@@ -90,14 +90,14 @@ def _arm_ctrl(step, data):
 def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at_qpos0():
     """Measured from the stretched keyframe over 1 s: 4.8e-7 rad at the keyframe's 41 sweeps, 4.0e-5 at qpos0's 16
     (the mutation: the rule at qpos0 alone)."""
-    result, model = _contact_free(FOLDING_ARM)
+    result, model = contact_free(FOLDING_ARM)
     at_qpos0 = sweeps_needed(drive_radii(model, result.controller, result.mapping)[0])
     at_key = sweeps_needed(drive_radii(model, result.controller, result.mapping, model.key_qpos[0])[0])
     assert at_key > at_qpos0
     assert result.articulations[0].solver_position_iterations == at_key
-    assert _replay(result, model, _arm_ctrl, 1.0).max() < ROLLOUT_TOLERANCE
+    assert replay(result, model, _arm_ctrl, 1.0).max() < ROLLOUT_TOLERANCE
 
     def qpos0_only(loaded):
         loaded.articulations[0].solver_position_iterations = at_qpos0
-    result, model = _contact_free(FOLDING_ARM, qpos0_only)
-    assert _replay(result, model, _arm_ctrl, 1.0).max() > ROLLOUT_TOLERANCE
+    result, model = contact_free(FOLDING_ARM, qpos0_only)
+    assert replay(result, model, _arm_ctrl, 1.0).max() > ROLLOUT_TOLERANCE

@@ -23,6 +23,7 @@ they apply nothing in SAPIEN."""
 from __future__ import annotations
 
 from contextlib import contextmanager
+from dataclasses import dataclass, fields
 
 import mujoco
 import numpy as np
@@ -212,18 +213,52 @@ def _ctrl_notes(scale: float, left: dict[str, int], steps: int, smooth: bool = T
     return notes
 
 
-def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    skip = unmapped_reason(result, model, "actuated", tolerances)
+@dataclass
+class ReferenceRun:
+    """MuJoCo's side of an actuated tier: its model copy, settings and notes, the start state and the run under
+    the seeded ctrl (with the ctrl scale used and the steps on a force bound or at a limit)."""
+
+    ref: mujoco.MjModel
+    matched: dict
+    removal: list[str]
+    steps: int
+    qpos0: np.ndarray
+    qvel0: np.ndarray
+    start: str
+    run: reference.Rollout
+    scale: float
+    left: dict[str, int]
+
+    def __iter__(self):
+        return (getattr(self, f.name) for f in fields(self))
+
+
+def reference_run(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances, tier: str,
+                  contact: bool) -> ReferenceRun | TierReport:
+    """MuJoCo's run for `tier`, or the skip report when there is nothing to judge."""
+    skip = unmapped_reason(result, model, tier, tolerances)
     if skip is not None:
         return skip
-    ref, matched, removal = reference_model(result, model, contact=False)
+    if contact and reference.contacts_disabled(model):
+        return skipped(tier, "the model disables contact (contact or constraint flag)")
+    if contact and not sapien_side.contacts_enabled(result):
+        return skipped(tier, "the SAPIEN scene has its contacts turned off (run before dynamics)")
+    ref, matched, removal = reference_model(result, model, contact=contact)
+    steps = tolerances.horizon_steps(tier, ref.opt.timestep)
+    qpos0, qvel0, start = reference.initial_state(model)
+    run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=not contact)
+    if run.unstable(ref):
+        return skipped(tier, run.unstable(ref))
+    return ReferenceRun(ref, matched, removal, steps, qpos0, qvel0, start, run, scale, left)
+
+
+def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    mj_run = reference_run(result, model, seed, tolerances, "actuated", contact=False)
+    if isinstance(mj_run, TierReport):
+        return mj_run
+    ref, matched, removal, steps, qpos0, qvel0, start, run, scale, left = mj_run
     kind = "floating" if is_floating(model) else "fixed"
     dt = ref.opt.timestep
-    steps = tolerances.horizon_steps("actuated", dt)
-    qpos0, qvel0, start = reference.initial_state(model)
-    run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=True)
-    if run.unstable(ref):
-        return skipped("actuated", run.unstable(ref))
     gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
                       tolerances.setting("chaos", "amplification_limit"))
     every = int(tolerances.setting("actuated", "one_step_every"))
@@ -264,20 +299,11 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
 
 
 def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    skip = unmapped_reason(result, model, "actuated_contact", tolerances)
-    if skip is not None:
-        return skip
-    if reference.contacts_disabled(model):
-        return skipped("actuated_contact", "the model disables contact (contact or constraint flag)")
-    if not sapien_side.contacts_enabled(result):
-        return skipped("actuated_contact", "the SAPIEN scene has its contacts turned off (run before dynamics)")
-    ref, matched, removal = reference_model(result, model, contact=True)
+    mj_run = reference_run(result, model, seed, tolerances, "actuated_contact", contact=True)
+    if isinstance(mj_run, TierReport):
+        return mj_run
+    ref, matched, removal, steps, qpos0, qvel0, start, run, scale, left = mj_run
     dt = ref.opt.timestep
-    steps = tolerances.horizon_steps("actuated_contact", dt)
-    qpos0, qvel0, start = reference.initial_state(model)
-    run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=False)
-    if run.unstable(ref):
-        return skipped("actuated_contact", run.unstable(ref))
     size = tolerances.setting("contact", "perturbation")
     other = reference.rollout(ref, chaos.perturbed(ref, qpos0, size, seed), qvel0, steps, None, run.ctrl)
     with actuated_scene(result, qpos0, qvel0, contacts=True):
