@@ -92,8 +92,7 @@ class LoadResult:
         """
         ctrl = command_vector(self.path, "ctrl", ctrl, self.model.nu, "actuators (nu)")
         qfrc_applied = command_vector(self.path, "qfrc_applied", qfrc_applied, self.model.nv, "DoFs (nv)")
-        applied = None if qfrc_applied is None else self.mapping.qfrc_to_sapien(qfrc_applied, self.articulations)
-        self.controller.set_ctrl(ctrl, applied, advance)
+        self.controller.set_ctrl(ctrl, qfrc_applied, advance)
 
     def step(self, ctrl=None, substeps: int = 1, qfrc_applied=None) -> None:
         """`substeps` physics steps under one MuJoCo ctrl (None: the last one given), `set_ctrl` before each:
@@ -129,6 +128,7 @@ class LoadResult:
         """Turn every collision shape of this load off (contact-free simulation) or back on with the groups it had;
         the state is left as it is. Safe in any order with stepping (a plain restore of zeroed collision groups
         can crash PhysX: `runtime.contacts`)."""
+        self.controller.contacts(enabled)
         if not enabled and self._saved_collision_groups is None:
             self._saved_collision_groups = contacts.disable_contacts(self)
         elif enabled and self._saved_collision_groups is not None:

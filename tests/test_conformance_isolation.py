@@ -1,5 +1,5 @@
 """Isolation reruns a failing tier with known gaps removed on both sides; it must explain a real gap (here a
-frictionloss PhysX cannot carry) and must not explain away a mapping error (a servo kp 5 % off in the loader).
+loader that drops frictionloss) and must not explain away a mapping error (a servo kp 5 % off in the loader).
 A manifest claim that the run cannot reproduce makes the run fail."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from conformance.results import ModelResult
 from conformance.summary import judge
 
 TOL = tolerances.load()
-# the actuated-tier arm with a frictionloss on the elbow: the loader drops it (listed), the tier fails on it
+# the actuated-tier arm with a frictionloss on the elbow, which the `dropped_friction` loader does not carry
 FRICTION_ARM = ARM.replace('damping="0.02" range="-2 2"', 'damping="0.02" range="-2 2" frictionloss="0.05"')
 
 
@@ -28,6 +28,20 @@ def friction_arm(tmp_path):
     return str(path)
 
 
+@pytest.fixture
+def dropped_friction(monkeypatch):
+    """The gap to isolate: a loader whose MuJoCo copy solves no friction rows, so SAPIEN's joints slide freely."""
+    plan = loader.runtime.controller.plan_rows
+
+    def without_friction(model, mapping, unmapped, notes):
+        term = plan(model, mapping, unmapped, notes)
+        if term is not None:
+            term.mirror.dof_frictionloss[:] = 0.0
+        return term
+
+    monkeypatch.setattr(loader.runtime.controller, "plan_rows", without_friction)
+
+
 def test_each_gap_is_removed_from_the_compiled_model(friction_arm):
     base = mujoco.MjModel.from_xml_path(friction_arm)
     assert isolation.present_gaps(base) == ["frictionloss", "limits", "half_timestep"]
@@ -37,7 +51,7 @@ def test_each_gap_is_removed_from_the_compiled_model(friction_arm):
     assert np.isclose(edited.opt.timestep, base.opt.timestep / 2)
 
 
-def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm):
+def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm, dropped_friction):
     full = isolation.run_without(friction_arm, "actuated", (), 0, TOL)
     assert full["outcome"] == "fail"
     without = isolation.run_without(friction_arm, "actuated", ("frictionloss",), 0, TOL)
@@ -45,7 +59,7 @@ def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm):
     assert isolation.claim_holds([full, without], ("frictionloss",))
 
 
-def test_a_kp_error_survives_every_isolation(friction_arm, monkeypatch):
+def test_a_kp_error_survives_every_isolation(friction_arm, dropped_friction, monkeypatch):
     """The mutation: the loader's servo stiffness 5 % high. Removing the friction no longer makes it pass."""
     plan = loader.runtime.controller.plan_actuators
 
@@ -85,7 +99,7 @@ def test_a_claim_naming_an_unknown_gap_is_rejected(tmp_path):
         _manifest(tmp_path, '["gravity"]')
 
 
-def test_the_worker_records_the_isolation_in_the_result_and_the_recording(friction_arm, tmp_path):
+def test_the_worker_records_the_isolation_in_the_result_and_the_recording(friction_arm, dropped_friction, tmp_path):
     from test_rerun_recording import read_rrd
 
     from conformance.manifest import ModelEntry

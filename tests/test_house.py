@@ -57,3 +57,11 @@ def test_a_heading_with_punctuation_has_githubs_anchor():
 def test_a_readme_over_the_limit_is_found():
     assert house.long_readme("x\n" * house.MAX_README_LINES) == []
     assert house.long_readme("x\n" * (house.MAX_README_LINES + 1)) != []
+
+
+def test_a_reference_to_a_moved_or_renamed_test_is_found():
+    files = {"tests/test_a.py": "def test_kept():\n    pass\n"}
+    docs = {"docs/m.md": "Measured by: `tests/test_a.py::test_kept`, `tests/test_a.py::test_gone`,\n"
+                         "`tests/test_b.py::test_kept`.\n"}
+    assert house.broken_test_references(docs, files) == ["docs/m.md:1: no test tests/test_a.py::test_gone",
+                                                         "docs/m.md:2: no test tests/test_b.py::test_kept"]

@@ -229,9 +229,9 @@ def test_activation_dynamics_match_mujoco(tmp_path, monkeypatch, integrator):
 
 def test_step_holds_the_ctrl_over_substeps_with_every_step_s_terms(tmp_path):
     """result.step(ctrl, substeps=n) equals MuJoCo with the ctrl held for n steps, on a damped frictional servo
-    hinge (whose kp and damping the loader writes as per-step forces): 4.5e-8 rad over 10 targets of 25 steps.
-    Mutation: set_ctrl once, then n bare scene.step() calls (the forces of the first step frozen): 220 rad."""
-    path = mjcf_file(tmp_path, SERVO_FRICTION.format(damping=0.1, kv=0.05, friction=0.05), "servo_friction.xml")
+    hinge (whose friction rows set_ctrl writes as per-step forces). Mutation: set_ctrl once, then n bare
+    scene.step() calls (the friction force of the first step frozen)."""
+    path = mjcf_file(tmp_path, SERVO_FRICTION.format(damping=0.1, kv=0.05, friction=0.3), "servo_friction.xml")
     targets = np.random.default_rng(3).uniform(-1, 1, (10, 1))
 
     def run(held: bool) -> float:

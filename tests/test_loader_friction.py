@@ -36,7 +36,7 @@ def test_frictionloss_matches_mujoco_on_free_and_damped_joints(tmp_path, frictio
     errors = replay(result, model, no_ctrl, 1.0)
     assert errors.max() < FRICTION_TOLERANCE, errors.max()
     dropped, model = contact_free(path)
-    dropped.controller.without("friction")
+    dropped.controller.without("rows")
     assert replay(dropped, model, no_ctrl, 1.0).max() > 1e3 * FRICTION_TOLERANCE
 
 
@@ -51,19 +51,24 @@ SERVO_FRICTION = """<mujoco><option timestep="0.002" integrator="implicitfast"/>
 @pytest.mark.parametrize("damping, kv, friction", [(0.1, 0.0, 0.5), (0.1, 0.05, 0.5), (0.0, 0.05, 0.01)],
                          ids=["damped", "damped-servo-kv", "servo-kv"])
 def test_frictionloss_on_a_damped_servo_joint_matches_mujoco(tmp_path, monkeypatch, damping, kv, friction):
-    """A servo on a damped frictional hinge, stepping between random targets: the drive carries the friction, the
-    damping and kv ride as armature dt D with the explicit force -D v, kp as an explicit force; the friction drive
-    is scaled by s = 1 + (M^-1)_ii dt D for MuJoCo's friction row, which sees M alone (measured 2.5e-7..3e-7 rad
-    over 2 s). Mutation: s = 1 (the friction row solved with PhysX's M + dt D): 5e-4..6.7e-3."""
+    """A servo on a damped frictional hinge, stepping between random targets: MuJoCo solves the friction row with
+    the servo's force in the unconstrained acceleration, and so must the loader. Mutation: the row solved without
+    the servo's force (MuJoCo's copy given no ctrl)."""
     path = mjcf_file(tmp_path, SERVO_FRICTION.format(damping=damping, kv=kv, friction=friction), "servo_friction.xml")
     targets = np.random.default_rng(0).uniform(-1, 1, (20, 1))
     result, model = contact_free(path)
     assert not {(e.kind, e.name) for e in result.unsupported + result.approximations} & {("joint", "hinge")}
     errors = replay(result, model, lambda step, data: targets[step // 50], 2.0)
     assert errors.max() < FRICTION_TOLERANCE, errors.max()
-    from loader.runtime.friction import FrictionRow
+    from loader.runtime.rows import RowTerm
 
-    monkeypatch.setattr(FrictionRow, "scale", lambda self, implicit_damping, timestep: 1.0)
+    original = RowTerm.mirror_state
+
+    def without_ctrl(self, step):
+        original(self, step)
+        self.data.ctrl[:] = 0.0
+
+    monkeypatch.setattr(RowTerm, "mirror_state", without_ctrl)
     unscaled, model = contact_free(path)
     assert replay(unscaled, model, lambda step, data: targets[step // 50], 2.0).max() > 10 * FRICTION_TOLERANCE
 

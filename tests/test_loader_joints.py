@@ -78,7 +78,7 @@ def test_joint_limits_are_mujocos_radians_and_metres(load):
         target = result.mapping.joints[model.joint(name).id]
         joint = result.articulations[target.articulation].active_joints[target.dofs[0]]
         np.testing.assert_allclose(joint.limit[0], model.jnt_range[model.joint(name).id], rtol=1e-6)
-        row = result.controller.term("limits").rows[(target.articulation, target.dofs[0])]
+        row = result.controller.term("rows").rows[(target.articulation, target.dofs[0])]
         np.testing.assert_allclose((row.lower, row.upper), model.jnt_range[model.joint(name).id], rtol=1e-12)
         assert joint.type == "revolute"
 

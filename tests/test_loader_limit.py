@@ -1,8 +1,8 @@
-"""MuJoCo's soft joint limits on the joint drives (loader/runtime/limits.py); MuJoCo is the oracle.
+"""MuJoCo's soft joint limits: the rows MuJoCo's solver returns at SAPIEN's state (loader/runtime/rows.py).
 
-A pendulum swings through +-30 degrees of range and bounces on both soft ends for 1.2 s. Measured (mujoco 3.17.0,
-sapien 3.0.3): 4.4e-7 rad without damping, 2.6e-7 with damping 0.05 (its implicit part as armature, the row
-scaled), 2.2e-5 held by a position servo; PhysX's hard limits instead: 4.4e-2, 3.5e-2, 6.9e-2.
+A pendulum swings through +-30 degrees of range and bounces on both soft ends for 1.2 s, free, damped or held by
+a servo; PhysX's hard limit instead is the mutation. Joints that carry frictionloss or are coupled by an equality
+are soft too, and a state past an end is pushed back as MuJoCo pushes it.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import pytest
 from support.lockstep import one_step, paired_rollout
 
 from loader import MJCFLoader
-from loader.runtime.limits import LimitRow
+from loader.runtime.rows import RowTerm
 
-TOLERANCE = 1e-4  # rad over 1.2 s, measured 2.2e-5 at most
+TOLERANCE = 1e-5  # rad over 1.2 s, measured 3.1e-7 at most (servo; mujoco 3.17.0, sapien 3.0.3)
 PENDULUM = """<mujoco><option timestep="0.002"/><worldbody><body name="arm" pos="0 0 1">
   <joint name="hinge" axis="0 1 0" range="-30 30" damping="{damping}"/>
   <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/></body></worldbody>{actuator}</mujoco>"""
@@ -33,7 +33,7 @@ def _bounce(name: str, hard: bool = False) -> float:
     data = mujoco.MjData(model)
     result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     if hard:  # the mapping before: PhysX's hard limit at MuJoCo's range
-        result.controller.without("limits")
+        result.controller.without("rows")
     worst = float(paired_rollout(result, model, data, 600, lambda step, data: np.full(
         model.nu, np.sin(0.02 * step)) if model.nu else None).qpos.max())
     assert data.qpos.min() < -0.5 or data.qpos.max() > 0.5 or name == "servo"  # it reached a soft end
@@ -47,36 +47,34 @@ def test_a_pendulum_bounces_on_its_soft_limits_as_in_mujoco(name):
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_physxs_hard_limits_miss_it(name):
-    """The mutation: what the loader did before (measured 3.5e-2 to 6.9e-2)."""
+    """The mutation: PhysX's hard limit at MuJoCo's range (measured 3.5e-2 to 6.9e-2)."""
     assert _bounce(name, hard=True) > 100 * TOLERANCE
 
 
 def _leaving_the_limit() -> float:
-    """First step from just past the lower end, moving away from it at 3 rad/s: MuJoCo's row force would pull
+    """First step from 0.02 rad past the lower end, moving away from it at 3 rad/s: MuJoCo's row force would pull
     (its reference acceleration is negative) and is clamped to zero."""
     xml = PENDULUM.format(damping="0", actuator="")
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
-    data.qpos[0], data.qvel[0] = model.jnt_range[0][0] - 0.002, 3.0
+    data.qpos[0], data.qvel[0] = model.jnt_range[0][0] - 0.02, 3.0
     mujoco.mj_forward(model, data)
     assert data.nefc == 1 and data.efc_force[0] == 0.0  # the row exists and does not push
     return float(one_step(result, model, data.qpos, data.qvel, data=data).max())
 
 
 def test_a_limit_row_only_pushes(monkeypatch):
-    """Measured 1.1e-4 rad/s (float32 around the one-sided offset); two-sided 0.67."""
-    assert _leaving_the_limit() < 1e-3
+    """Measured 4.8e-8 rad/s. Mutation: MuJoCo's copy given no velocity, so the row pushes (2.4e-2)."""
+    assert _leaving_the_limit() < 1e-5
+    original = RowTerm.mirror_state
 
-    def two_sided(self, q, v, timestep, scale):  # the mutation: no offset, the drive pulls as well
-        step = original(self, q, v, timestep, scale)
-        if step is None:
-            return None
-        drive, constant, offset = step
-        return drive, constant + offset, 0.0
-    original = LimitRow.drive
-    monkeypatch.setattr(LimitRow, "drive", two_sided)
-    assert _leaving_the_limit() > 1e-1
+    def at_rest(self, step):
+        original(self, step)
+        self.data.qvel[:] = 0.0
+
+    monkeypatch.setattr(RowTerm, "mirror_state", at_rest)
+    assert _leaving_the_limit() > 1e-3
 
 
 def test_release_puts_physxs_hard_limit_back_and_set_ctrl_widens_it_again():
@@ -91,16 +89,30 @@ def test_release_puts_physxs_hard_limit_back_and_set_ctrl_widens_it_again():
     assert joint.limit[0][0] < low - 0.05
 
 
-def test_frictional_and_coupled_joints_keep_the_hard_limit_and_say_so():
-    xml = """<mujoco><worldbody><body><joint name="rough" axis="0 1 0" range="-30 30" frictionloss=".1"/>
-      <geom size=".1" pos=".2 0 0"/><body pos=".4 0 0"><joint name="a" axis="0 1 0" range="-30 30"/>
-      <geom size=".1" pos=".2 0 0"/><body pos=".4 0 0"><joint name="b" axis="0 1 0" range="-30 30"/>
-      <geom size=".1" pos=".2 0 0"/></body></body></body></worldbody>
-      <equality><joint joint1="a" joint2="b"/></equality></mujoco>"""
-    result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
-    assert result.controller.term("limits") is None
-    kept = {e.name for e in result.approximations if "limit kept as PhysX's hard limit" in e.reason}
-    assert kept == {"rough", "a", "b"}
+PAST_ENDS_TOLERANCE = 1e-5  # rad over 0.2 s, measured 4.2e-7 (hard limits: 1.4; mujoco 3.17.0, sapien 3.0.3)
+PAST_ITS_ENDS = """<mujoco><option timestep="0.002"/><worldbody><body>
+  <joint name="rough" axis="0 1 0" range="-30 30" frictionloss=".1"/><geom size=".1" pos=".2 0 0"/>
+  <body pos=".4 0 0"><joint name="a" axis="0 1 0" range="-30 30" damping=".01"/><geom size=".1" pos=".2 0 0"/>
+  <body pos=".4 0 0"><joint name="b" axis="0 1 0" range="-30 30"/><geom size=".1" pos=".2 0 0"/>
+  </body></body></body></worldbody>
+  <tendon><fixed stiffness="0.5" damping="0.02"><joint joint="a" coef="1"/><joint joint="b" coef="-1"/></fixed>
+  </tendon><keyframe><key qpos="0.7 -0.8 0.9"/></keyframe></mujoco>"""
+
+
+def test_frictional_and_coupled_joints_started_past_their_ends_are_pushed_back_as_mujoco_does():
+    """Every joint starts 10-22 degrees past an end: MuJoCo pushes them back softly, and so must SAPIEN, whatever
+    else the joint carries (frictionloss, a tendon). Mutation: PhysX's hard limit, which snaps them."""
+    from support.lockstep import replay
+
+    def run(hard: bool) -> float:
+        result = MJCFLoader().load(mujoco.MjSpec.from_string(PAST_ITS_ENDS))
+        assert not [e for e in result.approximations if e.kind == "joint" and e.name in ("rough", "a", "b")]
+        if hard:
+            result.controller.without("rows")
+        return float(replay(result, result.model, lambda step, data: None, 0.2).max())
+
+    assert run(hard=False) < PAST_ENDS_TOLERANCE
+    assert run(hard=True) > 100 * PAST_ENDS_TOLERANCE
 
 
 def _humanoid_collapse_speed() -> tuple[float, float]:
@@ -121,21 +133,19 @@ def _humanoid_collapse_speed() -> tuple[float, float]:
     return float(run.sapien_speed.max()), float(run.mujoco_speed.max())
 
 
-COLLAPSE_SPEED_RATIO = 3.0  # measured 2.2 (33.5 against 15.2 rad/s; mujoco 3.17.0, sapien 3.0.3); blown up: 150+
+COLLAPSE_SPEED_RATIO = 1.5  # measured 0.87 (13.2 against 15.2 rad/s; mujoco 3.17.0, sapien 3.0.3)
 
 
 def test_limit_rows_under_contact_stay_finite():
-    """Many limit rows with the floor's contacts in one PhysX solve: the one-sided rows' explicit offsets stay
-    small enough for PhysX to cancel them (`limit.force_limit`)."""
+    """Many limit rows while the body lands on the floor: MuJoCo's rows (solved without the contacts, which are
+    PhysX's) and PhysX's contacts in one step stay no faster than MuJoCo."""
     sapien_speed, mujoco_speed = _humanoid_collapse_speed()
     assert sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)
 
 
-def test_limit_rows_sized_on_speed_blow_up_under_contact(monkeypatch):
-    """The deliberate mistake: the force limit sized on |target| + |v| and 1e3 rad/s^2 (the sizing before)."""
-    import loader.runtime.limits
-
-    monkeypatch.setattr(loader.runtime.limits, "force_limit", lambda damping, target, v, timestep: max(
-        1.0, damping * (abs(target) + abs(v) + timestep * 1e3)))
+def test_rows_solved_with_the_contacts_as_well_are_caught(monkeypatch):
+    """The deliberate mistake: MuJoCo's whole constraint force applied, its contact rows with the joint rows, so
+    the contacts push twice."""
+    monkeypatch.setattr(RowTerm, "joint_rows", lambda self: self.data.qfrc_constraint)
     sapien_speed, mujoco_speed = _humanoid_collapse_speed()
     assert not sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)

@@ -84,8 +84,8 @@ def mutate_collision_groups(session) -> None:
 def mutate_joint_limit(session) -> None:
     # PhysX ignores a switch to +-inf (a change of joint motion) once the articulation is in a scene,
     # so the limit is dropped by widening it far past any motion, and with it the soft limit rows the loader
-    # drives (loader/runtime/limits.py).
-    session.result.controller.without("limits")  # PhysX's hard limit back, then widened below
+    # drives (loader/runtime/rows.py).
+    session.result.controller.without("rows")  # PhysX's hard limit back, then widened below
     for a, art in enumerate(session.result.articulations):
         for d, joint in enumerate(art.active_joints):
             lo, hi = np.asarray(joint.limit)[0]

@@ -124,50 +124,16 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
             damping[key] += d if implicit_kv else 0.0
     out = []
     dt = float(model.opt.timestep)
-    friction = _friction_drives(result, model)
     for key, want_k in stiffness.items():
         joint = result.articulations[key[0]].active_joints[key[1]]
         want_d = max(damping[key] - want_k * dt, 0.0)
         if damping[key] - want_k * dt < 0:  # the stiffness (kp, spring) explicit
             want_k, want_d = 0.0, damping[key]
-        if key in friction:  # the drive carries the friction row; damping rides as armature dt D, kp explicit
-            dof, regularizer, inverse_inertia = friction[key]
-            want_k = 0.0
-            want_d = (1.0 + inverse_inertia * dt * damping[key]) / (regularizer * dt) if inverse_inertia else None
-            want_armature = float(model.dof_armature[dof]) + dt * damping[key]
-            got_armature = float(np.asarray(joint.armature).ravel()[0])
-            if not _close32(got_armature, want_armature):
-                out.append(f"joint {joint.name!r}: PhysX armature {got_armature:.7g}, MuJoCo's armature + dt x "
-                           f"damping give {want_armature:.7g}")
         got_k, got_d = float(joint.stiffness), float(joint.damping)
-        want_d = got_d if want_d is None else want_d  # (M^-1)_ii undefined: M singular
         if not (_close32(got_k, want_k) and _close32(got_d, want_d)):
             out.append(f"joint {joint.name!r}: PhysX drive stiffness {got_k:.7g} damping {got_d:.7g}, MuJoCo's "
                        f"terms give stiffness {want_k:.7g} damping {want_d:.7g} (dt {dt:g})")
     return out, len(stiffness)
-
-
-def _friction_drives(result, model: mujoco.MjModel) -> dict[tuple[int, int], tuple[int, float, float]]:
-    """Per frictional hinge/slide DoF, its MuJoCo DoF, MuJoCo's friction row regularizer R (its own constraint rows
-    at qpos0) and (M^-1)_ii there, from which the friction drive's damping is (1 + (M^-1)_ii dt D) / (R dt)."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    mujoco.mj_forward(model, data)
-    inertia = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, inertia)
-    singular = np.linalg.cond(inertia) > 1e10 if model.nv else False
-    out = {}
-    for i in range(data.nefc):
-        if int(data.efc_type[i]) == int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF):
-            dof = int(data.efc_id[i])
-            target = result.mapping.joints[int(model.dof_jntid[dof])]
-            if target.kind in ("hinge", "slide"):
-                unit, response = np.zeros((1, model.nv)), np.zeros((1, model.nv))
-                unit[0, dof] = 1.0
-                mujoco.mj_solveM(model, data, response, unit)
-                out[(target.articulation, target.dofs[0])] = (dof, float(data.efc_R[i]),
-                                                              None if singular else float(response[0, dof]))
-    return out
 
 
 def _close32(a: float, b: float) -> bool:

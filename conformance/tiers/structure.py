@@ -90,8 +90,8 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
     axis_err, anchor_err, limit_err = [], [], []
     expected_dofs = 0
-    limits = result.controller.term("limits", on=True)
-    limit_rows = limits.rows if limits is not None else {}  # soft limit rows on the drives
+    limits = result.controller.term("rows", on=True)
+    limit_rows = limits.rows if limits is not None else {}  # MuJoCo solves their limit rows
     for j in range(model.njnt):
         kind = KIND[int(model.jnt_type[j])]
         name = mj.name(model, 'joint', j)
@@ -128,7 +128,7 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         enforced = model.jnt_limited[j] and not limits_disabled(model)
         ref = tuple(model.jnt_range[j]) if enforced else (-np.inf, np.inf)
         soft = limit_rows.get((entry.articulation, entry.dofs[0]))
-        if soft is not None:  # MuJoCo's soft limit rows on the drive (loader/runtime/limits.py): their ends are the range,
+        if soft is not None:  # MuJoCo's soft limit rows (loader/runtime/rows.py): their ends are the range,
             limit_err.append(_limit_error(ref, (soft.lower, soft.upper)))  # and PhysX's hard limit lies beyond
             low, high = np.asarray(joint.limit, dtype=float).ravel()
             if not (low < ref[0] and high > ref[1]):

@@ -54,15 +54,11 @@ def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
     # under implicit integrators the tendon actuators' kv diagonal and the passive tendon dampers' join the drives
     tendon_kv = actuators.tendon_kv_diagonal() if implicit and actuators is not None else {}
     passive_diagonal = tendons.implicit_diagonal() if implicit and tendons is not None else {}
-    friction = controller.term("friction", on=True).rows if controller.term("friction", on=True) else {}
     rows: dict[int, list[tuple[np.ndarray, float]]] = {}  # per articulation: (row over MuJoCo's DoFs, compliance)
     for key, dof_drive in controller.laws().items():
         dof_drive = DofDrive(dof_drive.stiffness, dof_drive.damping + passive_diagonal.get(key, 0.0))
         damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
         weight = timestep * (damping + timestep * dof_drive.stiffness)
-        if key in friction:  # the drive carries only the friction (compliance R / s)
-            row = friction[key]
-            weight = row.scale(dof_drive.damping + tendon_kv.get(key, 0.0), timestep) / row.regularizer
         if weight > 0 and key in dof_of:
             rows.setdefault(key[0], []).append((np.eye(model.nv)[dof_of[key]], 1.0 / weight))
     equalities = controller.term("equalities", on=True)

@@ -1,7 +1,7 @@
 """The per-step controller: `set_ctrl` runs named terms in MuJoCo's stage order over one `Step` record.
 
 state (joint positions and velocities, link velocities) -> ctrl clamp and activation -> passive forces (`tendons`)
--> `actuators` -> PhysX correction of explicit stiffness (`stiffness`) -> constraint rows (`friction`, `limits`)
+-> `actuators` -> PhysX correction of explicit stiffness (`stiffness`) -> MuJoCo's limit and friction rows (`rows`)
 -> PhysX correction of turning slides (`slides`) -> write drives and qf (`drives`) -> link forces (`fluid`,
 `gravcomp`) -> equality rows (`equalities`). `without(name)` switches a term off (the public switch tests and the
 isolation use); `release()` hands the joints to a caller that drives them itself. Layout: docs/architecture.md.
@@ -24,24 +24,23 @@ from .dof_step import DofKey, DofStep, Step, passive_laws
 from .drive_writer import DriveWriter
 from .equalities import EqualityTerm
 from .fluid import plan_fluid
-from .friction import FrictionTerm, friction_rows, note_coupled_friction
 from .gravcomp import map_gravcomp
-from .limits import LimitTerm, limit_rows
+from .rows import plan_rows
 from .slides import SlideTerm, map_slides
 from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
 from .tendons import IMPLICIT, TendonTerm, map_tendons
 
-STAGES = ("tendons", "actuators", "stiffness", "friction", "limits", "slides", "drives", "fluid", "gravcomp",
-          "equalities")
+STAGES = ("tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp", "equalities")
 
 
 class Controller:
     """The loaded model's per-step terms, in stage order (a term absent from a model is simply not there)."""
 
-    def __init__(self, model: mujoco.MjModel, articulations: list, passive: dict[DofKey, DofDrive], terms: list,
-                 activation: Activation | None = None):
+    def __init__(self, model: mujoco.MjModel, mapping, articulations: list, passive: dict[DofKey, DofDrive],
+                 terms: list, activation: Activation | None = None):
         self.model = model
+        self.mapping = mapping
         self.articulations = articulations
         self.joints = [art.active_joints for art in articulations]  # the property builds a new list per call
         self.passive = passive
@@ -64,29 +63,37 @@ class Controller:
         actuators = self.term("actuators")
         return {**self.passive, **(actuators.laws if actuators is not None else {})}
 
-    def set_ctrl(self, ctrl, qfrc_applied: list[np.ndarray] | None = None, advance: bool = True) -> None:
-        """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (per articulation, SAPIEN's
-        DoF order). `advance`: the first call of this physics step (activations, link forces)."""
+    def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
+        """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
+        None: zeros). `advance`: the first call of this physics step (activations, link forces)."""
         model, articulations = self.model, self.articulations
         ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
         if not mj.disabled(model, "clampctrl") and model.nu:
             limited = model.actuator_ctrllimited.astype(bool)
             ctrl[limited] = np.clip(ctrl[limited], *model.actuator_ctrlrange[limited].T)
-        inputs = ctrl
+        inputs, act = ctrl, None
         if self.activation is not None and "actuators" not in self.off:
+            act = self.activation.act.copy()
             inputs = self.activation.inputs(ctrl)  # what each gain multiplies: ctrl or act
             if advance:
                 self.activation.advance(ctrl)
         forces = [np.zeros(art.dof) for art in articulations]
         if qfrc_applied is not None:
-            forces = [f + np.asarray(applied, np.float64) for f, applied in zip(forces, qfrc_applied)]
+            applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
+            forces = [f + np.asarray(a, np.float64) for f, a in zip(forces, applied)]
         refresh_link_velocities(self.velocity_readers())
         step = Step(articulations, self.joints, [np.asarray(art.get_qpos(), np.float64) for art in articulations],
                     [np.asarray(art.get_qvel(), np.float64) for art in articulations], forces,
-                    {key: DofStep(law, law.constant) for key, law in self.passive.items()}, inputs,
-                    float(model.opt.timestep), int(model.opt.integrator) not in IMPLICIT, advance)
+                    {key: DofStep(law, law.constant) for key, law in self.passive.items()}, inputs, ctrl, act,
+                    qfrc_applied, "actuators" not in self.off, float(model.opt.timestep), int(model.opt.integrator) not in IMPLICIT, advance)
         for term in self.terms:
             term.contribute(step)
+
+    def contacts(self, enabled: bool) -> None:
+        """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
+        rows = self.term("rows")
+        if rows is not None:
+            rows.contacts = enabled and not mj.disabled(self.model, "contact")
 
     def velocity_readers(self) -> list:
         """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
@@ -142,10 +149,8 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> t
     """Every per-step term the compiled model needs, planned once at load: (controller, actuator maps, equality
     links). The equalities' PhysX objects (fixed tendons, D6 joints) are built here too."""
     passive = passive_laws(model, mapping)
-    friction = friction_rows(model, mapping)
-    limits = limit_rows(model, mapping, notes)
     actuators, maps = plan_actuators(model, mapping, passive, notes)
-    note_coupled_friction(model, mapping, {**passive, **actuators.laws}, actuators, friction, notes)
+    rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], notes)
     activation = Activation(model) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
     tendons = map_tendons(model, mapping, notes)
     fluid = plan_fluid(model, mapping, notes)
@@ -155,9 +160,8 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> t
     connects = [link.soft for link in equalities if link.soft is not None]
     terms = [actuators, StiffnessTerm(), DriveWriter(passive)]
     terms += [TendonTerm(tendons)] if tendons else []
-    terms += [FrictionTerm(friction)] if friction else []
-    terms += [LimitTerm(limits)] if limits else []
+    terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []
     terms += [term for term in (fluid, gravcomp) if term is not None]
     terms += [EqualityTerm(connects)] if connects else []
-    return Controller(model, articulations, passive, terms, activation), maps, equalities
+    return Controller(model, mapping, articulations, passive, terms, activation), maps, equalities

@@ -39,6 +39,10 @@ class Step:
     forces: list[np.ndarray]  # per articulation, the generalized force `set_qf` gets
     dofs: dict[DofKey, DofStep]
     inputs: np.ndarray  # what each actuator's gain multiplies: clamped ctrl, or the activation
+    ctrl: np.ndarray  # MuJoCo's ctrl, clamped to ctrlrange
+    act: np.ndarray | None  # MuJoCo's act at the start of the step (None: no activation dynamics)
+    qfrc_applied: np.ndarray | None  # the caller's generalized force, MuJoCo's layout
+    actuated: bool  # the actuators term is on (off: MuJoCo's actuation disabled, as `disable_actuators` means)
     timestep: float
     explicit_kv: bool  # Euler or RK4: actuator kv is explicit
     advance: bool  # the first `set_ctrl` of this physics step (activations and link forces advance once)
@@ -58,28 +62,3 @@ def passive_laws(model: mujoco.MjModel, mapping: Mapping) -> dict[DofKey, DofDri
                 stiffness, dof_damping(model, int(model.jnt_dofadr[j])),
                 stiffness * float(model.qpos_spring[model.jnt_qposadr[j]]))
     return laws
-
-
-@dataclass
-class ArmatureWriter:
-    """The PhysX armature of DoFs whose implicit damping a constraint row moves into it, written only on change."""
-
-    written: dict[DofKey, float] = field(default_factory=dict)
-
-    def set(self, joint, key: DofKey, armature: float, unset: float | None = None) -> None:
-        """Write `armature` when it differs from the last written (`unset`: what the joint has if never)."""
-        if self.written.get(key, unset) != armature:
-            joint.set_armature(np.array([armature], np.float32))
-            self.written[key] = armature
-
-    def armature_form(self, step: Step, key: DofKey, own_armature: float, law: DofDrive, constant: float) -> float:
-        """Free the DoF's drive for a constraint row (friction, limit): its implicit damping D becomes armature
-        dt D plus the explicit force -D v, its stiffness and constant explicit forces. Returns D."""
-        art, dof = key
-        record = step.dofs[key]
-        damping = law.damping + record.implicit_extra
-        record.implicit_extra = 0.0
-        step.add(key, constant + record.via_damping - law.stiffness * step.q[art][dof] - damping * step.v[art][dof])
-        record.via_damping = 0.0
-        self.set(step.joints[art][dof], key, own_armature + step.timestep * damping)
-        return damping

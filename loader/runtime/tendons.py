@@ -48,7 +48,7 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     """Passive tendon properties: a fixed tendon's spring and damper, applied as MuJoCo does. MuJoCo's implicit
     and implicitfast integrators treat a tendon's damping implicitly through its diagonal D c_i^2 only, Euler
     explicitly; a PhysX fixed tendon would be implicit in the whole D J J^T and in its spring
-    (tests/test_loader_actuators.py::test_a_passive_fixed_tendon_matches_mujoco)."""
+    (tests/test_loader_passive.py::test_a_passive_fixed_tendon_matches_mujoco)."""
     out = []
     for t in range(model.ntendon):
         name = mj.name(model, "tendon", t)

@@ -4,8 +4,8 @@
 - no import cycle between the project's modules (function-local imports included);
 - no class over `MAX_CLASS_LINES` lines in `loader/`;
 - no module reading another object's private (`_name`) attribute;
-- every relative link in README.md and docs/*.md resolves (file and `#anchor`), and README.md stays under
-  `MAX_README_LINES` lines.
+- every relative link in README.md and docs/*.md resolves (file and `#anchor`), every `tests/<file>.py::<test>`
+  they or the source name exists, and README.md stays under `MAX_README_LINES` lines.
 
 Run as `python tests/support/house.py` from the project root; exits non-zero on a finding."""
 
@@ -22,6 +22,7 @@ MAX_CLASS_LINES = 120
 MAX_README_LINES = 120
 PACKAGES = ("loader", "conformance")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
+TEST_REFERENCE = re.compile(r"(tests/[\w/]+\.py)::(\w+)")
 
 
 def _docstring_nodes(tree: ast.AST):
@@ -132,6 +133,18 @@ def broken_links(docs: dict[str, str]) -> list[str]:
     return out
 
 
+def broken_test_references(texts: dict[str, str], files: dict[str, str]) -> list[str]:
+    """`path:line: reference` for every `tests/<file>.py::<test>` in `texts` whose file is not in `files` or does not
+    define that function."""
+    out = []
+    for path, text in texts.items():
+        for number, line in enumerate(text.splitlines(), 1):
+            for file, name in TEST_REFERENCE.findall(line):
+                if not re.search(rf"^\s*def {name}\(", files.get(file, ""), re.M):
+                    out.append(f"{path}:{number}: no test {file}::{name}")
+    return out
+
+
 def long_readme(text: str, limit: int = MAX_README_LINES) -> list[str]:
     lines = len(text.splitlines())
     return [f"README.md is {lines} lines (at most {limit}): move detail into docs/"] if lines > limit else []
@@ -158,7 +171,10 @@ def findings(root: Path) -> list[str]:
     loader = {p: t for p, t in every.items() if p.startswith("loader")}
     docs = documents(root)
     return (docstring_numbers(loader) + import_cycles(every) + long_classes(loader) + private_reads(every)
-            + broken_links(docs) + long_readme(docs["README.md"]))
+            + broken_links(docs) + long_readme(docs["README.md"])
+            + broken_test_references({**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
+                                     {str(p.relative_to(root)): p.read_text()
+                                      for p in sorted((root / "tests").rglob("*.py"))}))
 
 
 if __name__ == "__main__":

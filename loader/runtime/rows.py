@@ -1,0 +1,139 @@
+"""MuJoCo's joint limit and frictionloss rows, solved by MuJoCo at SAPIEN's state and applied as joint forces.
+
+MuJoCo computes its constraint force from the state at the start of a step and applies it like any other force;
+its implicit integrators then treat only damping implicitly, which PhysX's drives already do. So the force MuJoCo's
+own solver returns for SAPIEN's state (a contact-free copy of the model, `mj_forward`) is the force MuJoCo would
+apply: every limit and friction row solved together, with the joint-space inertia, whatever else the joint carries.
+PhysX's hard limit is moved out of the rows' way while `set_ctrl` runs. Derivation: docs/mapping.md#joint-limits.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .. import mj
+from ..build.mapping import Mapping
+from .dof_step import DofKey, Step
+
+HINGE_MARGIN = 2 * math.pi  # PhysX's hard limit sits a full turn beyond MuJoCo's ends (or the range, if wider)
+SLIDE_MARGIN = 1.0  # ... and a metre beyond a slide's (or the range)
+MAPPED_JOINTS = ("hinge", "slide")
+JOINT_ROWS = (int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT), int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF))
+
+
+@dataclass(frozen=True)
+class HardLimit:
+    """A limited hinge/slide DoF: MuJoCo's range and the wider one PhysX keeps while the rows run."""
+
+    key: DofKey
+    lower: float
+    upper: float
+    slide: bool
+
+    def widened(self) -> tuple[float, float]:
+        margin = max(SLIDE_MARGIN if self.slide else HINGE_MARGIN, self.upper - self.lower)
+        return self.lower - margin, self.upper + margin
+
+
+class RowTerm:
+    """Per step: SAPIEN's state, ctrl, activation and applied force into a contact-free copy of the model, MuJoCo's
+    constraint force out, added to the joints' forces."""
+
+    name = "rows"
+
+    def __init__(self, mirror: mujoco.MjModel, mapping: Mapping, limits: list[HardLimit]):
+        self.mirror = mirror
+        self.data = mujoco.MjData(mirror)
+        self.mapping = mapping
+        self.limits = limits
+        self.rows = {limit.key: limit for limit in limits}  # the limited DoFs, by (articulation, SAPIEN dof)
+        joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
+        self.dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
+        self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]
+        self.soft = False
+        self.flags = int(mirror.opt.disableflags)  # the model's own, with equality off
+        self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
+
+    def contribute(self, step: Step) -> None:
+        if not self.soft:
+            self.hold(step.joints, soft=True)
+        self.mirror_state(step)
+        mujoco.mj_forward(self.mirror, self.data)
+        for key, force in zip(self.keys, self.joint_rows()[self.dofs]):
+            if force:
+                step.add(key, float(force))
+
+    def joint_rows(self) -> np.ndarray:
+        """The generalized force of the joint limit and friction rows alone (contact rows, solved with them when
+        contacts are on, are PhysX's to apply)."""
+        data = self.data
+        if not self.contacts:
+            return data.qfrc_constraint
+        rows = np.isin(data.efc_type[:data.nefc], JOINT_ROWS)
+        force = np.zeros(self.mirror.nv)
+        if rows.any():
+            mujoco.mj_mulJacTVec(self.mirror, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
+        return force
+
+    def mirror_state(self, step: Step) -> None:
+        """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
+        and actuation off while the loader's actuators are."""
+        data, mirror = self.data, self.mirror
+        actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+        flags = (self.flags | actuation) if not step.actuated else self.flags
+        mirror.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations)
+        data.ctrl[:] = step.ctrl
+        if step.act is not None:
+            data.act[:] = step.act
+        data.qfrc_applied[:] = 0.0 if step.qfrc_applied is None else step.qfrc_applied
+
+    def hold(self, joints, soft: bool) -> None:
+        """PhysX's hard limits: widened out of the rows' way (`soft`), or at MuJoCo's range (for callers that do not
+        call `set_ctrl`, and while the term is switched off)."""
+        for limit in self.limits:
+            art, dof = limit.key
+            low, high = limit.widened() if soft else (limit.lower, limit.upper)
+            joints[art][dof].set_limit(np.array([[low, high]], np.float32))
+        self.soft = soft
+
+    def release(self, joints) -> None:
+        self.hold(joints, soft=False)
+
+    removed = release
+
+
+def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], notes) -> RowTerm | None:
+    """The row term for a model with limited or frictional hinge/slide joints (None without). The copy MuJoCo
+    solves keeps only those rows: contacts are PhysX's, equalities its joints' and tendons', and what the loader
+    does not map (unmapped actuators, ball and free joint rows, tendon rows) is taken out so both sides see the
+    same forces."""
+    if mj.disabled(model, "constraint"):
+        return None
+    limited = [j for j, t in enumerate(mapping.joints)
+               if t.kind in MAPPED_JOINTS and model.jnt_limited[j] and not mj.disabled(model, "limit")]
+    frictional = [j for j, t in enumerate(mapping.joints)
+                  if t.kind in MAPPED_JOINTS and model.dof_frictionloss[model.jnt_dofadr[j]] > 0
+                  and not mj.disabled(model, "frictionloss")]
+    if not limited and not frictional:
+        return None
+    mirror = copy.deepcopy(model)
+    mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+    for j, target in enumerate(mapping.joints):
+        if target.kind not in MAPPED_JOINTS:
+            mirror.jnt_limited[j] = 0
+            dof, count = int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1)
+            mirror.dof_frictionloss[dof:dof + count] = 0.0
+    mirror.tendon_limited[:] = 0
+    mirror.tendon_frictionloss[:] = 0.0
+    for a in unmapped_actuators:
+        mirror.actuator_gainprm[a] = 0.0
+        mirror.actuator_biasprm[a] = 0.0
+    limits = [HardLimit((mapping.joints[j].articulation, mapping.joints[j].dofs[0]), *map(float, model.jnt_range[j]),
+                        slide=mapping.joints[j].kind == "slide") for j in limited]
+    return RowTerm(mirror, mapping, limits)
