@@ -106,22 +106,22 @@ class LoadResult:
             self.scene.step()
 
     def set_equality_active(self, key: int | str, active: bool) -> None:
-        """MuJoCo's `data.eq_active[key] = active` (key: the equality's index or name) for a connect or weld; the
-        next `set_ctrl` applies it. A joint or tendon coupling is a PhysX fixed tendon, which cannot be switched:
-        ValueError, as for an equality the loader did not map."""
+        """MuJoCo's `data.eq_active[key] = active` (key: the equality's index or name); the next `set_ctrl`
+        applies it. ValueError for an equality the loader did not map."""
         index = key if isinstance(key, int) else mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_EQUALITY, key)
         if not 0 <= index < self.model.neq:
             raise KeyError(f"{self.path}: no equality {key!r} (the model has {self.model.neq})")
-        link = next((e for e in self.equalities if e.soft is not None and e.soft.equality == index), None)
-        if link is None:
-            raise ValueError(f"{self.path}: equality {key!r} cannot be switched in SAPIEN: only connect and weld "
-                             "equalities are (a joint or tendon coupling is a PhysX fixed tendon, fixed at load)")
-        link.soft.set_active(active)
+        link = next((e for e in self.equalities if e.index == index), None)
+        if link is None or not link.mapped:
+            raise ValueError(f"{self.path}: equality {key!r} is not mapped, so it cannot be switched")
+        if link.soft is not None:
+            link.soft.set_active(active)
+        else:
+            self.controller.term("rows").set_active(index, active)
 
     def release(self) -> None:
-        """Leave the joints to a simulation that drives them with its own PhysX drive targets and never calls
-        `set_ctrl` (a ManiSkill controller): passive spring-damper drives, MuJoCo's armature, no joint forces.
-        What needs `set_ctrl` every step (frictionloss, tendons, clamps, fluid) is then not carried."""
+        """Leave the joints to a controller that sets PhysX drive targets and never calls `set_ctrl` (ManiSkill's):
+        passive drives, MuJoCo's armature, no joint forces; rows, tendons, clamps and fluid are not carried."""
         self.controller.release()
 
     def set_contacts(self, enabled: bool) -> None:

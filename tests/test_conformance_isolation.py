@@ -33,8 +33,8 @@ def dropped_friction(monkeypatch):
     """The gap to isolate: a loader whose MuJoCo copy solves no friction rows, so SAPIEN's joints slide freely."""
     plan = loader.runtime.controller.plan_rows
 
-    def without_friction(model, mapping, unmapped, notes):
-        term = plan(model, mapping, unmapped, notes)
+    def without_friction(*args):
+        term = plan(*args)
         if term is not None:
             term.mirror.dof_frictionloss[:] = 0.0
         return term

@@ -321,9 +321,22 @@ def test_switching_a_connect_on_and_off_follows_mujocos_eq_active():
     assert not result.equalities[0].soft.active  # back to eq_active0
 
 
-def test_only_connects_and_welds_can_be_switched():
+def test_a_joint_coupling_switches_as_eq_active_does_in_mujoco():
+    """A joint coupling switched off in both simulators: SAPIEN follows MuJoCo. Mutation: switched off in MuJoCo
+    only."""
+    from support.lockstep import contact_free, paired_rollout
+
+    def run(switch_sapien: bool) -> float:
+        result, model = contact_free(FIXTURE.parents[2] / "tests" / "fixtures" / "coupled_joints.xml")
+        data = mujoco.MjData(model)
+        data.eq_active[0] = 0
+        if switch_sapien:
+            result.set_equality_active(0, False)
+        return float(paired_rollout(result, model, data, 500, lambda step, data: np.array(
+            [np.sin(step * 0.01), 0.3 * np.cos(step * 0.005)])).qpos.max())
+
+    assert run(switch_sapien=True) < 1e-5
+    assert run(switch_sapien=False) > 1e-3
     result = MJCFLoader().load(FIXTURE.parents[2] / "tests" / "fixtures" / "coupled_joints.xml")
-    with pytest.raises(ValueError, match="fixed tendon"):
-        result.set_equality_active(0, False)
     with pytest.raises(KeyError):
         result.set_equality_active("no such equality", True)

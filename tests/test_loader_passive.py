@@ -120,3 +120,33 @@ def test_spring_and_damper_flags_are_honoured(tmp_path, monkeypatch, flags):
     monkeypatch.setattr(loader.mj, "disabled", lambda model, *flags: False)  # the fixture sets no other flag
     blind = MJCFLoader().load(path)
     assert replay(blind, blind.model, no_ctrl, 1.0).max() > 10 * SERVO_TOLERANCE
+
+
+TENDON_ROWS = """<mujoco><option timestep="0.002" gravity="0 0 -9.81"/>
+  <worldbody><site name="anchor" pos="0 0 1.5"/>
+    <body name="a" pos="0 0 1"><joint name="a" axis="0 1 0"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"
+      mass=".4"/><site name="tip" pos=".3 0 0"/></body>
+    <body name="b" pos="0 1 1"><joint name="b" axis="0 1 0"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"
+      mass=".4"/></body></worldbody>
+  <tendon><fixed name="rough" frictionloss="0.2" limited="true" range="-0.4 0.4">
+      <joint joint="a" coef="1"/><joint joint="b" coef="-1"/></fixed>
+    <spatial name="tether" limited="true" range="0 0.55"><site site="anchor"/><site site="tip"/></spatial></tendon>
+  <keyframe><key qpos="0.3 -0.05" qvel="2 -1"/></keyframe>
+</mujoco>"""
+TENDON_ROWS_TOLERANCE = 1e-5  # rad over 1 s, measured 5.4e-7; rows off: 3.0 (mujoco 3.17.0, sapien 3.0.3)
+
+
+def test_tendon_frictionloss_and_limits_are_mujocos_rows(tmp_path):
+    """A fixed tendon with frictionloss and a length range over two hinges, and a spatial tether with a length
+    limit: their rows are MuJoCo's own, solved at SAPIEN's state. Mutation: the rows term off."""
+    path = mjcf_file(tmp_path, TENDON_ROWS, "tendon_rows.xml")
+
+    def run(rows: bool) -> float:
+        result = MJCFLoader().load(path)
+        assert not [e for e in result.unsupported if e.kind == "tendon"], result.unsupported
+        if not rows:
+            result.controller.without("rows")
+        return float(replay(result, result.model, no_ctrl, 1.0).max())
+
+    assert run(rows=True) < TENDON_ROWS_TOLERANCE
+    assert run(rows=False) > 100 * TENDON_ROWS_TOLERANCE

@@ -1,6 +1,6 @@
-"""Equality constraints: joint and tendon couplings as PhysX fixed tendons (a spring and damper on the
-constraint's effective mass at qpos0, approximate), connect and weld as PhysX D6 joints that
-`runtime/equalities.py` drives with MuJoCo's soft row every step. Derivation: docs/mapping.md#equalities.
+"""Equality constraints: joint and tendon couplings as MuJoCo's own rows (`runtime/rows.py` asks MuJoCo for their
+force every step), connect and weld as PhysX D6 joints that `runtime/equalities.py` drives with MuJoCo's soft row
+every step. Derivation: docs/mapping.md#equalities.
 """
 
 from __future__ import annotations
@@ -16,32 +16,22 @@ from ..runtime.equalities import SoftConnect, SoftWeld
 from ..errors import Notes
 from ..soft_row import SoftRow, diag_approx
 from .mapping import Mapping
-from .fixed_tendons import create_fixed_tendon, fixed_tendon_terms
+from .fixed_tendons import fixed_tendon_terms
 
 EQ = mujoco.mjtEq
 
 
 @dataclass
 class EqualityLink:
-    """What an equality constraint became: a fixed tendon or a D6 joint (`kind`), or nothing (`mapped` False)."""
+    """What an equality constraint became: MuJoCo's row (`kind` "MuJoCo row", applied by `runtime/rows.py`) or a D6
+    joint, or nothing (`mapped` False)."""
 
     name: str
     kind: str
     mapped: bool
     reason: str = ""
     soft: SoftConnect | None = None  # a connect's or weld's per-step soft law (`runtime/equalities.py`)
-
-
-def soft_gains(model: mujoco.MjModel, e: int, jacobian: np.ndarray, data: mujoco.MjData) -> tuple[float, float]:
-    """Spring and damper (force per unit violation / rate) of equality `e` along `jacobian` at qpos0 (`data`: MuJoCo's
-    forward pass there): MuJoCo's K and B (`impedance.SoftRow`) times m d / (1 - d), m the effective mass."""
-    row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
-    dmin = row.impedance(0.0)
-    solved = np.zeros((1, model.nv))
-    mujoco.mj_solveM(model, data, solved, jacobian.reshape(1, -1))
-    mass = 1.0 / float(jacobian @ solved[0])
-    scale = mass * dmin / (1.0 - dmin)
-    return row.stiffness * scale, row.damping * scale
+    index: int = -1  # MuJoCo's equality id
 
 
 def _joint_dof(model: mujoco.MjModel, mapping: Mapping, joint: int) -> tuple[int, int] | None:
@@ -66,69 +56,33 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
     for e in range(model.neq):
         name = mj.name(model, "equality", e)
         etype = int(model.eq_type[e])
-        if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)) and not model.eq_active0[e]:
-            reason = "inactive at start: a PhysX fixed tendon cannot be switched on later"
-            notes.drop("equality", name, reason)
-            result.append(EqualityLink(name, "", False, reason))
-            continue
         if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)):
-            result.append(_coupling(model, e, name, articulations, mapping, notes, qpos0_data))
+            result.append(_coupling(model, e, name, mapping, notes))
         elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
             result.append(_d6(model, e, name, scene, articulations, mapping, notes, qpos0_data))
         else:
             reason = f"equality type {EQ(etype).name.removeprefix('mjEQ_').lower()} has no PhysX equivalent"
             notes.drop("equality", name, reason)
-            result.append(EqualityLink(name, "", False, reason))
+            result.append(EqualityLink(name, "", False, reason, index=e))
     return result
 
 
-def _coupling(model, e, name, articulations, mapping, notes, qpos0_data) -> EqualityLink:
-    """obj1 = poly(obj2): the linear part, obj1 - c1 obj2 = c0, as a fixed tendon over the joints involved."""
-    c0, c1, *higher = model.eq_data[e][:5]
-    if any(abs(c) > 0 for c in higher):
-        notes.approximate("equality", name, "polynomial coupling: only its linear part (c0 + c1 x) is mapped")
+def _coupling(model, e, name, mapping, notes) -> EqualityLink:
+    """obj1 = poly(obj2) between joints or fixed tendons: MuJoCo's row, mapped when every joint it moves is a
+    hinge or slide (its force is then a joint force SAPIEN can apply)."""
     etype = int(model.eq_type[e])
     objects = [int(model.eq_obj1id[e])] + ([int(model.eq_obj2id[e])] if model.eq_obj2id[e] >= 0 else [])
-    weights = [1.0, -float(c1)]
-    terms: dict[tuple[int, int], float] = {}
-    for obj, weight in zip(objects, weights):
+    for obj in objects:
         joints = [(obj, 1.0)] if etype == int(EQ.mjEQ_JOINT) else fixed_tendon_terms(model, obj)
         if not joints:
-            reason = "couples a spatial tendon, which PhysX cannot express"
-            notes.drop("equality", name, reason)
-            return EqualityLink(name, "", False, reason)
-        for joint, coefficient in joints:
-            dof = _joint_dof(model, mapping, joint)
-            if dof is None:
-                reason = "couples a ball or free joint"
-                notes.drop("equality", name, reason)
-                return EqualityLink(name, "", False, reason)
-            terms[dof] = terms.get(dof, 0.0) + weight * coefficient
-    if len({a for a, _ in terms}) != 1:
-        reason = "couples joints of two articulations"
+            reason = "couples a spatial tendon, whose force SAPIEN's joints cannot take"
+        elif any(_joint_dof(model, mapping, joint) is None for joint, _ in joints):
+            reason = "couples a ball or free joint"
+        else:
+            continue
         notes.drop("equality", name, reason)
-        return EqualityLink(name, "", False, reason)
-    # MuJoCo couples displacements from qpos0 (tendon_length0): y - y0 = c0 + c1 (x - x0), x absent for one object
-    if etype == int(EQ.mjEQ_JOINT):
-        reference = [float(model.qpos0[model.jnt_qposadr[obj]]) for obj in objects]
-    else:
-        reference = [float(model.tendon_length0[obj]) for obj in objects]
-    offset = float(c0) + reference[0] - (float(c1) * reference[1] if len(objects) > 1 else 0.0)
-    mujoco_dof = {target: i for i, target in enumerate(mapping.dofs)}
-    jacobian = np.zeros(model.nv)
-    for key, coefficient in terms.items():
-        jacobian[mujoco_dof[key]] = coefficient
-    stiffness, damping = soft_gains(model, e, jacobian, qpos0_data())
-    articulation = next(iter(terms))[0]
-    # the gains go to PhysX as they are, so PhysX spreads them over the tendon's joints (tendon.py): measured
-    # closer to MuJoCo than the whole gains (times the joint count) on the coupled-joint fixture (4.4e-3 against
-    # 1.5e-2 rad) and on dm_control manipulator (one-step qacc 2.6e-2 against 6.8e-2), further on the panda's
-    # fingers (6.7e-2 against 1.9e-2): a spring cannot reproduce MuJoCo's impedance either way
-    create_fixed_tendon(articulations[articulation], {d: c for (_, d), c in terms.items()}, offset,
-                        stiffness, damping)
-    notes.approximate("equality", name, "solref softness mapped to tendon stiffness/damping at qpos0's "
-                      "effective mass")
-    return EqualityLink(name, "fixed tendon", True)
+        return EqualityLink(name, "", False, reason, index=e)
+    return EqualityLink(name, "MuJoCo row", True, index=e)
 
 
 def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> EqualityLink:
@@ -136,7 +90,7 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     if int(model.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
         reason = "site-based connect/weld is not mapped"
         notes.drop("equality", name, reason)
-        return EqualityLink(name, "", False, reason)
+        return EqualityLink(name, "", False, reason, index=e)
     body1, body2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
 
     def component(body):
@@ -169,7 +123,7 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     if not len(rows) or (ends[0][0] is None and ends[1][0] is None):  # MuJoCo makes no rows for it
         reason = "joins two bodies fixed to the world: it constrains no degree of freedom"
         notes.drop("equality", name, reason)
-        return EqualityLink(name, "", False, reason)
+        return EqualityLink(name, "", False, reason, index=e)
     if ends[1][0] is None:  # SAPIEN takes the world (None) only as the first end
         ends.reverse()
     (parent, parent_frame, parent_body, parent_pose), (child, child_frame, child_body, _) = ends
@@ -190,4 +144,4 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     notes.approximate("equality", name, f"{kind} as MuJoCo's soft law (solref, solimp) on a PhysX D6 joint's drives "
                       "that set_ctrl updates every step; exact on a closed loop, first order in its violation and "
                       "in joint damping off (runtime/equalities.py)")
-    return EqualityLink(name, "D6 joint", True, soft=soft)
+    return EqualityLink(name, "D6 joint", True, soft=soft, index=e)

@@ -31,9 +31,9 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
             notes.drop("actuator", mj.name(model, "actuator", a),
                        "actuator damping/armature (passive terms on the transmission) are not mapped")
     if any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"):
-        notes.approximate("joint", "limits", "MuJoCo's limit and friction rows are solved by MuJoCo at SAPIEN's state "
-                          "without contacts (runtime/rows.py, set_ctrl every step): where a contact pushes a joint "
-                          "into its limit the two are not solved together; PhysX's hard limits after release()")
+        notes.approximate("joint", "limits", "MuJoCo solves the limit rows at SAPIEN's state with its own soft "
+                          "contacts (runtime/rows.py, set_ctrl every step), and PhysX applies its rigid ones; "
+                          "PhysX's hard limits after release()")
     integrator = int(model.opt.integrator)
     if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and mj.disabled(model, "eulerdamp") and np.any(model.dof_damping):
         notes.approximate("option", "flag eulerdamp", "joint damping is explicit in MuJoCo with eulerdamp disabled; "

@@ -150,13 +150,14 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> t
     links). The equalities' PhysX objects (fixed tendons, D6 joints) are built here too."""
     passive = passive_laws(model, mapping)
     actuators, maps = plan_actuators(model, mapping, passive, notes)
-    rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], notes)
+    equalities = map_equalities(model, scene, articulations, mapping, notes)
+    couplings = [link.index for link in equalities if link.kind == "MuJoCo row"]
+    rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], couplings, notes)
     activation = Activation(model) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
     tendons = map_tendons(model, mapping, notes)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
-    equalities = map_equalities(model, scene, articulations, mapping, notes)
     connects = [link.soft for link in equalities if link.soft is not None]
     terms = [actuators, StiffnessTerm(), DriveWriter(passive)]
     terms += [TendonTerm(tendons)] if tendons else []

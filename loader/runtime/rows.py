@@ -1,4 +1,5 @@
-"""MuJoCo's joint limit and frictionloss rows, solved by MuJoCo at SAPIEN's state and applied as joint forces.
+"""MuJoCo's joint limit, frictionloss and joint-coupling rows, solved by MuJoCo at SAPIEN's state and applied as
+joint forces.
 
 MuJoCo computes its constraint force from the state at the start of a step and applies it like any other force;
 its implicit integrators then treat only damping implicitly, which PhysX's drives already do. So the force MuJoCo's
@@ -23,7 +24,9 @@ from .dof_step import DofKey, Step
 HINGE_MARGIN = 2 * math.pi  # PhysX's hard limit sits a full turn beyond MuJoCo's ends (or the range, if wider)
 SLIDE_MARGIN = 1.0  # ... and a metre beyond a slide's (or the range)
 MAPPED_JOINTS = ("hinge", "slide")
-JOINT_ROWS = (int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT), int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF))
+JOINT_ROWS = tuple(int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}")) for name in (
+    "LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON",
+    "EQUALITY"))  # the copy's equality rows: joint and tendon couplings
 
 
 @dataclass(frozen=True)
@@ -46,9 +49,12 @@ class RowTerm:
 
     name = "rows"
 
-    def __init__(self, mirror: mujoco.MjModel, mapping: Mapping, limits: list[HardLimit]):
+    def __init__(self, mirror: mujoco.MjModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int]):
         self.mirror = mirror
         self.data = mujoco.MjData(mirror)
+        self.couplings = couplings  # the joint and tendon equalities MuJoCo's copy solves
+        self.data.eq_active[:] = 0
+        self.data.eq_active[couplings] = mirror.eq_active0[couplings]
         self.mapping = mapping
         self.limits = limits
         self.rows = {limit.key: limit for limit in limits}  # the limited DoFs, by (articulation, SAPIEN dof)
@@ -56,7 +62,7 @@ class RowTerm:
         self.dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]
         self.soft = False
-        self.flags = int(mirror.opt.disableflags)  # the model's own, with equality off
+        self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
 
     def contribute(self, step: Step) -> None:
@@ -93,6 +99,10 @@ class RowTerm:
             data.act[:] = step.act
         data.qfrc_applied[:] = 0.0 if step.qfrc_applied is None else step.qfrc_applied
 
+    def set_active(self, equality: int, active: bool) -> None:
+        """MuJoCo's `eq_active` of a joint or tendon coupling."""
+        self.data.eq_active[equality] = int(active)
+
     def hold(self, joints, soft: bool) -> None:
         """PhysX's hard limits: widened out of the rows' way (`soft`), or at MuJoCo's range (for callers that do not
         call `set_ctrl`, and while the term is switched off)."""
@@ -108,11 +118,40 @@ class RowTerm:
     removed = release
 
 
-def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], notes) -> RowTerm | None:
-    """The row term for a model with limited or frictional hinge/slide joints (None without). The copy MuJoCo
-    solves keeps only those rows: contacts are PhysX's, equalities its joints' and tendons', and what the loader
-    does not map (unmapped actuators, ball and free joint rows, tendon rows) is taken out so both sides see the
-    same forces."""
+def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
+    """The DoFs a tendon's length can depend on: its joints' (fixed), or those of every body above its path's
+    sites and geoms (spatial)."""
+    start, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
+    dofs, bodies = set(), set()
+    for w in range(start, start + count):
+        kind, obj = int(model.wrap_type[w]), int(model.wrap_objid[w])
+        if kind == int(mujoco.mjtWrap.mjWRAP_JOINT):
+            dofs.add(int(model.jnt_dofadr[obj]))
+        elif kind == int(mujoco.mjtWrap.mjWRAP_SITE):
+            bodies.add(int(model.site_bodyid[obj]))
+        elif kind in (int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER)):
+            bodies.add(int(model.geom_bodyid[obj]))
+    for body in bodies:
+        while body > 0:
+            dofs.update(d for d in range(model.nv) if model.dof_bodyid[d] == body)
+            body = int(model.body_parentid[body])
+    return dofs
+
+
+def joint_forces_only(model: mujoco.MjModel, mapping: Mapping, tendon: int) -> bool:
+    """Whether every DoF the tendon moves is a hinge or slide, so its rows' force is joint forces SAPIEN applies."""
+    kinds = {int(model.jnt_dofadr[j]): t.kind for j, t in enumerate(mapping.joints)}
+    owner = {d: kinds.get(int(model.jnt_dofadr[model.dof_jntid[d]])) for d in range(model.nv)}
+    return all(owner[d] in MAPPED_JOINTS for d in tendon_dofs(model, tendon))
+
+
+def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], couplings: list[int],
+              notes) -> RowTerm | None:
+    """The row term for a model with limited or frictional hinge/slide joints or joint and tendon couplings
+    (`couplings`, equality ids) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps
+    only those rows: contacts are PhysX's (solved with the rows only while SAPIEN has them), connects and welds are
+    D6 joints, and what the loader does not map (unmapped actuators, ball and free joint rows, rows of tendons
+    that move a ball or free joint) is taken out so both sides see the same forces."""
     if mj.disabled(model, "constraint"):
         return None
     limited = [j for j, t in enumerate(mapping.joints)
@@ -120,20 +159,25 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
     frictional = [j for j, t in enumerate(mapping.joints)
                   if t.kind in MAPPED_JOINTS and model.dof_frictionloss[model.jnt_dofadr[j]] > 0
                   and not mj.disabled(model, "frictionloss")]
-    if not limited and not frictional:
+    couplings = [] if mj.disabled(model, "equality") else couplings
+    tendons = [t for t in range(model.ntendon) if (model.tendon_limited[t] and not mj.disabled(model, "limit"))
+               or (model.tendon_frictionloss[t] > 0 and not mj.disabled(model, "frictionloss"))]
+    if not limited and not frictional and not couplings and not tendons:
         return None
     mirror = copy.deepcopy(model)
-    mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_EQUALITY)
     for j, target in enumerate(mapping.joints):
         if target.kind not in MAPPED_JOINTS:
             mirror.jnt_limited[j] = 0
             dof, count = int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1)
             mirror.dof_frictionloss[dof:dof + count] = 0.0
-    mirror.tendon_limited[:] = 0
-    mirror.tendon_frictionloss[:] = 0.0
+    for t in range(model.ntendon):
+        if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not joint_forces_only(model, mapping, t):
+            mirror.tendon_limited[t], mirror.tendon_frictionloss[t] = 0, 0.0
+            notes.drop("tendon", mj.name(model, "tendon", t), "length limit and frictionloss not mapped: the tendon "
+                       "moves a ball or free joint, which takes no joint force in SAPIEN")
     for a in unmapped_actuators:
         mirror.actuator_gainprm[a] = 0.0
         mirror.actuator_biasprm[a] = 0.0
     limits = [HardLimit((mapping.joints[j].articulation, mapping.joints[j].dofs[0]), *map(float, model.jnt_range[j]),
                         slide=mapping.joints[j].kind == "slide") for j in limited]
-    return RowTerm(mirror, mapping, limits)
+    return RowTerm(mirror, mapping, limits, couplings)

@@ -54,12 +54,9 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
         name = mj.name(model, "tendon", t)
         terms = fixed_tendon_terms(model, t)
         if not terms:
-            notes.drop("tendon", name, "spatial tendon: PhysX has no path-wrapping tendon")
+            if model.tendon_stiffness[t] or model.tendon_damping[t]:
+                notes.drop("tendon", name, "spatial tendon's spring and damper not mapped")
             continue
-        if model.tendon_limited[t]:
-            notes.drop("tendon", name, "tendon length limit not mapped")
-        if model.tendon_frictionloss[t] > 0:
-            notes.drop("tendon", name, f"tendon frictionloss {model.tendon_frictionloss[t]:g} not mapped")
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
         stiffness = float(model.tendon_stiffness[t]) if not mj.disabled(model, "spring") else 0.0

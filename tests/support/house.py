@@ -140,7 +140,7 @@ def broken_test_references(texts: dict[str, str], files: dict[str, str]) -> list
     for path, text in texts.items():
         for number, line in enumerate(text.splitlines(), 1):
             for file, name in TEST_REFERENCE.findall(line):
-                if not re.search(rf"^\s*def {name}\(", files.get(file, ""), re.M):
+                if not re.search(rf"^\s*def {name}\(", files.get(file, ""), re.MULTILINE):
                     out.append(f"{path}:{number}: no test {file}::{name}")
     return out
 

@@ -49,14 +49,15 @@ def contact_free(path: str | Path, mutate: Callable | None = None):
 def paired_rollout(result, model: mujoco.MjModel, data: mujoco.MjData, steps: int, ctrl_at: CtrlAt = no_ctrl,
                    set_ctrl: bool = True) -> Paired:
     """Step MuJoCo (`model`, `data`) and SAPIEN together from their current states. `ctrl_at(step, data)` gives
-    the step's ctrl (None: no ctrl); `set_ctrl=False` steps SAPIEN bare (after `release()`)."""
+    the step's ctrl (None: MuJoCo's `data.ctrl` as it is, on both sides); `set_ctrl=False` steps SAPIEN bare
+    (after `release()`)."""
     qpos, qvel, sapien_speed, mujoco_speed = [], [], [], []
     for step in range(steps):
         ctrl = ctrl_at(step, data)
         if ctrl is not None:
             data.ctrl[:] = ctrl
         if set_ctrl:
-            result.set_ctrl(ctrl)
+            result.set_ctrl(data.ctrl.copy())
         mujoco.mj_step(model, data)
         result.scene.step()
         q, v = result.mapping.get_state(result.articulations)
