@@ -137,3 +137,38 @@ def test_one_millimetre_frame_offset_is_measured_as_one_millimetre():
     mutate_joint_frame(session)
     position = next(m for m in _tier(session, "kinematics").metrics if m.name == "position")
     assert position.max == pytest.approx(0.001, rel=1e-3)
+
+
+TINY_BODIES = """<mujoco><worldbody><body name="arm" pos="0 0 1"><joint name="hinge" axis="0 1 0"/>
+  <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".5"/>
+  <body name="dummy" pos=".3 0 0"><joint name="spin" axis="1 0 0"/>
+    <inertial pos="0 0 0" mass="1e-9" diaginertia="3.3e-13 3.3e-13 6.1e-13"/></body>
+  <body name="sensor" pos=".1 0 0"><inertial pos="0 0 0" mass=".05" diaginertia="0 0 0"/></body>
+</body></worldbody></mujoco>"""
+
+
+def _tiny_session(tmp_path):
+    path = tmp_path / "tiny.xml"
+    path.write_text(TINY_BODIES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return open_session(str(path))
+
+
+def test_tiny_and_zero_moments_pass_on_the_absolute_floor_and_a_zero_one_is_listed(tmp_path):
+    """A 1e-9 kg dummy link with 3e-13 kg m^2 moments is kept as it is; a welded sensor body with mass and a zero
+    tensor gets the floor's stand-in, listed. Both pass the inertia tier (without the floor: relative error 1e300)."""
+    session = _tiny_session(tmp_path)
+    assert _tier(session, "inertia").status == "pass"
+    assert any(e.kind == "body" and e.name == "sensor" for e in session.result.approximations)
+    dummy = session.result.articulations[0].links[session.result.mapping.bodies[2].link]
+    np.testing.assert_allclose(dummy.inertia, [3.3e-13, 3.3e-13, 6.1e-13], rtol=1e-6)
+
+
+def test_a_tiny_tensor_wrong_by_more_than_the_floor_is_caught(tmp_path):
+    """The deliberate mistake: the dummy link's moments 1e-9 kg m^2 (the floor is 1e-12)."""
+    session = _tiny_session(tmp_path)
+    dummy = session.result.articulations[0].links[session.result.mapping.bodies[2].link]
+    dummy.inertia = np.full(3, 1e-9, np.float32)
+    report = _tier(session, "inertia")
+    assert report.status == "fail" and not next(m for m in report.metrics if m.name == "tensor").passed

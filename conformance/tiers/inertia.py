@@ -25,13 +25,15 @@ def link_inertia_world(link) -> tuple[float, np.ndarray, np.ndarray]:
 
 
 def inertia(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    """Relative mass error, COM distance, and the full tensor error relative to the body's largest moment.
+    """Relative mass error, COM distance, and the full tensor error relative to the body's largest moment, less
+    an absolute floor (`inertia.tensor_floor`: what a zero or tiny moment may become in PhysX).
 
     Only bodies with mass in MuJoCo count; massless bodies (helper frames) carry whatever PhysX needs."""
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
-    mass_err, com_err, tensor_err, notes = [], [], [], []
+    floor = tolerances["inertia.tensor_floor"]
+    mass_err, com_err, tensor_err, tensor_floor, notes = [], [], [], [], []
     for b in range(1, model.nbody):
         link = sapien_side.body_link(result, b)
         if link is None or model.body_mass[b] <= 0:
@@ -39,14 +41,15 @@ def inertia(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
         mass, com, tensor = link_inertia_world(link)
         ref_rot = data.ximat[b].reshape(3, 3)
         ref_tensor = ref_rot @ np.diag(model.body_inertia[b]) @ ref_rot.T
-        scale = max(float(np.max(model.body_inertia[b])), 1e-300)
+        scale = max(float(np.max(model.body_inertia[b])), floor)
         mass_err.append(abs(mass - model.body_mass[b]) / model.body_mass[b])
         com_err.append(np.linalg.norm(com - data.xipos[b]))
         tensor_err.append(np.max(np.abs(tensor - ref_tensor)) / scale)
+        tensor_floor.append(floor / scale)
     if not mass_err:
         return skipped("inertia", "no body with mass is carried by an articulation link")
     return judged("inertia", [
         metric("mass", mass_err, tolerances["inertia.mass"], "relative"),
         metric("com", com_err, tolerances["inertia.com"], "m"),
-        metric("tensor", tensor_err, tolerances["inertia.tensor"], "relative to largest moment"),
+        metric("tensor", tensor_err, tolerances["inertia.tensor"], "relative to largest moment", floor=tensor_floor),
     ], notes, settings={"bodies": len(mass_err)})

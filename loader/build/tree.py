@@ -22,6 +22,7 @@ from .joint import FREE, JointPlan, plan_joint
 # Helper links must have a positive mass for PhysX; this is far below any body MuJoCo would accept.
 HELPER_MASS = 1e-8
 HELPER_INERTIA = 1e-12
+ZERO_MOMENT = HELPER_INERTIA  # what a zero principal moment becomes (PhysX would replace it with 1)
 
 
 @dataclass
@@ -52,11 +53,17 @@ class TreePlan:
     notes: Notes
 
 
-def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan) -> None:
+def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes) -> None:
+    """The body's mass and principal moments as MuJoCo compiled them; PhysX keeps tiny moments, but replaces a zero
+    one with 1, so a zero moment gets `ZERO_MOMENT` (listed)."""
     mass = float(model.body_mass[b])
     if mass > 0:
         link.mass = mass
-        link.inertia = np.maximum(model.body_inertia[b].copy(), HELPER_INERTIA)
+        moments = model.body_inertia[b].copy()
+        if (moments <= 0).any():
+            notes.approximate("body", mj.name(model, "body", b), f"zero principal moment of inertia given "
+                              f"{ZERO_MOMENT:g} kg m^2 (PhysX replaces a zero moment with 1)")
+        link.inertia = np.where(moments > 0, moments, ZERO_MOMENT)
     link.cmass = pose(model.body_ipos[b], model.body_iquat[b])
 
 
@@ -78,7 +85,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
             if has_free or not subs:
                 art = ArticulationPlan(name, b, floating=has_free or not fix_root_link, root_pose=world)
                 art.links.append(LinkPlan(name, None, b, JointPlan("undefined" if has_free else root_type)))
-                _body_inertial(model, b, art.links[-1])
+                _body_inertial(model, b, art.links[-1], notes)
                 articulations.append(art)
                 body_link[b] = (a, 0)
                 continue
@@ -93,7 +100,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
         relative = pose(model.body_pos[b], model.body_quat[b])
         if not subs:
             link = LinkPlan(name, parent_index, b, JointPlan("fixed"), pose_in_parent=relative)
-            _body_inertial(model, b, link)
+            _body_inertial(model, b, link, notes)
             art.links.append(link)
         for k, sub in enumerate(subs):
             last = k == len(subs) - 1
@@ -106,7 +113,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
                 pose_in_parent=base * sub.frame_in_child * sub.ref_offset,
             )
             if last:
-                _body_inertial(model, b, link)
+                _body_inertial(model, b, link, notes)
             art.links.append(link)
             parent_index = len(art.links) - 1
         body_link[b] = (a, len(art.links) - 1)
