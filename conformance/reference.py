@@ -66,20 +66,14 @@ def limited_dofs(model: mujoco.MjModel) -> list[tuple[int, int, float, float]]:
     return out
 
 
-def initial_state(model: mujoco.MjModel, margin: float = 0.05) -> tuple[np.ndarray, np.ndarray, str]:
-    """The start of every rollout: keyframe 0 if the model has one, else qpos0; limited joints are moved
-    `margin` (fraction of the range) inside their range, since MuJoCo's soft limits and PhysX's hard limits
-    resolve a violated limit differently (hopper's qpos0 violates its foot limit)."""
+def initial_state(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, str]:
+    """The start of every rollout: keyframe 0 if the model has one, else qpos0, as the model has it, a joint
+    past its range included (hopper's qpos0 violates its foot limit): MuJoCo's soft limit pushes it back, and so
+    must the loader."""
     if model.nkey:
         qpos, qvel, origin = model.key_qpos[0].copy(), model.key_qvel[0].copy(), "keyframe 0"
     else:
         qpos, qvel, origin = model.qpos0.copy(), np.zeros(model.nv), "qpos0"
-    for _, adr, lo, hi in limited_dofs(model):
-        pad = margin * (hi - lo)
-        clipped = float(np.clip(qpos[adr], lo + pad, hi - pad))
-        if clipped != qpos[adr]:
-            qpos[adr] = clipped
-            origin += " (moved inside joint limits)" if "moved" not in origin else ""
     settled, before, after = settle_equalities(model, qpos)
     if after < before:
         qpos = settled
@@ -169,6 +163,22 @@ class Rollout:
 
 
 Policy = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
+
+
+def step_from(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None,
+              ctrl: np.ndarray | None = None, qfrc: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's next (qpos, qvel) from exactly this state: a one-step comparison starts both simulators from the
+    state SAPIEN holds (float32), so that a constraint row switching on at a boundary sees the same state."""
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    if act is not None and model.na:
+        data.act[:] = act
+    if ctrl is not None and model.nu:
+        data.ctrl[:] = ctrl
+    if qfrc is not None:
+        data.qfrc_applied[:] = qfrc
+    mujoco.mj_step(model, data)
+    return data.qpos.copy(), data.qvel.copy()
 
 
 def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: int,

@@ -117,7 +117,7 @@ def test_frictional_and_coupled_joints_started_past_their_ends_are_pushed_back_a
 
 def _humanoid_collapse_speed() -> tuple[float, float]:
     """dm_control's humanoid collapsing onto its floor for 1 s under zero ctrl, through set_ctrl, from the
-    harness's start (qpos0, limited joints 5 % inside their ranges): the fastest SAPIEN joint and the fastest
+    harness's start (qpos0, several joints past their ranges): the fastest SAPIEN joint and the fastest
     MuJoCo joint (rad/s or m/s)."""
     from support.corpus import suite_path
 
@@ -133,7 +133,7 @@ def _humanoid_collapse_speed() -> tuple[float, float]:
     return float(run.sapien_speed.max()), float(run.mujoco_speed.max())
 
 
-COLLAPSE_SPEED_RATIO = 1.5  # measured 0.87 (13.2 against 15.2 rad/s; mujoco 3.17.0, sapien 3.0.3)
+COLLAPSE_SPEED_RATIO = 1.25  # measured 0.99 (13.1 against 13.3 rad/s; contacts counted twice: 1.47; mujoco 3.17.0, sapien 3.0.3)
 
 
 def test_limit_rows_under_contact_stay_finite():

@@ -138,21 +138,24 @@ def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.nd
     return run
 
 
-def one_step_qvel(result, run: reference.Rollout, every: int, bound: SpeedBound, dt: float,
+def one_step_qvel(result, ref: mujoco.MjModel, run: reference.Rollout, every: int, bound: SpeedBound, dt: float,
                   float32_relative: float = 0.0) -> tuple[np.ndarray, np.ndarray, Divergence | None]:
-    """Every `every` steps: MuJoCo's state into SAPIEN, the same ctrl, one step; |SAPIEN - MuJoCo| velocity,
+    """Every `every` steps: MuJoCo's state into SAPIEN, both from the state SAPIEN holds (float32), the same ctrl,
+    one step; |SAPIEN - MuJoCo| velocity,
     less what float32 cannot resolve: `float32_relative` times the larger speed before or after the step (SAPIEN
     holds the state and integrates in float32; a motor spinning a light body up to hundreds of rad/s leaves
     1e-5 rad/s of rounding). Also the first sampled step whose SAPIEN state left what MuJoCo's run allows."""
     out, floors, states, sampled = [], [], [], []
     for t in range(0, run.ctrl.shape[0], every):
         sapien_side.set_state(result, run.qpos[t], run.qvel[t], run.act[t])
+        q0, v0 = sapien_side.get_state(result)
+        _, ref_v1 = reference.step_from(ref, q0, v0, act=run.act[t], ctrl=run.ctrl[t])
         result.set_ctrl(run.ctrl[t])
         result.scene.step()
         floors.append(float32_relative * np.maximum(np.abs(run.qvel[t]), np.abs(run.qvel[t + 1])))
         states.append(sapien_side.get_state(result))
         sampled.append(t + 1)
-        out.append(np.abs(states[-1][1] - run.qvel[t + 1]))
+        out.append(np.abs(states[-1][1] - ref_v1))
     found = first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt,
                              sampled) if states else None
     return np.array(out), np.array(floors), found
@@ -266,7 +269,7 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     mismatched = settings_mismatches(result, ref)
     with actuated_scene(result, qpos0, qvel0, contacts=False):
         one_step, one_step_floor, diverged = one_step_qvel(
-            result, run, every, bound, dt, float(tolerances.setting("actuated", "float32_relative")))
+            result, ref, run, every, bound, dt, float(tolerances.setting("actuated", "float32_relative")))
         sp = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
     diverged = first_of(diverged, first_divergence("rollout", sp.qpos, sp.qvel, run.qvel, bound, dt))
     err = reference.qpos_difference(ref, run.qpos, sp.qpos)

@@ -19,19 +19,21 @@ from .rollouts import disable_contacts, is_floating, sapien_rollout, settings_me
 
 def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
              bound: SpeedBound) -> tuple[dict[str, np.ndarray], Divergence | None]:
-    """Per sampled step: |SAPIEN - MuJoCo| of the velocity increment / dt, the velocity and the position; and the
-    first sampled step whose SAPIEN state left what MuJoCo's run allows."""
+    """Per sampled step, both simulators from the state SAPIEN holds: |SAPIEN - MuJoCo| of the velocity increment
+    / dt, the velocity and the position; and the first sampled step whose SAPIEN state left what MuJoCo's run
+    allows."""
     dt = ref.opt.timestep
     qacc, qvel, qpos, states, sampled = [], [], [], [], []
     for t in range(0, run.command.shape[0], every):
         sapien_side.set_state(result, run.qpos[t], run.qvel[t])
-        _, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding
+        q0, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding: MuJoCo starts there too
+        ref_q1, ref_v1 = reference.step_from(ref, q0, v0, qfrc=run.command[t])
         sapien_side.apply_generalized_force(result, run.command[t])
         result.scene.step()
         q1, v1 = sapien_side.get_state(result)
-        qacc.append(np.abs((v1 - v0) - (run.qvel[t + 1] - run.qvel[t])) / dt)
-        qvel.append(np.abs(v1 - run.qvel[t + 1]))
-        qpos.append(np.abs(reference.qpos_difference(ref, run.qpos[t + 1], q1)))
+        qacc.append(np.abs(v1 - ref_v1) / dt)
+        qvel.append(np.abs(v1 - ref_v1))
+        qpos.append(np.abs(reference.qpos_difference(ref, ref_q1, q1)))
         states.append((q1, v1))
         sampled.append(t + 1)
     sapien_side.apply_generalized_force(result, np.zeros(ref.nv))
