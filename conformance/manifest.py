@@ -46,7 +46,9 @@ class ModelEntry:
     """One corpus model."""
 
     id: str
-    source: str  # "dm_control:<file>", "menagerie:<path>", "fixture:<path relative to the manifest>" or a path
+    # "dm_control:<file>", "menagerie:<path>", "package:<package>/<path inside it>", "fixture:<path relative to the
+    # manifest>" or a path
+    source: str
     tiers: tuple[str, ...] = TIER_NAMES
     timeout_s: float = 300.0
     tolerances: dict[str, float] = field(default_factory=dict)
@@ -122,11 +124,13 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
 
 
 def load(path: str | Path) -> Manifest:
-    """Parse a manifest file; errors name the file and the offending entry."""
+    """Parse a manifest file; errors name the file and the offending entry. `include = ["other.toml"]` (paths
+    relative to this file) puts the other manifests' models first: a named corpus extends the default one."""
     path = Path(path)
     data = tomllib.loads(path.read_text())
     defaults = data.get("defaults", {})
-    models = [_entry(raw, defaults, str(path), str(path.parent.resolve())) for raw in data.get("model", [])]
+    models = [m for other in data.get("include", []) for m in load(path.parent / other).models]
+    models += [_entry(raw, defaults, str(path), str(path.parent.resolve())) for raw in data.get("model", [])]
     ids = [m.id for m in models]
     dupes = sorted({i for i in ids if ids.count(i) > 1})
     if dupes:

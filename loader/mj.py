@@ -46,3 +46,12 @@ def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     inertia = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, inertia)
     return np.linalg.pinv(inertia, hermitian=True)
+
+
+def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
+    """The DoFs that move a body: its joints' and every ancestor's (none for a body fixed to the world)."""
+    dofs = set()
+    while body > 0:
+        dofs.update(int(d) for d in np.flatnonzero(model.dof_bodyid == body))
+        body = int(model.body_parentid[body])
+    return dofs

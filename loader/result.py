@@ -114,10 +114,10 @@ class LoadResult:
         link = next((e for e in self.equalities if e.index == index), None)
         if link is None or not link.mapped:
             raise ValueError(f"{self.path}: equality {key!r} is not mapped, so it cannot be switched")
+        if link.kind == "MuJoCo row":
+            self.controller.term("rows").set_active(index, active)
         if link.soft is not None:
             link.soft.set_active(active)
-        else:
-            self.controller.term("rows").set_active(index, active)
 
     def release(self) -> None:
         """Leave the joints to a controller that sets PhysX drive targets and never calls `set_ctrl` (ManiSkill's):

@@ -25,6 +25,17 @@ from loader.build.solver_iterations import drive_radii
 from loader.runtime.equalities import SoftConnect, SoftWeld
 from loader.soft_row import SoftRow, diag_approx
 
+
+@pytest.fixture(autouse=True)
+def d6_form(monkeypatch):
+    """These tests measure the D6 form of connects and welds, which the loader uses where a loop moves a floating
+    base. Their fixtures have fixed bases, where the loader makes MuJoCo's own rows instead
+    (tests/test_loader_couplings.py), so the D6 form is chosen here for every connect and weld."""
+    import loader.build.equalities
+
+    monkeypatch.setattr(loader.build.equalities, "_joint_row", lambda *args: False)
+
+
 FIXTURE = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
 ONE_STEP = 2e-5  # rad/s, measured 2.3e-6 (closed) and 9.5e-6 (open by 3.6e-5 m, at rest)
 ROLLOUT = 4e-6  # rad over 0.5 s, measured 7.9e-7 (1.2e-5 on the links' drifted velocities)

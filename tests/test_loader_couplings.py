@@ -6,6 +6,9 @@ contact is off on both sides.
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import mujoco
 import numpy as np
 import pytest
 from support.corpus import FIXTURES, menagerie_root
@@ -14,6 +17,7 @@ from support.lockstep import contact_free, replay
 COUPLING_TOLERANCE = 1e-2  # rad, measured 4.4e-3 (soft equality)
 
 
+LOOP_TOLERANCE = 1e-5  # rad over 0.5 s, measured 2.0e-7; rows off (D6 locked): 3.4e-4 (mujoco 3.17.0, sapien 3.0.3)
 GRIPPER_TOLERANCE = 1e-3  # rad or m, measured 3.3e-4 (5e-4 with rigid connects)
 
 
@@ -70,7 +74,7 @@ def test_panda_finger_tendon_and_equality_hold_while_closing():
 @needs_menagerie
 def test_robotiq_2f85_linkage_holds_while_closing():
     result, model = contact_free(menagerie_root() / "robotiq_2f85_v4/2f85.xml")
-    assert sorted(e.kind for e in result.equalities) == ["D6 joint", "D6 joint", "MuJoCo row"]
+    assert [e.kind for e in result.equalities] == ["MuJoCo row"] * 3
     errors = replay(result, model, _closing(0, 0.0, 255.0, 500), 1.0)
     assert errors.max() < GRIPPER_TOLERANCE, errors.max()
     qpos, _ = result.mapping.get_state(result.articulations)
@@ -88,3 +92,49 @@ def test_single_joint_equality_holds_the_joint_at_qpos0_plus_c0(tmp_path):
     result.step(None, substeps=2000)
     qpos, _ = result.mapping.get_state(result.articulations)
     assert qpos[0] == pytest.approx(model.qpos0[0] + 0.2, abs=1e-3)
+
+
+LOOPS = Path(__file__).resolve().parents[1] / "corpus" / "fixtures"
+
+
+@pytest.mark.parametrize("fixture", ["closed_chain.xml", "welded_legs.xml"])
+def test_a_fixed_base_loop_is_mujocos_own_row(fixture):
+    """A five-bar closed by a connect, and two legs held by a weld, on fixed bases: their rows are MuJoCo's own,
+    solved with the limits beside them, so a loop falling from qpos0 follows MuJoCo. Mutation: the rows term off
+    (the D6 beside them stands locked, rigid where MuJoCo is soft)."""
+    def run(rows: bool) -> float:
+        result, model = contact_free(LOOPS / fixture)
+        assert {e.kind for e in result.equalities} == {"MuJoCo row"}
+        if not rows:
+            result.controller.without("rows")
+        return float(replay(result, model, lambda step, data: None, 0.5).max())
+
+    assert run(rows=True) < LOOP_TOLERANCE
+    assert run(rows=False) > 10 * LOOP_TOLERANCE
+
+
+def test_after_release_a_fixed_base_loop_is_held_by_its_locked_d6():
+    """release(): no set_ctrl, so no MuJoCo rows; the D6 that stood by locks and the loop stays closed."""
+    from loader import MJCFLoader
+
+    def violation(result) -> float:  # MuJoCo's equality rows at SAPIEN's state: how far the loop is open
+        data = mujoco.MjData(result.model)
+        data.qpos[:], data.qvel[:] = result.mapping.get_state(result.articulations)
+        mujoco.mj_forward(result.model, data)
+        rows = data.efc_type[:data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        return float(np.abs(data.efc_pos[:data.nefc][rows]).max())
+
+    def opened(lock: bool) -> float:
+        result = MJCFLoader().load(LOOPS / "closed_chain.xml")
+        result.set_ctrl(None)
+        result.release()
+        if not lock:  # the mutation: the D6 left standing by
+            next(e for e in result.equalities if e.soft is not None).soft.stand_by()
+        worst = 0.0
+        for step in range(500):
+            result.scene.step()
+            worst = max(worst, violation(result)) if step % 10 == 0 else worst
+        return worst
+
+    assert opened(lock=True) < 1e-3
+    assert opened(lock=False) > 1e-2

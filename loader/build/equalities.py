@@ -1,6 +1,7 @@
-"""Equality constraints: joint and tendon couplings as MuJoCo's own rows (`runtime/rows.py` asks MuJoCo for their
-force every step), connect and weld as PhysX D6 joints that `runtime/equalities.py` drives with MuJoCo's soft row
-every step. Derivation: docs/mapping.md#equalities.
+"""Equality constraints: joint and tendon couplings, and connects and welds that move only hinges and slides, as
+MuJoCo's own rows (`runtime/rows.py` asks MuJoCo for their force every step); other connects and welds as PhysX D6
+joints that `runtime/equalities.py` drives with MuJoCo's soft row every step. Derivation:
+docs/mapping.md#equalities.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
         etype = int(model.eq_type[e])
         if etype in (int(EQ.mjEQ_JOINT), int(EQ.mjEQ_TENDON)):
             result.append(_coupling(model, e, name, mapping, notes))
+        elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)) and _joint_row(model, mapping, e):
+            # MuJoCo's rows while set_ctrl runs; the D6 built beside them stands by and locks at release()
+            standby = _d6(model, e, name, scene, articulations, mapping, Notes(), qpos0_data).soft
+            result.append(EqualityLink(name, "MuJoCo row", True, soft=standby, index=e))
         elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
             result.append(_d6(model, e, name, scene, articulations, mapping, notes, qpos0_data))
         else:
@@ -65,6 +70,17 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
             notes.drop("equality", name, reason)
             result.append(EqualityLink(name, "", False, reason, index=e))
     return result
+
+
+def _joint_row(model: mujoco.MjModel, mapping: Mapping, e: int) -> bool:
+    """Whether a connect or weld moves only hinges and slides (a fixed-base loop, an arm welded to a fixed or mocap
+    body): then its rows are MuJoCo's own, solved with the limits and couplings next to them, and their force is
+    joint forces. Otherwise (a floating base in the loop) it becomes a D6 joint."""
+    bodies = [int(model.eq_obj1id[e]), int(model.eq_obj2id[e])]
+    if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):
+        bodies = [int(model.site_bodyid[s]) for s in bodies]
+    moved = mj.body_dofs(model, bodies[0]) | mj.body_dofs(model, bodies[1])
+    return bool(moved) and mapping.joint_dofs_only(model, moved)
 
 
 def _coupling(model, e, name, mapping, notes) -> EqualityLink:

@@ -79,6 +79,11 @@ class Mapping:
                 result[adr + k] = (target.articulation, dof)
         return result
 
+    def joint_dofs_only(self, model: mujoco.MjModel, dofs: set[int]) -> bool:
+        """Whether every one of these MuJoCo DoFs is a hinge's or a slide's, so a force on them is joint forces
+        SAPIEN applies (`set_qf`)."""
+        return all(self.joints[int(model.dof_jntid[d])].kind in ("hinge", "slide") for d in dofs)
+
     def mujoco_dofs(self) -> dict[tuple[int, int], int]:
         """(articulation, SAPIEN DoF) -> MuJoCo DoF, for every DoF a SAPIEN joint carries."""
         return {key: d for d, key in enumerate(self.dofs) if key[1] is not None}

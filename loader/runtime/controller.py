@@ -151,14 +151,15 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> t
     passive = passive_laws(model, mapping)
     actuators, maps = plan_actuators(model, mapping, passive, notes)
     equalities = map_equalities(model, scene, articulations, mapping, notes)
-    couplings = [link.index for link in equalities if link.kind == "MuJoCo row"]
-    rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], couplings, notes)
+    rowed = [link for link in equalities if link.kind == "MuJoCo row"]
+    rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], [link.index for link in rowed],
+                     notes, [link.soft for link in rowed if link.soft is not None])
     activation = Activation(model) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
     tendons = map_tendons(model, mapping, notes)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
-    connects = [link.soft for link in equalities if link.soft is not None]
+    connects = [link.soft for link in equalities if link.soft is not None and link.kind == "D6 joint"]
     terms = [actuators, StiffnessTerm(), DriveWriter(passive)]
     terms += [TendonTerm(tendons)] if tendons else []
     terms += [rows] if rows is not None else []

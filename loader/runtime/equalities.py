@@ -137,6 +137,11 @@ class SoftConnect:
         self._free()
         self._drive(0.0, np.zeros(3), np.zeros(3))
 
+    def stand_by(self) -> None:
+        """Free and undriven while MuJoCo's own rows hold the loop (`runtime/rows.py`); `lock` takes over at
+        `release()`."""
+        self._idle()
+
     def set_active(self, active: bool) -> None:
         """MuJoCo's `data.eq_active`: an inactive equality leaves the D6 free and undriven."""
         self.active = bool(active)

@@ -49,10 +49,12 @@ class RowTerm:
 
     name = "rows"
 
-    def __init__(self, mirror: mujoco.MjModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int]):
+    def __init__(self, mirror: mujoco.MjModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int],
+                 standby: list | None = None):
         self.mirror = mirror
         self.data = mujoco.MjData(mirror)
-        self.couplings = couplings  # the joint and tendon equalities MuJoCo's copy solves
+        self.couplings = couplings  # the equalities MuJoCo's copy solves
+        self.standby = standby or []  # the D6 joints that hold those loops after release() (runtime/equalities.py)
         self.data.eq_active[:] = 0
         self.data.eq_active[couplings] = mirror.eq_active0[couplings]
         self.mapping = mapping
@@ -110,6 +112,11 @@ class RowTerm:
             art, dof = limit.key
             low, high = limit.widened() if soft else (limit.lower, limit.upper)
             joints[art][dof].set_limit(np.array([[low, high]], np.float32))
+        for loop in self.standby:
+            if soft:
+                loop.stand_by()
+            else:
+                loop.lock(float(self.mirror.opt.timestep))
         self.soft = soft
 
     def release(self, joints) -> None:
@@ -119,37 +126,25 @@ class RowTerm:
 
 
 def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
-    """The DoFs a tendon's length can depend on: its joints' (fixed), or those of every body above its path's
-    sites and geoms (spatial)."""
+    """The DoFs a tendon's length can depend on: its joints' (fixed), or those moving its path's sites and geoms."""
     start, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
-    dofs, bodies = set(), set()
+    dofs = set()
     for w in range(start, start + count):
         kind, obj = int(model.wrap_type[w]), int(model.wrap_objid[w])
         if kind == int(mujoco.mjtWrap.mjWRAP_JOINT):
             dofs.add(int(model.jnt_dofadr[obj]))
         elif kind == int(mujoco.mjtWrap.mjWRAP_SITE):
-            bodies.add(int(model.site_bodyid[obj]))
+            dofs |= mj.body_dofs(model, int(model.site_bodyid[obj]))
         elif kind in (int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER)):
-            bodies.add(int(model.geom_bodyid[obj]))
-    for body in bodies:
-        while body > 0:
-            dofs.update(d for d in range(model.nv) if model.dof_bodyid[d] == body)
-            body = int(model.body_parentid[body])
+            dofs |= mj.body_dofs(model, int(model.geom_bodyid[obj]))
     return dofs
 
 
-def joint_forces_only(model: mujoco.MjModel, mapping: Mapping, tendon: int) -> bool:
-    """Whether every DoF the tendon moves is a hinge or slide, so its rows' force is joint forces SAPIEN applies."""
-    kinds = {int(model.jnt_dofadr[j]): t.kind for j, t in enumerate(mapping.joints)}
-    owner = {d: kinds.get(int(model.jnt_dofadr[model.dof_jntid[d]])) for d in range(model.nv)}
-    return all(owner[d] in MAPPED_JOINTS for d in tendon_dofs(model, tendon))
-
-
 def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], couplings: list[int],
-              notes) -> RowTerm | None:
-    """The row term for a model with limited or frictional hinge/slide joints or joint and tendon couplings
-    (`couplings`, equality ids) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps
-    only those rows: contacts are PhysX's (solved with the rows only while SAPIEN has them), connects and welds are
+              notes, standby: list | None = None) -> RowTerm | None:
+    """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
+    (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges and slides) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps
+    only those rows: contacts are PhysX's (solved with the rows only while SAPIEN has them), other equalities are
     D6 joints, and what the loader does not map (unmapped actuators, ball and free joint rows, rows of tendons
     that move a ball or free joint) is taken out so both sides see the same forces."""
     if mj.disabled(model, "constraint"):
@@ -171,7 +166,8 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
             dof, count = int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1)
             mirror.dof_frictionloss[dof:dof + count] = 0.0
     for t in range(model.ntendon):
-        if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not joint_forces_only(model, mapping, t):
+        moved = tendon_dofs(model, t)
+        if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(model, moved):
             mirror.tendon_limited[t], mirror.tendon_frictionloss[t] = 0, 0.0
             notes.drop("tendon", mj.name(model, "tendon", t), "length limit and frictionloss not mapped: the tendon "
                        "moves a ball or free joint, which takes no joint force in SAPIEN")
@@ -180,4 +176,4 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
         mirror.actuator_biasprm[a] = 0.0
     limits = [HardLimit((mapping.joints[j].articulation, mapping.joints[j].dofs[0]), *map(float, model.jnt_range[j]),
                         slide=mapping.joints[j].kind == "slide") for j in limited]
-    return RowTerm(mirror, mapping, limits, couplings)
+    return RowTerm(mirror, mapping, limits, couplings, standby)
