@@ -28,8 +28,45 @@ def test_default_corpus_is_every_suite_model_and_the_menagerie_slice():
     assert {s.split(":", 1)[1] for s in sources if s.startswith("menagerie:")} == MENAGERIE_SLICE
 
 
+FULL = ROOT / "corpus" / "full.toml"
+ROBOT_PACKAGES = ("robosuite_models", "gymnasium_robotics", "dm_control")
+
+
+def test_the_full_corpus_is_the_default_one_and_thirty_more_real_robots_from_pinned_packages():
+    full = manifest.load(FULL)
+    default_ids = [e.id for e in manifest.load(DEFAULT).models]
+    ids = [e.id for e in full.models]
+    assert ids[: len(default_ids)] == default_ids
+    added = full.models[len(default_ids):]
+    assert len(added) >= 30
+    assert {e.source.split(":", 1)[1].split("/", 1)[0] for e in added} == set(ROBOT_PACKAGES)
+    assert all(e.source.startswith("package:") for e in added)
+    for entry in added:  # installed (the robots extra): every source resolves to a file
+        resolved = corpus.resolve(entry)
+        if resolved.path is None and "not installed" in resolved.skip_reason:
+            pytest.skip(resolved.skip_reason)
+        assert resolved.path is not None and resolved.path.is_file(), (entry.id, resolved.skip_reason)
+
+
+def test_a_package_source_names_the_extra_when_the_package_is_missing():
+    missing = corpus.resolve(ModelEntry(id="x", source="package:no_such_package_here/robot.xml"))
+    assert missing.path is None and "no_such_package_here is not installed" in missing.skip_reason
+    assert "robots" in missing.skip_reason
+    found = corpus.resolve(ModelEntry(id="y", source="package:conformance/tolerances.toml"))
+    assert found.path is not None and found.path.name == "tolerances.toml"
+
+
+def test_an_included_manifest_comes_first_and_ids_stay_unique(tmp_path):
+    (tmp_path / "base.toml").write_text('[[model]]\nid = "a"\nsource = "a.xml"\n')
+    (tmp_path / "more.toml").write_text('include = ["base.toml"]\n[[model]]\nid = "b"\nsource = "b.xml"\n')
+    assert [e.id for e in manifest.load(tmp_path / "more.toml").models] == ["a", "b"]
+    (tmp_path / "twice.toml").write_text('include = ["base.toml"]\n[[model]]\nid = "a"\nsource = "c.xml"\n')
+    with pytest.raises(ValueError, match="duplicate"):
+        manifest.load(tmp_path / "twice.toml")
+
+
 def test_every_expectation_and_override_carries_a_reason():
-    for entry in manifest.load(DEFAULT).models:
+    for entry in manifest.load(FULL).models:
         for exp in entry.expect.values():
             assert exp.reason.strip(), entry.id
         if entry.tolerances or entry.settings:

@@ -131,3 +131,9 @@ def test_mjcf_paths_on_the_command_line(tmp_path):
 def test_unknown_model_is_a_usage_error(tmp_path):
     proc = run_cli("--manifest", str(SELFTEST), "--model", "nope", "--out", str(tmp_path), "--quiet")
     assert proc.returncode == 2 and "nope" in proc.stderr
+
+
+def test_an_unknown_named_corpus_is_a_usage_error_naming_the_known_ones(tmp_path):
+    proc = run_cli("--corpus", "nosuch", "--out", str(tmp_path), "--quiet", "--no-record")
+    assert proc.returncode == 2 and "no corpus 'nosuch'" in proc.stderr and "full" in proc.stderr
+    assert not any(tmp_path.iterdir())  # nothing written

@@ -80,7 +80,7 @@ def test_joint_limits_are_mujocos_radians_and_metres(load):
         np.testing.assert_allclose(joint.limit[0], model.jnt_range[model.joint(name).id], rtol=1e-6)
         row = result.controller.term("rows").rows[(target.articulation, target.dofs[0])]
         np.testing.assert_allclose((row.lower, row.upper), model.jnt_range[model.joint(name).id], rtol=1e-12)
-        assert joint.type == "revolute"
+        assert joint.type == "revolute_unwrapped"  # PhysX's "revolute" would wrap q past 2 pi
 
 
 def test_joint_ref_makes_sapien_q_equal_mujoco_q(load, rng):

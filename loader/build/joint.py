@@ -76,7 +76,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
         ref = float(model.qpos0[model.jnt_qposadr[j]])
         axis = model.jnt_axis[j]
         if jtype == HINGE:
-            kind = "revolute" if limited else "revolute_unwrapped"
+            kind = "revolute_unwrapped"  # limited too: PhysX's "revolute" wraps q past 2 pi into a far-off limit
             ref_offset = pose((0, 0, 0), quat_from_axis_angle((1, 0, 0), -ref))
         else:
             kind = "prismatic"

@@ -21,8 +21,8 @@ from .. import mj
 from ..build.mapping import Mapping
 from .dof_step import DofKey, Step
 
-HINGE_MARGIN = 2 * math.pi  # PhysX's hard limit sits a full turn beyond MuJoCo's ends (or the range, if wider)
-SLIDE_MARGIN = 1.0  # ... and a metre beyond a slide's (or the range)
+HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
+SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
 MAPPED_JOINTS = ("hinge", "slide")
 JOINT_ROWS = tuple(int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}")) for name in (
     "LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON",
