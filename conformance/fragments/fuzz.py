@@ -19,13 +19,14 @@ from hypothesis.database import DirectoryBasedExampleDatabase
 from .corner_cases import CORNER_CASES
 from .document import RawDocument
 from .properties import STATIC_TIERS, assert_conforms
+from .robot_classes import robot_classes
 from .strategies import broken_documents, documents, kinematic_trees
 from .tally import Tally
 
 log = logging.getLogger(__name__)
 DATABASE = Path(".hypothesis") / "fragments"
-CI_EXAMPLES = {"conformance": 300, "error_parity": 100, "kinematics": 150}
-SHARES = {"conformance": 3, "error_parity": 1, "kinematics": 1}  # how `--examples N` is split
+CI_EXAMPLES = {"conformance": 300, "error_parity": 100, "kinematics": 150, "robot_classes": 60}
+SHARES = {"conformance": 3, "error_parity": 1, "kinematics": 1, "robot_classes": 1}  # how `--examples N` is split
 _HEALTH = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much]
 
 
@@ -60,10 +61,17 @@ def kinematics_property(document, tally: Tally) -> None:
                     property_name="kinematics", tally=tally)
 
 
+def robot_classes_property(document, tally: Tally) -> None:
+    """Past-the-end starts, URDF-style frictionloss, many limits at once, tiny and zero inertias, coupled fingers:
+    every tier, the contact-free dynamic ones included, agrees with MuJoCo."""
+    assert_conforms(document, property_name="robot_classes", tally=tally)
+
+
 PROPERTIES: dict[str, tuple[Callable, Callable]] = {
     "conformance": (documents, conformance_property),
     "error_parity": (broken_documents, error_parity_property),
     "kinematics": (kinematic_trees, kinematics_property),
+    "robot_classes": (robot_classes, robot_classes_property),
 }
 
 

@@ -35,9 +35,9 @@ DYNAMICS_SETTINGS = {"dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_
                      "actuated": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2}}
 # Contact-free rollouts, with MuJoCo as the reference: passive (generalized forces) and under the same ctrl.
 DYNAMIC_TIERS = ("actuated", "dynamics")
-# Loader notes about joints change joint dynamics (frictionloss dropped, springs implicit, ball joints as Euler
-# angles): the dynamic tiers are skipped (and counted) on documents that carry one. Notes on joint limits are
-# not (limits matter only once reached; a failure then is excused when MuJoCo reaches one).
+# Loader notes about joints change joint dynamics (springs implicit, ball joints as Euler angles): the dynamic
+# tiers are skipped (and counted) on documents that carry one. The note on joint limits is not: it is about
+# contacts, and these runs are contact-free, where MuJoCo's own limit rows are exact.
 DYNAMICS_NOTE_KINDS = ("joint",)
 # steps MuJoCo runs with its actuators on (zero ctrl) before a document's dynamic tiers are judged: an explicit
 # kv (Euler) too strong for a light body diverges over tens of steps and MuJoCo flags it only at 1e10 (a fuzz find
@@ -130,21 +130,6 @@ def scaled_tolerances(model: mujoco.MjModel, base: Tolerances | None = None) -> 
     return base.with_overrides(raised, why=why) if raised else base
 
 
-def limit_reached(model: mujoco.MjModel, steps: int) -> bool:
-    """A joint limit becomes active in MuJoCo's zero-command run from the tiers' initial state."""
-    from ..reference import initial_state, matched
-
-    ref, _ = matched(model, contact=False)
-    data = mujoco.MjData(ref)
-    data.qpos[:], data.qvel[:], _ = initial_state(model)
-    for _ in range(steps + 1):
-        mujoco.mj_forward(ref, data)
-        if np.any(data.efc_type[:data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)):
-            return True
-        mujoco.mj_step(ref, data)
-    return False
-
-
 def redundant_dofs(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
     """Some combination of DoFs moves no body at qpos0 (the stacked body Jacobians lose rank)."""
     jacobians = []
@@ -174,7 +159,7 @@ def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
         return "MuJoCo itself is unstable on the model (bad qacc)"
     if model.nu:  # explicit actuator gains (kv under Euler) can diverge slowly, past the short judged horizon
         ref, _ = matched(model, contact=False, actuation=True)
-        # from where the tiers start (inside the joint limits), with a seed velocity: at rest with zero ctrl
+        # from where the tiers start (the model's own start), with a seed velocity: at rest with zero ctrl
         # a growing mode may never start
         run = rollout(ref, initial_state(model)[0], np.full(model.nv, 1e-3), max(steps, ACTUATED_STABILITY_STEPS))
         if run.unstable(ref):
@@ -272,23 +257,11 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
             elif _qacc_only(report):
                 excused.append(f"{name}: one_step_qacc only; one_step_qvel (the same velocity increment, "
                                "not divided by dt) is within its tolerance")
-            elif name in DYNAMIC_TIERS and limits_excuse(report, result, model, tol):
-                excused.append(f"{name}: joint limits the loader lists as approximated (hard vs soft) are reached")
             else:
                 failing = [f"{m.name} {m.max:.3g} > {m.tolerance:.3g} {m.unit}" for m in report.metrics
                            if not m.passed]
                 failures.append(f"{name} tier fails: {', '.join(failing)}; notes: {report.notes[:5]}")
     return reports, failures, excused, skipped, errors
-
-
-def limits_excuse(report: TierReport, result, model: mujoco.MjModel, tol: Tolerances) -> bool:
-    """A dynamic tier's failure is the listed hard-vs-soft limit gap: the loader lists joint limits as approximated
-    and MuJoCo reached one, in the tier's own run (the actuated tiers count `limit_steps`) or in its zero-command
-    run from the tiers' start."""
-    if not any(_about_limits(e) for e in result.approximations + result.unsupported):
-        return False
-    return bool(report.settings.get("limit_steps")) or limit_reached(
-        model, tol.horizon_steps("dynamics", model.opt.timestep))
 
 
 def _qacc_only(report: TierReport) -> bool:
@@ -302,7 +275,7 @@ def _qacc_only(report: TierReport) -> bool:
 
 
 def _about_limits(entry) -> bool:
-    """Notes on joint limits (hard in PhysX, soft in MuJoCo; ball cones) matter only once a limit is reached."""
+    """Notes on joint limits (solved with MuJoCo's contacts; ball cones): they do not skip the contact-free tiers."""
     return entry.kind == "joint" and "limit" in entry.reason
 
 
@@ -348,7 +321,7 @@ def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators:
         tally[f"tier {name} {report.status}"] += 1
     for entry in excused:
         tier, why = entry.split(": ", 1)
-        listed = why.startswith(("known bug", "joint limits", "one_step_qacc only"))
+        listed = why.startswith(("known bug", "one_step_qacc only"))
         tally[f"excused {tier}: {why if listed else 'element the loader lists'}"] += 1
     for entry in outcome.skipped:
         tally[f"skipped {entry}"] += 1

@@ -38,9 +38,17 @@ class HardLimit:
     upper: float
     slide: bool
 
-    def widened(self) -> tuple[float, float]:
-        margin = max(SLIDE_MARGIN if self.slide else HINGE_MARGIN, self.upper - self.lower)
-        return self.lower - margin, self.upper + margin
+    @property
+    def margin(self) -> float:
+        return max(SLIDE_MARGIN if self.slide else HINGE_MARGIN, self.upper - self.lower)
+
+    def widened(self, q: float | None = None) -> tuple[float, float]:
+        """PhysX's limit while the rows run: `margin` beyond MuJoCo's ends, and beyond `q` (a joint started or
+        pushed that far past an end) as well."""
+        low, high = self.lower - self.margin, self.upper + self.margin
+        if q is not None:
+            low, high = min(low, q - self.margin), max(high, q + self.margin)
+        return low, high
 
 
 class RowTerm:
@@ -58,8 +66,7 @@ class RowTerm:
         self.data.eq_active[:] = 0
         self.data.eq_active[couplings] = mirror.eq_active0[couplings]
         self.mapping = mapping
-        self.limits = limits
-        self.rows = {limit.key: limit for limit in limits}  # the limited DoFs, by (articulation, SAPIEN dof)
+        self.set_limits(limits)
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
         self.dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]
@@ -67,9 +74,17 @@ class RowTerm:
         self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
 
+    def set_limits(self, limits: list[HardLimit]) -> None:
+        """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
+        self.limits = limits
+        self.rows = {limit.key: limit for limit in limits}  # by (articulation, SAPIEN dof)
+        self.margins = np.array([limit.margin for limit in limits])
+        self.physx = np.array([limit.widened() for limit in limits]).reshape(-1, 2)  # PhysX's limits while soft
+
     def contribute(self, step: Step) -> None:
         if not self.soft:
             self.hold(step.joints, soft=True)
+        self.clear_of(step)
         self.mirror_state(step)
         mujoco.mj_forward(self.mirror, self.data)
         for key, force in zip(self.keys, self.joint_rows()[self.dofs]):
@@ -105,12 +120,25 @@ class RowTerm:
         """MuJoCo's `eq_active` of a joint or tendon coupling."""
         self.data.eq_active[equality] = int(active)
 
+    def clear_of(self, step: Step) -> None:
+        """Move PhysX's limit of a joint within half a margin of it further out, so that it never acts while the
+        rows run (vectorised: most joints are far from it)."""
+        if not self.limits:
+            return
+        q = np.array([step.q[art][dof] for art, dof in (limit.key for limit in self.limits)])
+        near = (q < self.physx[:, 0] + 0.5 * self.margins) | (q > self.physx[:, 1] - 0.5 * self.margins)
+        for i in np.flatnonzero(near):
+            art, dof = self.limits[i].key
+            self.physx[i] = self.limits[i].widened(float(q[i]))
+            step.joints[art][dof].set_limit(np.array([self.physx[i]], np.float32))
+
     def hold(self, joints, soft: bool) -> None:
         """PhysX's hard limits: widened out of the rows' way (`soft`), or at MuJoCo's range (for callers that do not
         call `set_ctrl`, and while the term is switched off)."""
-        for limit in self.limits:
+        for i, limit in enumerate(self.limits):
             art, dof = limit.key
-            low, high = limit.widened() if soft else (limit.lower, limit.upper)
+            self.physx[i] = limit.widened()
+            low, high = self.physx[i] if soft else (limit.lower, limit.upper)
             joints[art][dof].set_limit(np.array([[low, high]], np.float32))
         for loop in self.standby:
             if soft:

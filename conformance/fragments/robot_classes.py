@@ -1,0 +1,85 @@
+"""Documents of the classes real robots showed and the general generator missed: arms exported from URDF
+(frictionloss with no armature and tiny damping on every joint), joints started past their ends (several at once,
+so that many limit rows act together), tiny and zero inertias (dummy links, welded sensor frames), and gripper
+fingers coupled by a joint equality under position servos."""
+
+from __future__ import annotations
+
+from hypothesis import strategies as st
+
+from .document import RawDocument
+
+AXES = ("0 1 0", "0 0 1", "1 0 0")
+
+
+def _f(x: float) -> str:
+    return f"{round(x, 6):.4g}"  # no subnormals: MuJoCo's parser rejects them
+
+
+@st.composite
+def _link(draw, index: int) -> tuple[str, str, float, float, bool]:
+    """A link's opening tags (body, joint, inertial), its joint name, range and whether it is a slide."""
+    slide = draw(st.integers(0, 5)) == 5
+    lo = draw(st.floats(-2.5, -0.1)) if not slide else draw(st.floats(-0.3, -0.02))
+    hi = draw(st.floats(0.1, 2.5)) if not slide else draw(st.floats(0.02, 0.3))
+    urdf = draw(st.booleans())  # an exported arm: frictionloss, tiny damping, no armature
+    friction = _f(draw(st.floats(0.01, 1.0))) if urdf or draw(st.booleans()) else "0"
+    damping = "0.001" if urdf else _f(draw(st.floats(0.0, 2.0)))
+    armature = "0" if urdf else _f(draw(st.floats(0.0, 0.05)))
+    kind = draw(st.sampled_from(["normal", "normal", "normal", "tiny"]))
+    if kind == "tiny":  # a dummy link of an exported arm
+        inertial = '<inertial pos="0 0 0" mass="1e-9" diaginertia="3e-13 3e-13 6e-13"/>'
+    else:
+        mass = draw(st.floats(0.1, 2.0))
+        inertial = (f'<inertial pos="{_f(draw(st.floats(0.02, 0.15)))} 0 0" mass="{_f(mass)}" '
+                    f'diaginertia="{_f(mass * 1e-3)} {_f(mass * 4e-3)} {_f(mass * 4e-3)}"/>')
+    name = f"j{index}"
+    joint = (f'<joint name="{name}" type="{"slide" if slide else "hinge"}" axis="{draw(st.sampled_from(AXES))}" '
+             f'range="{_f(lo)} {_f(hi)}" frictionloss="{friction}" damping="{damping}" armature="{armature}"/>')
+    pos = f'{_f(draw(st.floats(0.1, 0.3)))} 0 0' if index else "0 0 1"
+    return f'<body name="l{index}" pos="{pos}">{joint}{inertial}', name, lo, hi, slide
+
+
+@st.composite
+def robot_classes(draw) -> RawDocument:
+    """An arm of 2-5 links (hinges, some slides) with the classes above, a keyframe that starts 1-3 joints past
+    their ends, position servos and motors, and optionally a two-finger gripper coupled by a joint equality."""
+    count = draw(st.integers(2, 5))
+    links = [draw(_link(i)) for i in range(count)]
+    body = "".join(opening for opening, *_ in links)
+    if draw(st.booleans()):  # a welded sensor frame with mass and no inertia
+        body += '<body name="sensor" pos=".05 0 0"><inertial pos="0 0 0" mass=".05" diaginertia="0 0 0"/></body>'
+    gripper = draw(st.booleans())
+    if gripper:
+        body += ('<body name="palm" pos=".05 0 0"><inertial pos="0 0 0" mass=".1" diaginertia="1e-4 1e-4 1e-4"/>'
+                 '<body name="left"><joint name="left" type="slide" axis="0 1 0" range="0 .04" damping=".1"/>'
+                 '<geom type="box" size=".01 .01 .03" pos="0 .02 0" mass=".02"/></body>'
+                 '<body name="right"><joint name="right" type="slide" axis="0 -1 0" range="0 .04" damping=".1"/>'
+                 '<geom type="box" size=".01 .01 .03" pos="0 -.02 0" mass=".02"/></body></body>')
+    body += "</body>" * count
+    qpos = []
+    past = draw(st.lists(st.integers(0, count - 1), min_size=1, max_size=min(3, count), unique=True))
+    for i, (_, _, lo, hi, slide) in enumerate(links):
+        beyond = draw(st.floats(0.02, 0.1 if slide else 0.5))
+        qpos.append((hi + beyond if draw(st.booleans()) else lo - beyond) if i in past else 0.0)
+    actuators = []
+    for i, (_, name, lo, hi, _) in enumerate(links):
+        if draw(st.booleans()):
+            kp = draw(st.floats(5.0, 200.0))
+            actuators.append(f'<position joint="{name}" kp="{_f(kp)}" kv="{_f(draw(st.floats(0, 0.1)) * kp)}" '
+                             f'ctrlrange="{_f(lo)} {_f(hi)}"/>')
+        elif draw(st.booleans()):
+            actuators.append(f'<motor joint="{name}" gear="{_f(draw(st.floats(1, 50)))}" ctrlrange="-1 1"/>')
+    equality = ""
+    if gripper:
+        qpos += [0.02, 0.02]
+        actuators.append('<position joint="left" kp="50" kv="2" ctrlrange="0 .04"/>')
+        if draw(st.booleans()):
+            actuators.append('<position joint="right" kp="50" kv="2" ctrlrange="0 .04"/>')
+        equality = '<equality><joint joint1="left" joint2="right"/></equality>'
+    ctrl = " ".join("0" for _ in actuators)
+    key = f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}" ctrl="{ctrl}"/></keyframe>' if actuators else \
+        f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}"/></keyframe>'
+    xml = (f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"/>'
+           f'<worldbody>{body}</worldbody><actuator>{"".join(actuators)}</actuator>{equality}{key}</mujoco>')
+    return RawDocument(xml, label="robot class")
