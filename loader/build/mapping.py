@@ -46,6 +46,28 @@ class GeomShape:
     shape: int
 
 
+def root_state(art, ipos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A floating root's MuJoCo free-joint qpos (7) and qvel (6: the body origin's velocity in the world, the
+    angular velocity in the body frame) from PhysX's root pose and centre-of-mass velocities."""
+    root = art.get_root_pose()
+    rotation = quat_to_mat(root.q)
+    omega = np.asarray(art.get_root_angular_velocity(), np.float64)
+    v_com = np.asarray(art.get_root_linear_velocity(), np.float64)
+    r = rotation @ ipos
+    origin = v_com - (omega[1] * r[2] - omega[2] * r[1], omega[2] * r[0] - omega[0] * r[2], omega[0] * r[1] - omega[1] * r[0])
+    return np.concatenate([root.p, root.q]), np.concatenate([origin, rotation.T @ omega])
+
+
+def scalar_joints(mapping) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """Per articulation: (index, qpos addresses, dof addresses, SAPIEN dofs) of its hinges and slides."""
+    groups: dict[int, list[tuple[int, int, int]]] = {}
+    for j, target in enumerate(mapping.joints):
+        if int(mapping.jnt_type[j]) not in (FREE, BALL) and target.dofs:
+            groups.setdefault(target.articulation, []).append(
+                (int(mapping.jnt_qposadr[j]), int(mapping.jnt_dofadr[j]), target.dofs[0]))
+    return [(a, *(np.array(column, dtype=int) for column in zip(*rows))) for a, rows in groups.items()]
+
+
 @dataclass
 class Mapping:
     bodies: list[BodyLink]
@@ -119,32 +141,28 @@ class Mapping:
         art.set_root_linear_velocity(v_com.astype(np.float32))
         art.set_root_angular_velocity(omega_world.astype(np.float32))
 
-    def get_state(self, articulations) -> tuple[np.ndarray, np.ndarray]:
-        """Read SAPIEN's state back in MuJoCo's layout (qpos of size nq, qvel of size nv)."""
+    def get_state(self, articulations, q: list | None = None, v: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Read SAPIEN's state back in MuJoCo's layout (qpos of size nq, qvel of size nv); `q`, `v`: the
+        articulations' joint positions and velocities when already read."""
         qpos = np.zeros(self.nq)
         qvel = np.zeros(self.nv)
-        q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
-        v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        q = q if q is not None else [np.asarray(art.get_qpos(), np.float64) for art in articulations]
+        v = v if v is not None else [np.asarray(art.get_qvel(), np.float64) for art in articulations]
+        if getattr(self, "_scalars", None) is None:
+            self._scalars = scalar_joints(self)
+        for a, qadr, dadr, dofs in self._scalars:
+            qpos[qadr] = q[a][dofs]
+            qvel[dadr] = v[a][dofs]
         for j, target in enumerate(self.joints):
             a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
             jtype = int(self.jnt_type[j])
             if jtype == FREE:
-                art = articulations[a]
-                root = art.get_root_pose()
-                rotation = quat_to_mat(root.q)
-                omega_world = np.asarray(art.get_root_angular_velocity(), np.float64)
-                v_com = np.asarray(art.get_root_linear_velocity(), np.float64)
-                qpos[adr : adr + 3] = root.p
-                qpos[adr + 3 : adr + 7] = root.q
-                qvel[dof : dof + 3] = v_com - np.cross(omega_world, rotation @ self.body_ipos[int(self.jnt_bodyid[j])])
-                qvel[dof + 3 : dof + 6] = rotation.T @ omega_world
+                qpos[adr : adr + 7], qvel[dof : dof + 6] = root_state(articulations[a],
+                                                                      self.body_ipos[int(self.jnt_bodyid[j])])
             elif jtype == BALL:
                 angles = q[a][list(target.dofs)]
                 qpos[adr : adr + 4] = quat_from_euler_xyz(angles)
                 qvel[dof : dof + 3] = euler_xyz_rate_matrix(angles) @ v[a][list(target.dofs)]
-            else:
-                qpos[adr] = q[a][target.dofs[0]]
-                qvel[dof] = v[a][target.dofs[0]]
         return qpos, qvel
 
     def qfrc_to_sapien(self, qfrc, articulations=None) -> list[np.ndarray]:

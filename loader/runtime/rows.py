@@ -68,8 +68,10 @@ class RowTerm:
         self.mapping = mapping
         self.set_limits(limits)
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
-        self.dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
-        self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]
+        # per articulation: its hinge/slide SAPIEN dofs and their MuJoCo dofs, to add the rows' force at once
+        self.targets = [(a, np.array([t.dofs[0] for _, t in joints if t.articulation == a], dtype=int),
+                         np.array([int(mirror.jnt_dofadr[j]) for j, t in joints if t.articulation == a], dtype=int))
+                        for a in sorted({t.articulation for _, t in joints})]
         self.soft = False
         self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
@@ -78,6 +80,7 @@ class RowTerm:
         """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
         self.limits = limits
         self.rows = {limit.key: limit for limit in limits}  # by (articulation, SAPIEN dof)
+        self.limit_keys = [limit.key for limit in limits]
         self.margins = np.array([limit.margin for limit in limits])
         self.physx = np.array([limit.widened() for limit in limits]).reshape(-1, 2)  # PhysX's limits while soft
 
@@ -87,9 +90,9 @@ class RowTerm:
         self.clear_of(step)
         self.mirror_state(step)
         mujoco.mj_forward(self.mirror, self.data)
-        for key, force in zip(self.keys, self.joint_rows()[self.dofs]):
-            if force:
-                step.add(key, float(force))
+        force = self.joint_rows()
+        for art, dofs, mujoco_dofs in self.targets:
+            step.forces[art][dofs] += force[mujoco_dofs]
 
     def joint_rows(self) -> np.ndarray:
         """The generalized force of the joint limit and friction rows alone (contact rows, solved with them when
@@ -110,7 +113,7 @@ class RowTerm:
         actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         flags = (self.flags | actuation) if not step.actuated else self.flags
         mirror.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations)
+        data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations, step.q, step.v)
         data.ctrl[:] = step.ctrl
         if step.act is not None:
             data.act[:] = step.act
@@ -125,7 +128,7 @@ class RowTerm:
         rows run (vectorised: most joints are far from it)."""
         if not self.limits:
             return
-        q = np.array([step.q[art][dof] for art, dof in (limit.key for limit in self.limits)])
+        q = np.array([step.q[art][dof] for art, dof in self.limit_keys])
         near = (q < self.physx[:, 0] + 0.5 * self.margins) | (q > self.physx[:, 1] - 0.5 * self.margins)
         for i in np.flatnonzero(near):
             art, dof = self.limits[i].key
