@@ -163,7 +163,7 @@ ACTUATED_TIERS = ("actuated", "actuated_contact")
 
 def _actuation_lines(summary: dict) -> list[str]:
     """Per model and actuated tier that ran: the integrator switch, ctrl scaling, steps on a forcerange bound
-    and any limit contact that scaling could not avoid (a known gap: PhysX's limits are hard)."""
+    and any limit contact that scaling could not avoid."""
     lines = []
     for m in summary["models"]:
         for tier in ACTUATED_TIERS:
@@ -180,7 +180,7 @@ def _actuation_lines(summary: dict) -> list[str]:
             if settings.get("saturated_steps"):
                 parts.append(f"forcerange reached on {settings['saturated_steps']} steps (clamped on both sides)")
             if tier == "actuated" and settings.get("limit_steps"):
-                parts.append(f"a joint at its limit on {settings['limit_steps']} steps (known gap)")
+                parts.append(f"a joint at its limit on {settings['limit_steps']} steps")
             if parts:
                 lines.append(f"- {m['id']}/{tier}: " + "; ".join(parts))
     return lines

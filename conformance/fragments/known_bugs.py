@@ -61,6 +61,22 @@ def _slender_about_a_hinge(result, model: mujoco.MjModel) -> bool:
 
 
 
+LIGHT_LINK = 1e-6  # kg: a jointed body this light ...
+WELDED_RATIO = 1e3  # ... carrying bodies welded to it that weigh this many times more
+
+
+def _light_link_carries_welded_mass(result, model: mujoco.MjModel) -> bool:
+    """A jointed body under LIGHT_LINK kg whose welded (joint-less) children weigh WELDED_RATIO times more: PhysX keeps
+    the two as separate links joined by a fixed joint, an ill-conditioned pair that MuJoCo treats as one body."""
+    for b in range(1, model.nbody):
+        if model.body_jntnum[b] and model.body_mass[b] < LIGHT_LINK:
+            welded = [c for c in range(b + 1, model.nbody)
+                      if model.body_parentid[c] == b and not model.body_jntnum[c]]
+            if any(model.body_mass[c] > WELDED_RATIO * model.body_mass[b] for c in welded):
+                return True
+    return False
+
+
 # fixed in the loader: free_joint_class_damping_armature.xml (now listed as unsupported),
 # zero_dof_tree_child_pose.xml (set_state updates joint-less trees) and velocity_actuator_unreached_forcerange.xml
 # (the drive force limit is listed as an approximation), slide_*_metres_from_its_zero.xml (joint frames onto a
@@ -69,6 +85,7 @@ def _slender_about_a_hinge(result, model: mujoco.MjModel) -> bool:
 KNOWN_BUGS: list[KnownBug] = [
     KnownBug("ill_conditioned_two_hinges.xml", ("dynamics", "actuated"), _ill_conditioned),
     KnownBug("slender_rod_about_its_axis.xml", ("dynamics", "actuated"), _slender_about_a_hinge),
+    KnownBug("robot_classes-1fb34010df.xml", ("dynamics", "actuated"), _light_link_carries_welded_mass),
 ]
 
 

@@ -212,7 +212,7 @@ def _ctrl_notes(scale: float, left: dict[str, int], steps: int, smooth: bool = T
                      "sides)")
     if left["at_limit"] and smooth:
         notes.append(f"a joint is at its limit in MuJoCo on {left['at_limit']} of {steps} steps even at the held "
-                     "ctrl: MuJoCo's limits are soft, PhysX's hard (known gap)")
+                     "ctrl (its limit rows are MuJoCo's own on both sides)")
     return notes
 
 
