@@ -58,14 +58,13 @@ class Gap:
 
 
 GAPS = {gap.name: gap for gap in (
-    Gap("frictionloss", "joint frictionloss zeroed (PhysX has no constant-torque joint friction)",
+    Gap("frictionloss", "joint frictionloss zeroed (its rows are MuJoCo's own, solved with the others)",
         lambda m: bool(m.dof_frictionloss.any()), _zero_frictionloss),
-    Gap("equality", "equality constraints disabled (soft in MuJoCo; couplings are PhysX tendon springs, and "
-        "connect/weld rows are exact alone but coupled with joint damping)",
+    Gap("equality", "equality constraints disabled (couplings and fixed-base loops are MuJoCo's own rows; "
+        "connects and welds moving a floating base are D6 joints, coupled with joint damping)",
         lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
         _disable(FLAGS.mjDSBL_EQUALITY)),
-    Gap("limits", "joint limits disabled (soft rows on the drives are exact alone but coupled through implicit "
-        "damping; PhysX's hard limit where kept)",
+    Gap("limits", "joint limits disabled (MuJoCo's own rows on both sides, solved with MuJoCo's contacts)",
         lambda m: bool(m.jnt_limited.any()) and not mj.disabled(m, "limit", "constraint"),
         _disable(FLAGS.mjDSBL_LIMIT)),
     Gap("fluid", "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",

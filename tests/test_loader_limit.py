@@ -180,3 +180,30 @@ def test_a_joint_spun_past_a_full_turn_is_not_wrapped_into_its_far_limit(monkeyp
 
     monkeypatch.setattr(tree, "plan_joint", wrapping)
     assert run() > 1.0
+
+
+URDF_ARM_TOLERANCE = 1e-4  # rad over 1 s, measured 2.7e-6; rows off: 2.2 (mujoco 3.17.0, sapien 3.0.3)
+
+
+def test_a_urdf_style_arm_started_with_four_limits_active_follows_mujoco():
+    """tests/fixtures/urdf_arm.xml: frictionloss on every joint with damping 0.001 and no armature, started from a
+    keyframe with three joints past their ends and a fourth at one (four limit rows at once), under servos swept
+    over their ranges: MuJoCo's rows solved together. Mutation: the rows term off (PhysX's hard limits, no
+    friction)."""
+    from support.corpus import FIXTURES
+
+    def run(rows: bool) -> float:
+        result = MJCFLoader().load(FIXTURES / "urdf_arm.xml")
+        model = result.model
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+        mujoco.mj_forward(model, data)
+        assert int((data.efc_type[:data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)).sum()) == 4
+        if not rows:
+            result.controller.without("rows")
+        low, high = model.actuator_ctrlrange.T
+        return float(replay(result, model, lambda step, data: low + (high - low) * (
+            0.5 + 0.4 * np.sin(0.005 * step + np.arange(model.nu))), 1.0).max())
+
+    assert run(rows=True) < URDF_ARM_TOLERANCE
+    assert run(rows=False) > 100 * URDF_ARM_TOLERANCE

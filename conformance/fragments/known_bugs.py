@@ -86,6 +86,7 @@ KNOWN_BUGS: list[KnownBug] = [
     KnownBug("ill_conditioned_two_hinges.xml", ("dynamics", "actuated"), _ill_conditioned),
     KnownBug("slender_rod_about_its_axis.xml", ("dynamics", "actuated"), _slender_about_a_hinge),
     KnownBug("robot_classes-1fb34010df.xml", ("dynamics", "actuated"), _light_link_carries_welded_mass),
+    KnownBug("robot_classes-e5bbc90029.xml", ("dynamics", "actuated"), _light_link_carries_welded_mass),
 ]
 
 
