@@ -12,7 +12,8 @@ class MJCFError(Exception):
     `file` and `line` name where, when MuJoCo said so; `mujoco_message` is MuJoCo's own text.
     """
 
-    def __init__(self, file: str, mujoco_message: str, hint: str = ""):
+    def __init__(self, file: str, mujoco_message: str, hint: str = "",
+                 rejected_by: str = "MuJoCo rejected the model"):
         self.file = str(file)
         self.mujoco_message = mujoco_message.strip()
         match = re.search(r"line (\d+)", self.mujoco_message, re.IGNORECASE) or re.search(
@@ -22,7 +23,7 @@ class MJCFError(Exception):
         element = re.search(r"Element (?:name )?'([^']*)'", self.mujoco_message)
         self.element: str | None = element.group(1) if element else None
         where = f"{self.file}" + (f", line {self.line}" if self.line is not None else "")
-        text = f"{where}: MuJoCo rejected the model: {self.mujoco_message}"
+        text = f"{where}: {rejected_by}: {self.mujoco_message}"
         if hint:
             text += f"\n  fix: {hint}"
         super().__init__(text)

@@ -24,6 +24,7 @@ from .build.features import find_unmapped
 from .build.geom import collides, plan_shape
 from .build.joint import FREE, KIND
 from .build.mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .build.numbers import check_numbers
 from .build.solver_iterations import tune_iterations
 from .build.texture import textures
 from .build.tree import TreePlan, plan_tree
@@ -102,6 +103,7 @@ class MJCFLoader:
     def _parse(self, mjcf_file, package_dir) -> _Parsed:
         compiled = compile_mjcf(mjcf_file, package_dir)
         model = compiled.model
+        check_numbers(model, compiled.path)  # before anything is built: a failed load leaves the scene as it was
         if self.scene is None:
             self.scene = physx_settings.create_scene(model)
         tree = plan_tree(model, self.fix_root_link)

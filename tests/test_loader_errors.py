@@ -78,3 +78,49 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
         np.testing.assert_array_equal(a, b)
     result.scene.step()  # the rejected commands reached nothing PhysX steps
     assert np.isfinite(result.articulations[0].qvel).all()
+
+
+UNHOLDABLE = ('<mujoco><worldbody><body name="arm" pos="{pos}"><joint name="hinge" axis="0 1 0" damping="{damping}"/>'
+              '<geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
+              '</mujoco>')
+HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02"}
+
+
+@pytest.mark.parametrize("field, value, element, message", [
+    ("pos", "1e30 0 0", "body 'arm'", "body_pos .* is beyond"),  # MuJoCo compiles it silently
+    ("damping", "nan", "joint 'hinge'", "dof_damping .* is non-finite"),  # MuJoCo warns only
+    ("damping", "1e39", "joint 'hinge'", "beyond float32's range"),
+    ("size", "2e7", "geom 'rod'", "geom_size .* is beyond"),
+])
+def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(field, value, element, message,
+                                                                                monkeypatch):
+    """A number MuJoCo compiles but PhysX's float32 cannot hold raises MJCFError naming the element and the field,
+    before anything is built: a user's scene is left as it was. Mutation: the check skipped (the model loads
+    silently wrong, or fails deep inside the mapping with another exception)."""
+    import warnings
+
+    import mujoco
+    import sapien
+
+    import loader.mjcf_loader
+    from loader import MJCFError
+
+    xml = UNHOLDABLE.format(**{**HOLDABLE, field: value})
+    scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    before = len(scene.entities)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(MJCFError, match=message) as error:
+            MJCFLoader().set_scene(scene).load(mujoco.MjSpec.from_string(xml))
+        assert element in str(error.value) and "PhysX cannot hold" in str(error.value)
+        assert len(scene.entities) == before
+        MJCFLoader().set_scene(scene).load(mujoco.MjSpec.from_string(UNHOLDABLE.format(**HOLDABLE)))  # it can load
+        monkeypatch.setattr(loader.mjcf_loader, "check_numbers", lambda model, path: None)
+        outcome = "loaded silently"
+        try:
+            MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+        except MJCFError:
+            outcome = "typed error"
+        except Exception as other:  # noqa: BLE001 - an untyped failure deep in the mapping is what the check prevents
+            outcome = type(other).__name__
+        assert outcome != "typed error"
