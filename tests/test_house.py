@@ -65,3 +65,11 @@ def test_a_reference_to_a_moved_or_renamed_test_is_found():
                          "`tests/test_b.py::test_kept`.\n"}
     assert house.broken_test_references(docs, files) == ["docs/m.md:1: no test tests/test_a.py::test_gone",
                                                          "docs/m.md:2: no test tests/test_b.py::test_kept"]
+
+
+def test_a_loader_import_beyond_its_core_dependencies_is_found():
+    files = {"loader/a.py": "import os\nimport numpy as np\nfrom sapien import physx\nfrom . import b\n",
+             "loader/b.py": "def f():\n    import rerun\n    from tqdm import tqdm\n"}
+    assert house.foreign_imports(files) == [
+        "loader/b.py:2: imports rerun, which the loader's install does not have",
+        "loader/b.py:3: imports tqdm, which the loader's install does not have"]

@@ -4,6 +4,7 @@
 - no import cycle between the project's modules (function-local imports included);
 - no class over `MAX_CLASS_LINES` lines in `loader/`;
 - no module reading another object's private (`_name`) attribute;
+- `loader/` imports nothing beyond the standard library and its core dependencies (`CORE`);
 - every relative link in README.md and docs/*.md resolves (file and `#anchor`), every `tests/<file>.py::<test>`
   they or the source name exists, and README.md stays under `MAX_README_LINES` lines.
 
@@ -21,6 +22,7 @@ E_NOTATION = re.compile(r"(?<![\w.])\d+(?:\.\d+)?[eE][-+]?\d+\b")
 MAX_CLASS_LINES = 120
 MAX_README_LINES = 120
 PACKAGES = ("loader", "conformance")
+CORE = ("mujoco", "sapien", "numpy")  # the loader's install: everything else is an extra
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 TEST_REFERENCE = re.compile(r"(tests/[\w/]+\.py)::(\w+)")
 
@@ -161,6 +163,21 @@ def documents(root: Path) -> dict[str, str]:
     return files
 
 
+def foreign_imports(files: dict[str, str], allowed=CORE) -> list[str]:
+    """`path:line: module` for every absolute import that is neither the standard library, `allowed`, nor the
+    project's own packages."""
+    out = []
+    for path, text in files.items():
+        for node in ast.walk(ast.parse(text)):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
+                [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
+            for name in names:
+                top = name.split(".")[0]
+                if top not in sys.stdlib_module_names and top not in allowed and top not in PACKAGES:
+                    out.append(f"{path}:{node.lineno}: imports {top}, which the loader's install does not have")
+    return out
+
+
 def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
     return {str(p.relative_to(root)): p.read_text() for package in packages
             for p in sorted((root / package).rglob("*.py"))}
@@ -171,6 +188,7 @@ def findings(root: Path) -> list[str]:
     loader = {p: t for p, t in every.items() if p.startswith("loader")}
     docs = documents(root)
     return (docstring_numbers(loader) + import_cycles(every) + long_classes(loader) + private_reads(every)
+            + foreign_imports(loader)
             + broken_links(docs) + long_readme(docs["README.md"])
             + broken_test_references({**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
                                      {str(p.relative_to(root)): p.read_text()
