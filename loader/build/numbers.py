@@ -1,0 +1,71 @@
+"""Compiled numbers PhysX can hold: MuJoCo accepts a NaN with a warning and a position far beyond any robot without
+one, but PhysX stores poses, masses and gains in float32, so such a model would load silently wrong or fail deep
+inside the mapping. Every number the loader maps is checked once, before anything is built, and the first that cannot be held
+raises `MJCFError` naming the element, the field and the fix
+(tests/test_loader_errors.py::test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .. import mj
+from ..errors import MJCFError
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+REACH = 1e7  # m: positions and sizes beyond this are nonsense for a robot, and float32 resolves only metres there
+
+# (MuJoCo element kind, compiled field, a length in metres)
+FIELDS = (
+    ("body", "body_pos", True), ("body", "body_quat", False), ("body", "body_ipos", True),
+    ("body", "body_iquat", False), ("body", "body_mass", False), ("body", "body_inertia", False),
+    ("joint", "jnt_pos", True), ("joint", "jnt_axis", False), ("joint", "jnt_range", False),
+    ("joint", "jnt_stiffness", False),
+    ("geom", "geom_pos", True), ("geom", "geom_quat", False), ("geom", "geom_size", True),
+    ("geom", "geom_friction", False),
+    ("site", "site_pos", True), ("site", "site_quat", False),
+    ("actuator", "actuator_gear", False), ("actuator", "actuator_gainprm", False),
+    ("actuator", "actuator_biasprm", False), ("actuator", "actuator_ctrlrange", False),
+    ("actuator", "actuator_forcerange", False), ("actuator", "actuator_dynprm", False),
+    ("tendon", "tendon_stiffness", False), ("tendon", "tendon_damping", False), ("tendon", "tendon_range", False),
+    ("equality", "eq_data", False), ("mesh", "mesh_vert", True),
+)
+DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")  # per DoF, named by the DoF's joint
+
+
+def _bad(values: np.ndarray, length: bool) -> np.ndarray:
+    """Rows (elements) holding a number PhysX cannot hold."""
+    values = np.asarray(values, dtype=np.float64)
+    if values.size == 0:
+        return np.zeros(len(values), dtype=bool)
+    values = values.reshape(len(values), -1)
+    limit = REACH if length else FLOAT32_MAX
+    return ~np.isfinite(values).all(axis=1) | (np.abs(values) > limit).any(axis=1)
+
+
+def check_numbers(model: mujoco.MjModel, path) -> None:
+    """Raise `MJCFError` for the first element whose compiled numbers PhysX cannot hold."""
+    for kind, field, length in FIELDS:
+        values = getattr(model, field)
+        if not len(values):
+            continue
+        rows = np.flatnonzero(_bad(values, length))
+        if rows.size:
+            index = int(rows[0]) if kind != "mesh" else int(np.searchsorted(model.mesh_vertadr, rows[0], "right") - 1)
+            _raise(path, kind, mj.name(model, kind, index), field, np.asarray(values[rows[0]]), length)
+    for field in DOF_FIELDS:
+        rows = np.flatnonzero(_bad(getattr(model, field), False))
+        if rows.size:
+            joint = int(model.dof_jntid[rows[0]])
+            _raise(path, "joint", mj.name(model, "joint", joint), field, getattr(model, field)[rows[0]], False)
+    for field in ("timestep", "gravity", "wind", "density", "viscosity"):
+        if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
+            _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)
+
+
+def _raise(path, kind: str, name: str, field: str, values, length: bool) -> None:
+    what = "non-finite" if not np.isfinite(values).all() else (
+        f"beyond {REACH:g} m" if length else "beyond float32's range")
+    raise MJCFError(path, f"{kind} '{name}': {field} = {np.array2string(np.asarray(values), precision=4)} is {what}",
+                    hint=f"give {kind} '{name}' finite values{' within 1e7 m' if length else ''}: PhysX stores them "
+                         "in float32", rejected_by="PhysX cannot hold the compiled model")
