@@ -138,15 +138,36 @@ def load(path: str | Path) -> Manifest:
     return Manifest(str(path), tuple(models))
 
 
-def from_paths(paths: list[str], tiers: tuple[str, ...] = TIER_NAMES, timeout_s: float = 300.0) -> Manifest:
-    """An ad-hoc manifest for MJCF files given on the command line (every tier expected to pass)."""
-    models, seen = [], set()
+def expand_paths(paths: list[str]) -> list[Path]:
+    """Command-line MJCF paths: a folder stands for the `.xml` files in it (sorted); a path that does not exist is
+    a usage error (ValueError naming it), before anything runs."""
+    out: list[Path] = []
     for p in paths:
-        base = Path(p).stem
+        path = Path(p)
+        if path.is_dir():
+            found = sorted(path.glob("*.xml"))
+            if not found:
+                raise ValueError(f"{p}: a folder without .xml files")
+            out += found
+        elif path.is_file():
+            out.append(path)
+        else:
+            raise ValueError(f"{p}: no such file or folder")
+    return out
+
+
+def from_paths(paths: list[str], tiers: tuple[str, ...] = TIER_NAMES, timeout_s: float = 300.0) -> Manifest:
+    """An ad-hoc manifest for MJCF files given on the command line (every tier expected to pass). A file's id is its
+    stem; where stems repeat (robot.xml, scene.xml in every robot's folder) the parent folder names it."""
+    files = expand_paths(paths)
+    stems = [f.stem for f in files]
+    models, seen = [], set()
+    for f in files:
+        base = f.stem if stems.count(f.stem) == 1 else (f.parent.name or f.stem)
         mid, n = base, 1
         while mid in seen:
             n += 1
             mid = f"{base}_{n}"
         seen.add(mid)
-        models.append(ModelEntry(id=mid, source=str(Path(p).resolve()), tiers=tiers, timeout_s=timeout_s))
+        models.append(ModelEntry(id=mid, source=str(f.resolve()), tiers=tiers, timeout_s=timeout_s))
     return Manifest("<command line>", tuple(models))

@@ -123,10 +123,17 @@ def test_unknown_scheme_is_an_error():
         corpus.resolve(ModelEntry(id="x", source="github:foo/bar.xml"))
 
 
-def test_command_line_paths_become_entries(tmp_path):
-    m = manifest.from_paths([str(tmp_path / "a.xml"), str(tmp_path / "sub" / "a.xml")])
-    assert [e.id for e in m.models] == ["a", "a_2"]
+def test_command_line_paths_become_entries_named_by_their_folder_where_stems_repeat(tmp_path):
+    for folder in ("panda", "go2", "sub"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "robot.xml").write_text("<mujoco/>")
+    (tmp_path / "sub" / "arm.xml").write_text("<mujoco/>")
+    m = manifest.from_paths([str(tmp_path / "panda" / "robot.xml"), str(tmp_path / "go2" / "robot.xml"),
+                             str(tmp_path / "sub")])
+    assert [e.id for e in m.models] == ["panda", "go2", "arm", "sub"]  # a folder stands for its .xml files
     assert all(e.expected(t) == "pass" for e in m.models for t in manifest.TIER_NAMES)
+    with pytest.raises(ValueError, match="nothere.xml: no such file or folder"):
+        manifest.from_paths([str(tmp_path / "nothere.xml")])
 
 
 def test_every_tolerance_is_justified_and_overridable():

@@ -137,3 +137,9 @@ def test_an_unknown_named_corpus_is_a_usage_error_naming_the_known_ones(tmp_path
     proc = run_cli("--corpus", "nosuch", "--out", str(tmp_path), "--quiet", "--no-record")
     assert proc.returncode == 2 and "no corpus 'nosuch'" in proc.stderr and "full" in proc.stderr
     assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_a_missing_path_is_a_usage_error_and_writes_nothing(tmp_path):
+    proc = run_cli(str(tmp_path / "nothere.xml"), "--out", str(tmp_path / "out"), "--quiet", "--no-record")
+    assert proc.returncode == 2 and "nothere.xml: no such file or folder" in proc.stderr
+    assert not (tmp_path / "out").exists()
