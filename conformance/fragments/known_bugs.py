@@ -81,12 +81,12 @@ def _light_link_carries_welded_mass(result, model: mujoco.MjModel) -> bool:
 # zero_dof_tree_child_pose.xml (set_state updates joint-less trees) and velocity_actuator_unreached_forcerange.xml
 # (the drive force limit is listed as an approximation), slide_*_metres_from_its_zero.xml (joint frames onto a
 # coordinate axis are exact in float32 now, `loader/frames.py`), slide_far_from_its_zero_off_axis.xml (the one-step
-# tiers start MuJoCo from the float32 state SAPIEN holds); their files stay as regressions
+# tiers start MuJoCo from the float32 state SAPIEN holds), robot_classes-e5bbc90029.xml (a joint-space inertia
+# conditioned beyond float32 is listed by the loader, `build/features.py`); their files stay as regressions
 KNOWN_BUGS: list[KnownBug] = [
     KnownBug("ill_conditioned_two_hinges.xml", ("dynamics", "actuated"), _ill_conditioned),
     KnownBug("slender_rod_about_its_axis.xml", ("dynamics", "actuated"), _slender_about_a_hinge),
     KnownBug("robot_classes-1fb34010df.xml", ("dynamics", "actuated"), _light_link_carries_welded_mass),
-    KnownBug("robot_classes-e5bbc90029.xml", ("dynamics", "actuated"), _light_link_carries_welded_mass),
 ]
 
 

@@ -13,11 +13,11 @@ import numpy as np
 import sapien
 
 from .. import mj
-from ..runtime.equalities import SoftConnect, SoftWeld
 from ..errors import Notes
+from ..runtime.equalities import SoftConnect, SoftWeld
 from ..soft_row import SoftRow, diag_approx
-from .mapping import Mapping
 from .fixed_tendons import fixed_tendon_terms
+from .mapping import Mapping
 
 EQ = mujoco.mjtEq
 

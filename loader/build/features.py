@@ -8,8 +8,25 @@ import numpy as np
 from .. import mj
 from ..errors import Notes
 
+FLOAT32_CONDITION = 1e8  # a joint-space inertia conditioned worse leaves float32 (7 digits) no digit to solve with
+
+
+def note_ill_conditioned(model: mujoco.MjModel, notes: Notes) -> None:
+    """MuJoCo factorises the joint-space inertia in float64; PhysX's articulation solve is float32. Two coaxial
+    hinges with a weightless link between them make it near singular: MuJoCo follows such a model, PhysX cannot
+    (tests/test_loader_structure.py::test_a_joint_space_inertia_float32_cannot_resolve_is_listed)."""
+    if not model.nv:
+        return
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, mj.forward_at(model), inertia)
+    condition = float(np.linalg.cond(inertia))
+    if condition > FLOAT32_CONDITION:
+        notes.approximate("joint", "joint-space inertia", f"condition number {condition:.2g} at qpos0, beyond what "
+                          "PhysX's float32 articulation solve resolves: its dynamics cannot follow MuJoCo's")
+
 
 def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
+    note_ill_conditioned(model, notes)
     for i in range(model.nflex):
         notes.drop("flex", f"flex{i}", "deformable (flex) objects have no PhysX articulation equivalent")
     for i in range(model.nplugin):

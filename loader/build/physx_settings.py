@@ -9,8 +9,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from .. import drive
-from .. import mj
+from .. import drive, mj
 from ..drive import DofDrive
 
 MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s

@@ -6,17 +6,16 @@ docs/mapping.md#solver-iterations.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import math
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from .. import mj
 from ..drive import DofDrive
-from .mapping import Mapping
 from ..runtime.tendons import IMPLICIT
+from .mapping import Mapping
 
 if TYPE_CHECKING:
     from ..runtime.controller import Controller

@@ -7,7 +7,6 @@ once, with a warning, and physics loads as usual.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 from functools import lru_cache
 
 import mujoco
