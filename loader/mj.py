@@ -40,12 +40,37 @@ def forward_at(model: mujoco.MjModel, qpos: np.ndarray | None = None, all_equali
     return data
 
 
-def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
-    """The joint-space M^-1 (nv x nv) at `data`'s state: a pseudo-inverse, so that a singular M (coincident
-    joints) still loads."""
-    inertia = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, inertia)
-    return np.linalg.pinv(inertia, hermitian=True)
+def inertia_blocks(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The joint-space inertia at `data`'s state as its diagonal blocks, one per kinematic tree: (the tree's DoFs,
+    its dense block), read from MuJoCo's sparse rows (data.M), so that a model of thousands of trees never builds
+    an nv x nv matrix (tests/test_loader_structure.py::test_inertia_blocks_are_mujocos_full_matrix)."""
+    blocks = []
+    for tree in range(model.ntree):
+        dofs = np.flatnonzero(model.dof_treeid == tree)
+        at = {int(d): i for i, d in enumerate(dofs)}
+        block = np.zeros((len(dofs), len(dofs)))
+        for i, dof in enumerate(dofs):
+            start = int(model.M_rowadr[dof])
+            for k in range(start, start + int(model.M_rownnz[dof])):
+                j = at[int(model.M_colind[k])]
+                block[i, j] = block[j, i] = data.M[k]
+        blocks.append((dofs, block))
+    return blocks
+
+
+def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData, dofs=None) -> tuple[np.ndarray, np.ndarray]:
+    """The joint-space M^-1 at `data`'s state over the trees that hold `dofs` (default: every DoF), as (those
+    trees' DoFs, the inverse over them): a pseudo-inverse per tree, so that a singular M (coincident joints)
+    still loads. M is block-diagonal over trees, so the blocks' inverses are M^-1's."""
+    trees = set(range(model.ntree)) if dofs is None else {int(model.dof_treeid[d]) for d in dofs}
+    picked = [(d, b) for d, b in inertia_blocks(model, data) if len(d) and int(model.dof_treeid[d[0]]) in trees]
+    order = np.concatenate([d for d, _ in picked]) if picked else np.zeros(0, dtype=int)
+    inverse = np.zeros((len(order), len(order)))
+    at = 0
+    for d, block in picked:
+        inverse[at:at + len(d), at:at + len(d)] = np.linalg.pinv(block, hermitian=True)
+        at += len(d)
+    return order, inverse
 
 
 def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:

@@ -226,3 +226,25 @@ def test_a_joint_space_inertia_float32_cannot_resolve_is_listed(monkeypatch):
                                                                                         'axis="0 1 0"/>\n  <inertial'))
     monkeypatch.setattr(features, "note_ill_conditioned", lambda model, notes: None)
     assert not listed(COAXIAL)
+
+
+@pytest.mark.parametrize("name", ["humanoid", "manipulator", "swimmer"])
+def test_inertia_blocks_are_mujocos_full_matrix(name):
+    """The tree blocks read from MuJoCo's sparse inertia rebuild mj_fullM's dense matrix entry for entry, and the
+    per-tree pseudo-inverse is the dense one's (M is block-diagonal over trees). Mutation: a block transposed
+    against the tree's DoF order, or one entry dropped, is caught by the same comparison."""
+    from loader import mj
+
+    model = mujoco.MjModel.from_xml_path(str(suite_path(name)))
+    data = mj.forward_at(model, model.qpos0 + 0.1 * np.arange(model.nq) % 0.3)
+    dense = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, dense)
+    rebuilt = np.zeros_like(dense)
+    for dofs, block in mj.inertia_blocks(model, data):
+        rebuilt[np.ix_(dofs, dofs)] = block
+    assert np.array_equal(rebuilt, dense)
+    dofs, inverse = mj.inverse_inertia(model, data)
+    np.testing.assert_allclose(inverse, np.linalg.pinv(dense, hermitian=True)[np.ix_(dofs, dofs)], atol=1e-9)
+    broken = rebuilt.copy()
+    broken[0, model.nv - 1] = broken[model.nv - 1, 0] = 1.0 + abs(dense[0, model.nv - 1])
+    assert not np.array_equal(broken, dense)

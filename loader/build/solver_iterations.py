@@ -45,7 +45,6 @@ def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
     """Per articulation with at least two rows: the Gauss-Seidel radius of its drive and soft connect rows at
     qpos0 (or `qpos`)."""
     data = mj.forward_at(model, qpos)
-    inverse = mj.inverse_inertia(model, data)
     dof_of = mapping.mujoco_dofs()
     timestep = float(model.opt.timestep)
     implicit = int(model.opt.integrator) in IMPLICIT
@@ -66,6 +65,8 @@ def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
     radii = {}
     for art, entries in rows.items():
         jacobian = np.array([j for j, _ in entries])
+        dofs, inverse = mj.inverse_inertia(model, data, np.flatnonzero(np.abs(jacobian).sum(axis=0)))
+        jacobian = jacobian[:, dofs]
         radii[art] = gauss_seidel_radius(jacobian @ inverse @ jacobian.T + np.diag([c for _, c in entries]))
     return radii
 
