@@ -34,7 +34,8 @@ class MissingAssetError(MJCFError):
 
 
 class ControlError(ValueError):
-    """A command `set_ctrl` / `step` cannot apply: the wrong size, or a value that is not finite. Nothing of the
+    """A command `set_ctrl` / `step` cannot apply: the wrong size, or a value that is not finite or beyond what
+    MuJoCo accepts (mjMAXVAL). Nothing of the
     scene or of the activations has changed when it is raised."""
 
 
@@ -52,6 +53,12 @@ def command_vector(path: str, name: str, value, size: int, what: str):
     bad = np.flatnonzero(~np.isfinite(vector))
     if bad.size:
         raise ControlError(f"{path}: {name}[{int(bad[0])}] is {vector[bad[0]]}: every entry must be finite")
+    import mujoco
+
+    huge = np.flatnonzero(np.abs(vector) > mujoco.mjMAXVAL)  # MuJoCo zeroes such a command and warns
+    if huge.size:
+        raise ControlError(f"{path}: {name}[{int(huge[0])}] is {vector[huge[0]]:g}: MuJoCo refuses commands beyond "
+                           f"{mujoco.mjMAXVAL:g} (it zeroes them as unstable); pass values within that")
     return vector
 
 

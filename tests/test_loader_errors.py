@@ -54,6 +54,7 @@ def _arm_state(result) -> tuple:
     ([0.3, 0.1, 0.0], None, "ctrl has shape"),
     ([float("nan"), 0.1], None, r"ctrl\[0\] is nan"),
     ([0.3, float("inf")], None, r"ctrl\[1\] is inf"),
+    ([2e10, 0.1], None, r"ctrl\[0\] is 2e\+10: MuJoCo refuses"),  # MuJoCo zeroes it as unstable
     ([0.3, 0.1], [float("nan")], r"qfrc_applied\[0\] is nan"),
     ([0.3, 0.1], [1.0, 2.0], r"qfrc_applied has shape \(2,\); the model has 1 DoFs"),
 ])
@@ -80,10 +81,10 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
     assert np.isfinite(result.articulations[0].qvel).all()
 
 
-UNHOLDABLE = ('<mujoco><worldbody><body name="arm" pos="{pos}"><joint name="hinge" axis="0 1 0" damping="{damping}"/>'
-              '<geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
+UNHOLDABLE = ('<mujoco><option timestep="{timestep}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
+              '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
               '</mujoco>')
-HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02"}
+HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravcomp": "0", "timestep": "0.002"}
 
 
 @pytest.mark.parametrize("field, value, element, message", [
@@ -91,6 +92,9 @@ HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02"}
     ("damping", "nan", "joint 'hinge'", "dof_damping .* is non-finite"),  # MuJoCo warns only
     ("damping", "1e39", "joint 'hinge'", "beyond float32's range"),
     ("size", "2e7", "geom 'rod'", "geom_size .* is beyond"),
+    ("ref", "1e30", "joint 'hinge'", r"qpos0 \(ref\) .* is beyond 10000 rad"),  # float32 holds no angle there
+    ("gravcomp", "1e39", "body 'arm'", "body_gravcomp .* beyond float32's range"),
+    ("timestep", "-1", "option 'timestep'", "is not positive"),  # MuJoCo steps backwards
 ])
 def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(field, value, element, message,
                                                                                 monkeypatch):
@@ -124,3 +128,23 @@ def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element
         except Exception as other:  # noqa: BLE001 - an untyped failure deep in the mapping is what the check prevents
             outcome = type(other).__name__
         assert outcome != "typed error"
+
+
+def test_a_model_mujoco_compiles_but_cannot_run_is_a_typed_error(tmp_path):
+    """A model whose forward pass runs out of MuJoCo's arena (thousands of bodies in the default arena; here 200
+    in an arena made small) compiles in MuJoCo but cannot run: the load names the file, says MuJoCo cannot run it
+    and how to raise the arena, and raises no untyped mujoco.FatalError. With the arena raised (the fix the message
+    gives) the same model loads. Mutation: the check removed is a FatalError here."""
+    import mujoco
+
+    bodies = "".join(f'<body pos="{i % 20 * .1} {i // 20 * .1} 1"><geom size=".02"/></body>' for i in range(200))
+    path = tmp_path / "crowd.xml"
+    path.write_text(f'<mujoco><size memory="20K"/><worldbody>{bodies}</worldbody></mujoco>')
+    mujoco.MjModel.from_xml_path(str(path))  # MuJoCo compiles it
+    with pytest.raises(MJCFError) as caught:
+        MJCFLoader().load(str(path))
+    text = str(caught.value)
+    assert str(path) in text and "cannot run" in text and "<size memory" in text
+    assert caught.value.line is None  # MuJoCo's source line is not the document's
+    path.write_text(f'<mujoco><size memory="10M"/><worldbody>{bodies}</worldbody></mujoco>')
+    assert MJCFLoader().load(str(path)).model.nbody == 201

@@ -60,4 +60,10 @@ def compile_mjcf(mjcf_file: str | os.PathLike | mujoco.MjSpec,
         model = spec.compile()
     except ValueError as error:
         _raise_for(path, error)
+    try:  # MuJoCo compiles some models it cannot run: an arena too small for thousands of bodies, say
+        mujoco.mj_forward(model, mujoco.MjData(model))
+    except mujoco.FatalError as error:
+        raise MJCFError(path, str(error).replace(", line ", ":"), rejected_by="MuJoCo cannot run the compiled model",
+                        hint="MuJoCo's forward pass at qpos0 fails; where it says out of memory, raise "
+                             "<size memory=...> (e.g. memory=\"512M\")") from None
     return CompiledModel(path=path, spec=spec, model=model)

@@ -14,11 +14,13 @@ from ..errors import MJCFError
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 REACH = 1e7  # m: positions and sizes beyond this are nonsense for a robot, and float32 resolves only metres there
+TURNS = 1e4  # rad: a hinge angle beyond this is held by float32 no finer than a milliradian
 
 # (MuJoCo element kind, compiled field, a length in metres)
 FIELDS = (
     ("body", "body_pos", True), ("body", "body_quat", False), ("body", "body_ipos", True),
     ("body", "body_iquat", False), ("body", "body_mass", False), ("body", "body_inertia", False),
+    ("body", "body_gravcomp", False),
     ("joint", "jnt_pos", True), ("joint", "jnt_axis", False), ("joint", "jnt_range", False),
     ("joint", "jnt_stiffness", False),
     ("geom", "geom_pos", True), ("geom", "geom_quat", False), ("geom", "geom_size", True),
@@ -58,14 +60,24 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
         if rows.size:
             joint = int(model.dof_jntid[rows[0]])
             _raise(path, "joint", mj.name(model, "joint", joint), field, getattr(model, field)[rows[0]], False)
+    for joint in range(model.njnt):  # a hinge's or slide's reference angle or offset, where PhysX starts it
+        kind = int(model.jnt_type[joint])
+        if kind in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            value = float(model.qpos0[model.jnt_qposadr[joint]])
+            slide = kind == int(mujoco.mjtJoint.mjJNT_SLIDE)
+            if not abs(value) <= (REACH if slide else TURNS):
+                _raise(path, "joint", mj.name(model, "joint", joint), "qpos0 (ref)", np.array([value]), slide,
+                       "" if slide else f"beyond {TURNS:g} rad")
+    if not model.opt.timestep > 0:
+        _raise(path, "option", "timestep", "opt.timestep", np.array([model.opt.timestep]), False, "not positive")
     for field in ("timestep", "gravity", "wind", "density", "viscosity"):
         if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
             _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)
 
 
-def _raise(path, kind: str, name: str, field: str, values, length: bool) -> None:
-    what = "non-finite" if not np.isfinite(values).all() else (
-        f"beyond {REACH:g} m" if length else "beyond float32's range")
+def _raise(path, kind: str, name: str, field: str, values, length: bool, what: str = "") -> None:
+    what = what or ("non-finite" if not np.isfinite(values).all() else (
+        f"beyond {REACH:g} m" if length else "beyond float32's range"))
     raise MJCFError(path, f"{kind} '{name}': {field} = {np.array2string(np.asarray(values), precision=4)} is {what}",
                     hint=f"give {kind} '{name}' finite values{' within 1e7 m' if length else ''}: PhysX stores them "
                          "in float32", rejected_by="PhysX cannot hold the compiled model")
