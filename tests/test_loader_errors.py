@@ -94,7 +94,8 @@ HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravco
     ("size", "2e7", "geom 'rod'", "geom_size .* is beyond"),
     ("ref", "1e30", "joint 'hinge'", r"qpos0 \(ref\) .* is beyond 10000 rad"),  # float32 holds no angle there
     ("gravcomp", "1e39", "body 'arm'", "body_gravcomp .* beyond float32's range"),
-    ("timestep", "-1", "option 'timestep'", "is not positive"),  # MuJoCo steps backwards
+    ("timestep", "-1", "option 'timestep'", r"is not within \(0, 1\] s"),  # MuJoCo steps backwards
+    ("timestep", "1e30", "option 'timestep'", r"is not within \(0, 1\] s"),  # float32 states overflow
 ])
 def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(field, value, element, message,
                                                                                 monkeypatch):

@@ -150,3 +150,29 @@ def test_tendon_frictionloss_and_limits_are_mujocos_rows(tmp_path):
 
     assert run(rows=True) < TENDON_ROWS_TOLERANCE
     assert run(rows=False) > 100 * TENDON_ROWS_TOLERANCE
+
+
+def test_a_springref_without_stiffness_is_no_spring():
+    """MuJoCo applies no spring where the stiffness is zero, whatever the springref (an infinite one included):
+    the arm swings under gravity exactly as MuJoCo's. Mutation: the spring target taken without the stiffness
+    test is 0 * inf, a NaN drive and a NaN state at the first step (a robustness-session find)."""
+    import warnings
+
+    import mujoco
+    import numpy as np
+
+    from loader import MJCFLoader
+
+    xml = ('<mujoco><worldbody><body pos="0 0 1"><joint name="a" axis="0 1 0" springref="-inf" damping=".1"/>'
+           '<geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass="1"/></body></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    for _ in range(100):
+        mujoco.mj_step(model, data)
+        result.step()
+    qpos, _ = result.mapping.get_state(result.articulations)
+    assert abs(data.qpos[0]) > 0.1  # it swung
+    assert abs(qpos[0] - data.qpos[0]) < 1e-5

@@ -81,7 +81,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
         else:
             kind = "prismatic"
             ref_offset = pose((-ref, 0, 0))
-        spring_target = float(model.qpos_spring[model.jnt_qposadr[j]])
+        spring_target = float(model.qpos_spring[model.jnt_qposadr[j]]) if stiffness else 0.0  # MuJoCo: no spring
         return [
             JointPlan(kind, name, limits, pose(anchor, quat_x_to(axis)), ref_offset, damping, armature,
                       stiffness, spring_target, j)

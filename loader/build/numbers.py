@@ -14,6 +14,7 @@ from ..errors import MJCFError
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 REACH = 1e7  # m: positions and sizes beyond this are nonsense for a robot, and float32 resolves only metres there
+MAX_TIMESTEP = 1.0  # s: PhysX integrates float32 states over it; no robot is simulated in steps longer than this
 TURNS = 1e4  # rad: a hinge angle beyond this is held by float32 no finer than a milliradian
 
 # (MuJoCo element kind, compiled field, a length in metres)
@@ -68,8 +69,9 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
             if not abs(value) <= (REACH if slide else TURNS):
                 _raise(path, "joint", mj.name(model, "joint", joint), "qpos0 (ref)", np.array([value]), slide,
                        "" if slide else f"beyond {TURNS:g} rad")
-    if not model.opt.timestep > 0:
-        _raise(path, "option", "timestep", "opt.timestep", np.array([model.opt.timestep]), False, "not positive")
+    if not 0 < model.opt.timestep <= MAX_TIMESTEP:
+        _raise(path, "option", "timestep", "opt.timestep", np.array([model.opt.timestep]), False,
+               f"not within (0, {MAX_TIMESTEP:g}] s")
     for field in ("timestep", "gravity", "wind", "density", "viscosity"):
         if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
             _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)

@@ -60,5 +60,5 @@ def passive_laws(model: mujoco.MjModel, mapping: Mapping) -> dict[DofKey, DofDri
             stiffness = joint_stiffness(model, j)
             laws[(target.articulation, target.dofs[0])] = DofDrive(
                 stiffness, dof_damping(model, int(model.jnt_dofadr[j])),
-                stiffness * float(model.qpos_spring[model.jnt_qposadr[j]]))
+                stiffness * float(model.qpos_spring[model.jnt_qposadr[j]]) if stiffness else 0.0)  # 0 * inf
     return laws
