@@ -43,3 +43,12 @@ def fuzz(session: nox.Session) -> None:
     `nox -s fuzz -- --examples 5000` sets the total; prints examples per second at the end. Shrunk
     counterexamples are written to corpus/regressions/."""
     session.run("python", "-m", "conformance.fragments", *session.posargs)
+
+
+@nox.session
+def robustness(session: nox.Session) -> None:
+    """Mutants of the corpus's real files (bad numbers, dropped attributes, duplicate names, dangling references,
+    missing files, truncation, binary garbage, unsupported elements, long, deep and huge models), each loaded and
+    stepped in its own process and judged with MuJoCo as the oracle; `nox -s robustness -- --mutants 10000 --seed 1`.
+    Exits non-zero on any crash, hang, untyped error, silently wrong load or divergence MuJoCo does not share."""
+    session.run("python", "-m", "conformance", "robustness", *session.posargs)

@@ -51,11 +51,23 @@ def parser() -> argparse.ArgumentParser:
     bench.add_argument("--model", action="append", default=[])
     bench.add_argument("--out", default=str(Path("reports") / "bench.json"))
     bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
+    robust = sub.add_parser("robustness", help="mutants of the corpus's real files, each loaded and stepped in its "
+                            "own process; exit 1 on any bad outcome",
+                            formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    robust.add_argument("--mutants", type=int, default=1000, help="how many mutants")
+    robust.add_argument("--seed", type=int, default=0, help="seed of the mutations and the random ctrl")
+    robust.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus whose files are mutated")
+    robust.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
+    robust.add_argument("--jobs", type=int, default=0, help="processes at once (default: all cores)")
+    robust.add_argument("--out", default=str(Path("reports") / "robustness.json"), help="JSON report")
+    robust.add_argument("--save", default=None, help="folder for shrunk bad mutants (e.g. corpus/regressions/"
+                        "mutants); default: not saved")
+    robust.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
 
 def _entries(args) -> list:
-    if args.paths:
+    if getattr(args, "paths", None):
         return list(manifest_mod.from_paths(args.paths).models)
     if getattr(args, "corpus", None):
         named = Path(args.manifest).parent / f"{args.corpus}.toml"
@@ -95,10 +107,37 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_robustness(args) -> int:
+    import json
+    import os
+
+    from .robustness.session import print_progress, run, sources_of
+    from .versions import versions
+
+    sources = sources_of(_entries(args))
+    if not sources:
+        raise ValueError(f"no source file of {args.manifest} is installed")
+    tally = run(sources, args.mutants, seed=args.seed, jobs=args.jobs or os.cpu_count() or 1,
+                save=Path(args.save) if args.save else None,
+                progress=None if args.quiet else print_progress(args.mutants))
+    doc = {"seed": args.seed, "sources": [s.source for s in sources], "versions": versions(), **tally.to_dict()}
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    counts = ", ".join(f"{k} {v}" for k, v in doc["outcomes"].items())
+    print(f"robustness: {doc['mutants']} mutants of {len(sources)} files in {doc['seconds']} s "
+          f"({doc['mutants_per_second']} per second): {counts}; bad {doc['bad']}")
+    for finding in doc["findings"]:
+        print(f"  bad: {finding['outcome']} {finding['source']} #{finding['index']} {finding['kind']} "
+              f"({finding['description']}): {finding['detail'][:200]}")
+    print(f"report: {out}")
+    return 1 if doc["bad"] else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
-        return {"run": cmd_run, "bench": cmd_bench}[args.command](args)
+        return {"run": cmd_run, "bench": cmd_bench, "robustness": cmd_robustness}[args.command](args)
     except (ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
