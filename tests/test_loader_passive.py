@@ -159,7 +159,6 @@ def test_a_springref_without_stiffness_is_no_spring():
     import warnings
 
     import mujoco
-    import numpy as np
 
     from loader import MJCFLoader
 
