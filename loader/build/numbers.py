@@ -12,7 +12,10 @@ import numpy as np
 from .. import mj
 from ..errors import MJCFError
 
-FLOAT32_MAX = float(np.finfo(np.float32).max)
+# any other number: PhysX multiplies gains, gears, commands and inertias together in float32 (largest 3.4e38), so a
+# factor beyond this overflows one step's product (gear 1e30: a NaN state at step 0; the largest real value in the
+# full corpus is a joint damping of 1e11)
+MAGNITUDE = 1e15
 REACH = 1e7  # m: positions and sizes beyond this are nonsense for a robot, and float32 resolves only metres there
 MAX_TIMESTEP = 1.0  # s: PhysX integrates float32 states over it; no robot is simulated in steps longer than this
 TURNS = 1e4  # rad: a hinge angle beyond this is held by float32 no finer than a milliradian
@@ -23,15 +26,15 @@ FIELDS = (
     ("body", "body_iquat", False), ("body", "body_mass", False), ("body", "body_inertia", False),
     ("body", "body_gravcomp", False),
     ("joint", "jnt_pos", True), ("joint", "jnt_axis", False), ("joint", "jnt_range", False),
-    ("joint", "jnt_stiffness", False),
+    ("joint", "jnt_stiffness", False), ("joint", "jnt_solref", False), ("joint", "jnt_solimp", False),
     ("geom", "geom_pos", True), ("geom", "geom_quat", False), ("geom", "geom_size", True),
-    ("geom", "geom_friction", False),
+    ("geom", "geom_friction", False), ("geom", "geom_solref", False), ("geom", "geom_solimp", False),
     ("site", "site_pos", True), ("site", "site_quat", False),
     ("actuator", "actuator_gear", False), ("actuator", "actuator_gainprm", False),
     ("actuator", "actuator_biasprm", False), ("actuator", "actuator_ctrlrange", False),
     ("actuator", "actuator_forcerange", False), ("actuator", "actuator_dynprm", False),
     ("tendon", "tendon_stiffness", False), ("tendon", "tendon_damping", False), ("tendon", "tendon_range", False),
-    ("equality", "eq_data", False), ("mesh", "mesh_vert", True),
+    ("equality", "eq_data", False), ("equality", "eq_solref", False), ("equality", "eq_solimp", False), ("mesh", "mesh_vert", True),
 )
 DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")  # per DoF, named by the DoF's joint
 
@@ -42,12 +45,21 @@ def _bad(values: np.ndarray, length: bool) -> np.ndarray:
     if values.size == 0:
         return np.zeros(len(values), dtype=bool)
     values = values.reshape(len(values), -1)
-    limit = REACH if length else FLOAT32_MAX
+    limit = REACH if length else MAGNITUDE
     return ~np.isfinite(values).all(axis=1) | (np.abs(values) > limit).any(axis=1)
 
 
 def check_numbers(model: mujoco.MjModel, path) -> None:
-    """Raise `MJCFError` for the first element whose compiled numbers PhysX cannot hold."""
+    """Raise `MJCFError` for the first element whose compiled numbers PhysX cannot hold, or whose name Python
+    cannot read (MuJoCo keeps a name's bytes as they are; the loader names links and notes by them)."""
+    names = bytes(model.names)
+    try:
+        names.decode("utf-8")
+    except UnicodeDecodeError as error:
+        start = names.rfind(b"\0", 0, error.start) + 1
+        shown = names[start:names.find(b"\0", error.start)].decode("utf-8", "replace")
+        raise MJCFError(path, f"the name {shown!r} is not UTF-8 text", hint="rename the element in UTF-8 text",
+                        rejected_by="the loader cannot read the model") from None
     for kind, field, length in FIELDS:
         values = getattr(model, field)
         if not len(values):
@@ -79,7 +91,7 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
 
 def _raise(path, kind: str, name: str, field: str, values, length: bool, what: str = "") -> None:
     what = what or ("non-finite" if not np.isfinite(values).all() else (
-        f"beyond {REACH:g} m" if length else "beyond float32's range"))
+        f"beyond {REACH:g} m" if length else f"beyond {MAGNITUDE:g}"))
     raise MJCFError(path, f"{kind} '{name}': {field} = {np.array2string(np.asarray(values), precision=4)} is {what}",
                     hint=f"give {kind} '{name}' finite values{' within 1e7 m' if length else ''}: PhysX stores them "
                          "in float32", rejected_by="PhysX cannot hold the compiled model")
