@@ -2,7 +2,8 @@
 
 Good outcomes: `typed_error` (the loader raised MJCFError or another of its typed errors), `loaded_right` (loaded;
 structure, kinematics and inertia tiers pass; 50 steps under random ctrl stay finite and within the divergence
-bound MuJoCo's own run sets), `shared_divergence` (MuJoCo's own run blows up too).
+bound MuJoCo's own run sets), `shared_divergence` (MuJoCo's own run blows up too, or
+warns that its joint-space inertia is singular).
 Bad outcomes: `crash` (the process died), `hang` (past the timeout), `untyped_error` (any other exception),
 `silently_wrong` (loaded where MuJoCo rejects the document, or a static tier is
 `WRONG_FACTOR` times past its tolerance), `divergence` (SAPIEN leaves
@@ -88,9 +89,11 @@ def _steps(result, model, seed: int, tolerances) -> Outcome:
         result.step(ctrl)
         q, v = result.mapping.get_state(result.articulations)
         qpos.append(q), qvel.append(v), reference.append(data.qvel.copy())
-    unstable = data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0 or not np.isfinite(data.qvel).all()
-    if unstable:
-        return Outcome("shared_divergence", "step", "MuJoCo's own run blows up (bad qacc)")
+    warned = {w: data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{w.upper()}")].number > 0
+              for w in ("badqacc", "inertia")}  # MuJoCo's own verdict on its run: it blew up, or M is singular
+    if any(warned.values()) or not np.isfinite(data.qvel).all():
+        return Outcome("shared_divergence", "step", "MuJoCo's own run " + ("reports a singular inertia"
+                       if warned["inertia"] else "blows up (bad qacc)"))
     found = first_divergence("random ctrl", np.array(qpos), np.array(qvel), np.array(reference),
                              SpeedBound.from_tolerances(tolerances), model.opt.timestep)
     if found is not None:
