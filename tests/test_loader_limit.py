@@ -207,3 +207,25 @@ def test_a_urdf_style_arm_started_with_four_limits_active_follows_mujoco():
 
     assert run(rows=True) < URDF_ARM_TOLERANCE
     assert run(rows=False) > 100 * URDF_ARM_TOLERANCE
+
+
+LIGHT_LINK_RELATIVE = 1e-5  # of the step's velocity; measured 7.9e-7 through the drive, 4.8e-4 through qf
+# (tests/fixtures/light_damped_link_past_its_end.xml; mujoco 3.17.0, sapien 3.0.3)
+
+
+@pytest.mark.parametrize("route", [True, False], ids=["through_the_drive", "mistake_through_qf"])
+def test_a_limit_force_on_a_light_damped_link_goes_through_the_drive(route):
+    """A 1e-6 kg link whose damping outweighs its inertia over a step (dt D = 2e-5 > M = 3.5e-9), started past its
+    end: the soft limit row's force reaches PhysX through the drive's velocity target, solved with the implicit
+    damping, not as `qf` that the damping then takes back in float32 (loader/runtime/drive_writer.py)."""
+    from support.corpus import FIXTURES
+    from support.lockstep import contact_free
+
+    result, model = contact_free(FIXTURES / "light_damped_link_past_its_end.xml")
+    if not route:
+        result.controller.term("drives").inertia.clear()  # the mistake: every force as qf
+    data = mujoco.MjData(model)
+    error = one_step(result, model, model.key_qpos[0], np.zeros(model.nv), data=data)
+    speed = float(np.abs(data.qvel).max())
+    assert speed > 1e-4, "the limit row must move the link"
+    assert (error.max() <= LIGHT_LINK_RELATIVE * speed) == route, (error.max(), speed)

@@ -21,7 +21,7 @@ from .activation import MAPPED as MAPPED_DYNAMICS
 from .activation import Activation
 from .actuators import plan as plan_actuators
 from .dof_step import DofKey, DofStep, Step, passive_laws
-from .drive_writer import DriveWriter
+from .drive_writer import DriveWriter, dof_inertia
 from .equalities import EqualityTerm
 from .fluid import plan_fluid
 from .gravcomp import map_gravcomp
@@ -160,7 +160,7 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> t
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
     connects = [link.soft for link in equalities if link.soft is not None and link.kind == "D6 joint"]
-    terms = [actuators, StiffnessTerm(), DriveWriter(passive)]
+    terms = [actuators, StiffnessTerm(), DriveWriter(passive, dof_inertia(model, mapping))]
     terms += [TendonTerm(tendons)] if tendons else []
     terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []
