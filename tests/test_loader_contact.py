@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
+import pytest
 from support.corpus import FIXTURES
 from support.oracle import collision_filter_mismatches, component_of
 
 from loader import MJCFLoader
+from loader.build.physx_settings import MAX_DEPENETRATION_VELOCITY
 
 
 def _separation_after(result, steps: int) -> tuple[float, float]:
@@ -124,3 +127,31 @@ def test_contacts_switched_off_before_the_first_step_come_back_without_a_crash()
 def test_a_plain_restore_of_zeroed_collision_groups_crashes_physx():
     """The deliberate mistake: the groups zeroed without `disable_contacts`' warm-up step (SAPIEN 3.0.3)."""
     assert _switch_contacts("no-warm-up") == -11
+
+
+JAMMED_SPEED = {10: 2.0, 255: 15.0}  # x MuJoCo's fastest DoF over 0.2 s. Measured (mujoco 3.17.0, sapien 3.0.3):
+# SAPIEN 0.86 and 10.5 rad/s against MuJoCo's 1.39; with a 1 m/s cap (the mistake) 12.2 and 95
+
+
+@pytest.mark.parametrize("iterations", sorted(JAMMED_SPEED))
+@pytest.mark.parametrize("cap", [MAX_DEPENETRATION_VELOCITY, 1.0], ids=["loader", "mistake_1_m_s"])
+def test_arms_started_inside_each_other_come_apart_as_slowly_as_in_mujoco(iterations, cap):
+    """Menagerie's aloha at qpos0: its two arms overlap by up to 3.5 cm over 91 contacts. MuJoCo's soft contacts
+    ease them apart; PhysX's rigid ones, solved with a depenetration speed cap, fling the jammed links, and the
+    harder the more position iterations it runs (an articulation runs with another's count when the scene holds
+    one that needs more, `build/solver_iterations.py`). The loader's cap keeps the arms near MuJoCo's speeds."""
+    from support.corpus import menagerie_root
+    from support.lockstep import paired_rollout
+
+    root = menagerie_root()
+    if root is None or not (root / "aloha" / "scene.xml").is_file():
+        pytest.skip("the Menagerie slice is not installed (the `menagerie` extra)")
+    result = MJCFLoader().load(root / "aloha" / "scene.xml")
+    for articulation in result.articulations:
+        articulation.solver_position_iterations = iterations
+        for link in articulation.links:
+            link.max_depenetration_velocity = cap
+    model = result.model
+    paired = paired_rollout(result, model, mujoco.MjData(model), 100)
+    within = paired.sapien_speed.max() <= JAMMED_SPEED[iterations] * paired.mujoco_speed.max()
+    assert within == (cap == MAX_DEPENETRATION_VELOCITY), (paired.sapien_speed.max(), paired.mujoco_speed.max())
