@@ -125,13 +125,15 @@ def cmd_robustness(args) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(doc, indent=1) + "\n")
     counts = ", ".join(f"{k} {v}" for k, v in doc["outcomes"].items())
+    if doc["interrupted"]:
+        print(f"robustness: interrupted after {doc['mutants']} of {args.mutants} mutants; the report holds those")
     print(f"robustness: {doc['mutants']} mutants of {len(sources)} files in {doc['seconds']} s "
           f"({doc['mutants_per_second']} per second): {counts}; bad {doc['bad']}")
     for finding in doc["findings"]:
         print(f"  bad: {finding['outcome']} {finding['source']} #{finding['index']} {finding['kind']} "
               f"({finding['description']}): {finding['detail'][:200]}")
     print(f"report: {out}")
-    return 1 if doc["bad"] else 0
+    return 1 if doc["bad"] or doc["interrupted"] else 0
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -149,3 +149,26 @@ def test_a_saved_bad_mutant_now_ends_well(name):
 def test_saved_mutants_are_registered():
     files = {p.name for p in MUTANTS.glob("*.xml")}
     assert files and files == set(SAVED)
+
+
+def test_an_interrupted_run_reports_the_mutants_it_judged():
+    """Ctrl-C during a run: the running children are stopped and the tally of what was judged comes back, marked
+    interrupted (the CLI writes it and exits 1)."""
+    def interrupt(tally):
+        raise KeyboardInterrupt
+
+    tally = run(_sources()[:1], 50, seed=0, jobs=1, progress=interrupt)
+    assert tally.interrupted and tally.total == 1 and tally.to_dict()["interrupted"]
+
+
+def test_progress_names_a_bad_mutant_when_it_is_found(capsys):
+    from conformance.robustness.mutations import Mutant
+    from conformance.robustness.outcome import Outcome
+    from conformance.robustness.session import Tally, print_progress
+
+    show, tally = print_progress(1000), Tally()
+    tally.add(Mutant("numeric_value", "body mass = nan", b""), Outcome("crash", "process", "exit -11"), "src", 7)
+    show(tally)
+    show(tally)
+    err = capsys.readouterr().err
+    assert err.count("bad: crash src #7 numeric_value (body mass = nan): exit -11") == 1, err

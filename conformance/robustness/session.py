@@ -58,6 +58,7 @@ class Tally:
     by_kind: dict[str, Counter] = field(default_factory=dict)
     findings: list[Finding] = field(default_factory=list)
     seconds: float = 0.0
+    interrupted: bool = False  # stopped by Ctrl-C before every mutant was judged
 
     def add(self, mutant: Mutant, outcome: Outcome, source: str, index: int) -> None:
         self.outcomes[outcome.outcome] += 1
@@ -74,7 +75,7 @@ class Tally:
         return sum(self.outcomes[b] for b in BAD)
 
     def to_dict(self) -> dict:
-        return {"mutants": self.total, "seconds": round(self.seconds, 1),
+        return {"mutants": self.total, "interrupted": self.interrupted, "seconds": round(self.seconds, 1),
                 "mutants_per_second": round(self.total / self.seconds, 2) if self.seconds else None,
                 "bad": self.bad, "outcomes": dict(sorted(self.outcomes.items())),
                 "by_kind": {k: dict(sorted(v.items())) for k, v in sorted(self.by_kind.items())},
@@ -131,34 +132,47 @@ def run(sources: list[Source], mutants: int, seed: int = 0, jobs: int = 2, save:
     started = time.perf_counter()
     try:
         while pending or running:
-            while pending and len(running) < jobs:
-                index = pending.pop()
-                source = sources[index % len(sources)]
-                mutant = mutate(data[source.path], seed, index)
-                path = workspace.write(source.path, mutant.data, f"m{index}")
-                running.append((start(str(path), seed + index, timeout_for(mutant)), mutant, source, index))
-            wait([r.receive for r, *_ in running], timeout=min(r.left() for r, *_ in running))
-            still = []
-            for item in running:
-                outcome = item[0].finish()
-                if outcome is None:
-                    still.append(item)
-                    continue
-                _, mutant, source, index = item
-                tally.add(mutant, outcome, source.source, index)
-                if progress:
-                    progress(tally)
-            running = still
+            try:
+                running = _advance(running, pending, jobs, sources, data, seed, workspace, tally, progress)
+            except KeyboardInterrupt:  # Ctrl-C: the mutants judged so far are reported, nothing is lost
+                for item in running:
+                    item[0].close()
+                tally.interrupted = True
+                break
         tally.seconds = time.perf_counter() - started
         if save is not None:
             for finding in tally.findings:
                 source = next(s for s in sources if s.source == finding.source)
                 mutant = mutate(data[source.path], seed, finding.index)
-                shrunk = shrink(source.path, mutant, finding.outcome, seed + finding.index, workspace)
+                shrunk = mutant.data if tally.interrupted else shrink(source.path, mutant, finding.outcome,
+                                                                      seed + finding.index, workspace)
                 finding.saved = record(save, finding, source, shrunk, seed)
     finally:
         workspace.close()
     return tally
+
+
+def _advance(running: list, pending: list[int], jobs: int, sources: list[Source], data: dict, seed: int,
+             workspace: Workspace, tally: Tally, progress) -> list:
+    """Start mutants up to `jobs` at once, wait for one to end, tally what ended; the ones still running."""
+    while pending and len(running) < jobs:
+        index = pending.pop()
+        source = sources[index % len(sources)]
+        mutant = mutate(data[source.path], seed, index)
+        path = workspace.write(source.path, mutant.data, f"m{index}")
+        running.append((start(str(path), seed + index, timeout_for(mutant)), mutant, source, index))
+    wait([r.receive for r, *_ in running], timeout=min(r.left() for r, *_ in running))
+    still = []
+    for item in running:
+        outcome = item[0].finish()
+        if outcome is None:
+            still.append(item)
+            continue
+        _, mutant, source, index = item
+        tally.add(mutant, outcome, source.source, index)
+        if progress:
+            progress(tally)
+    return still
 
 
 def shrink(source: Path, mutant: Mutant, outcome: Outcome, seed: int, workspace: Workspace,
@@ -221,9 +235,17 @@ def replay(folder: Path, name: str, path: Path, seed: int = 0) -> Outcome:
 
 
 def print_progress(total: int):
+    """A progress line every 5 % of `total`, and each bad mutant the moment it is found (source, index, kind,
+    what it did), so a long run shows what it found before it ends."""
     step = max(1, total // 20)
+    shown = 0
 
     def show(tally: Tally) -> None:
+        nonlocal shown
+        for finding in tally.findings[shown:]:
+            print(f"robustness: bad: {finding.outcome.outcome} {finding.source} #{finding.index} {finding.kind} "
+                  f"({finding.description}): {finding.outcome.detail[:200]}", file=sys.stderr, flush=True)
+        shown = len(tally.findings)
         if tally.total % step == 0 or tally.total == total:
             print(f"robustness: {tally.total}/{total} mutants, bad {tally.bad}", file=sys.stderr, flush=True)
     return show
