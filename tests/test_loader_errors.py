@@ -132,6 +132,23 @@ def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element
         assert outcome != "typed error"
 
 
+@pytest.mark.parametrize("iterations", ["0", "-1"])
+def test_a_constraint_solver_without_iterations_is_a_typed_error(iterations, monkeypatch):
+    """`<option iterations>` below 1 compiles in MuJoCo and leaves every constraint slack, which PhysX's limits and
+    contacts cannot follow (a robustness-session find: a hand whose SAPIEN joints reached 2,127 rad/s). Mutation:
+    the check skipped loads it silently."""
+    import mujoco
+
+    import loader.mjcf_loader
+
+    xml = UNHOLDABLE.format(**HOLDABLE).replace('<option timestep="0.002"/>',
+                                                 f'<option timestep="0.002" iterations="{iterations}"/>')
+    with pytest.raises(MJCFError, match="option 'iterations'.*no constraint force"):
+        MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    monkeypatch.setattr(loader.mjcf_loader, "check_numbers", lambda model, path: None)
+    MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+
+
 def test_a_name_that_is_not_utf8_is_a_typed_error(tmp_path):
     """MuJoCo compiles a name of arbitrary bytes; Python cannot read it, so the load says which name, instead of a
     UnicodeDecodeError from deep inside (a robustness-session find). Mutation: the check removed."""

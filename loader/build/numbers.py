@@ -84,6 +84,10 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
     if not 0 < model.opt.timestep <= MAX_TIMESTEP:
         _raise(path, "option", "timestep", "opt.timestep", np.array([model.opt.timestep]), False,
                f"not within (0, {MAX_TIMESTEP:g}] s")
+    if model.opt.iterations < 1:  # MuJoCo's solver then leaves every limit, contact and equality slack
+        raise MJCFError(path, f"option 'iterations' = {model.opt.iterations}: MuJoCo's constraint solver applies no "
+                        "constraint force (limits, contacts and equalities stay slack), which PhysX cannot follow",
+                        hint="give <option iterations> at least 1", rejected_by="the loader cannot follow the model")
     for field in ("timestep", "gravity", "wind", "density", "viscosity"):
         if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
             _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)
