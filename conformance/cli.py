@@ -11,9 +11,10 @@ from .manifest import TIER_NAMES
 
 
 def _default_manifest() -> Path:
-    """The repository's corpus next to this package (editable install), else `corpus/` in the cwd."""
-    beside = Path(__file__).resolve().parents[1] / "corpus" / "manifest.toml"
-    return beside if beside.is_file() else Path("corpus") / "manifest.toml"
+    """The corpus's manifest: the checkout's, or the installed package's copy."""
+    from .corpus import corpus_root
+
+    return corpus_root() / "manifest.toml"
 
 
 DEFAULT_MANIFEST = _default_manifest()

