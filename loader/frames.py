@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import sapien
 
@@ -11,8 +12,17 @@ _S = np.sqrt(0.5)
 X_TO_Z = np.array([_S, 0.0, -_S, 0.0])
 
 
+def unit_quat(q) -> np.ndarray:
+    """`q` normalized as MuJoCo's kinematics normalize a stored quaternion (mju_normalize4): one shorter than
+    mjMINVAL is the identity. MuJoCo keeps a vanishing quaternion as written, and float32 normalizes it to
+    NaN (tests/test_loader_structure.py::test_a_vanishing_quaternion_is_the_identity_as_in_mujoco)."""
+    q = np.asarray(q, dtype=np.float64)
+    norm = float(np.linalg.norm(q))
+    return q / norm if norm >= mujoco.mjMINVAL else np.array([1.0, 0.0, 0.0, 0.0])
+
+
 def pose(p, q=(1.0, 0.0, 0.0, 0.0)) -> sapien.Pose:
-    return sapien.Pose(np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64))
+    return sapien.Pose(np.asarray(p, dtype=np.float64), unit_quat(q))
 
 
 def cross(a, b) -> np.ndarray:

@@ -248,3 +248,30 @@ def test_inertia_blocks_are_mujocos_full_matrix(name):
     broken = rebuilt.copy()
     broken[0, model.nv - 1] = broken[model.nv - 1, 0] = 1.0 + abs(dense[0, model.nv - 1])
     assert not np.array_equal(broken, dense)
+
+
+VANISHING = """<mujoco><worldbody><body name="a" pos="0 0 1" quat="1e-30 1e-30 1e-30 1e-30"><joint axis="0 1 0"/>
+  <geom size=".1" mass="1"/><body name="b" pos=".2 0 0" quat="1e-30 0 1e-30 0"><joint axis="1 0 0"/>
+  <inertial pos=".1 0 0" mass="1" diaginertia="1 2 3" quat="1e-30 1e-30 1e-30 1e-30"/></body></body></worldbody>
+</mujoco>"""
+
+
+def test_a_vanishing_quaternion_is_the_identity_as_in_mujoco():
+    """MuJoCo compiles a quaternion of 1e-30 x 4 as written and its kinematics treat it as the identity (a
+    robustness-session find: float32 normalized it to NaN). Link poses and inertia frames match MuJoCo's forward
+    pass. Mutation: a quaternion handed to SAPIEN unnormalized."""
+    import mujoco
+
+    from loader import MJCFLoader
+
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(VANISHING))
+    model = result.model
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    links = {link.name: link for art in result.articulations for link in art.links}
+    for body in ("a", "b"):
+        b = model.body(body).id
+        pose = links[body].entity_pose
+        assert np.allclose(pose.p, data.xpos[b], atol=1e-6) and np.allclose(pose.q, data.xquat[b], atol=1e-6)
+        inertia = pose * links[body].cmass_local_pose
+        assert np.allclose(inertia.p, data.xipos[b], atol=1e-6)

@@ -9,7 +9,7 @@ import numpy as np
 import sapien
 
 from .. import mj
-from ..frames import mat_to_quat, pose, quat_mul
+from ..frames import mat_to_quat, pose, quat_mul, unit_quat
 
 # SAPIEN cameras look along +X with +Z up; MuJoCo's look along -Z with +Y up.
 # Columns: SAPIEN's x, y, z axes written in MuJoCo camera axes.
@@ -38,7 +38,7 @@ class SiteConfig:
 def cameras(model: mujoco.MjModel) -> list[CameraConfig]:
     result = []
     for c in range(model.ncam):
-        q = quat_mul(model.cam_quat[c], _SAPIEN_FROM_MUJOCO_CAMERA)
+        q = quat_mul(unit_quat(model.cam_quat[c]), _SAPIEN_FROM_MUJOCO_CAMERA)
         width, height = (int(x) for x in model.cam_resolution[c])
         result.append(
             CameraConfig(
