@@ -15,6 +15,7 @@ import pytest
 from support.lockstep import one_step, paired_rollout, replay
 
 from loader import MJCFLoader
+from loader.runtime import rows
 from loader.runtime.rows import RowTerm
 
 TOLERANCE = 1e-5  # rad over 1.2 s, measured 3.1e-7 at most (servo; mujoco 3.17.0, sapien 3.0.3)
@@ -229,3 +230,27 @@ def test_a_limit_force_on_a_light_damped_link_goes_through_the_drive(route):
     speed = float(np.abs(data.qvel).max())
     assert speed > 1e-4, "the limit row must move the link"
     assert (error.max() <= LIGHT_LINK_RELATIVE * speed) == route, (error.max(), speed)
+
+
+@pytest.mark.parametrize("deep_rule", [True, False], ids=["loader", "mistake_rows_balance_deep_contacts"])
+def test_a_robot_started_deep_in_the_floor_stays_calm(deep_rule, monkeypatch):
+    """dm_control's quadruped with its torso at z = 0 (a robustness-session find: the legs start inside the
+    terrain at over 100 contacts). MuJoCo's contacts there push harder in a step than PhysX's depenetration cap
+    lets PhysX push, so limit rows MuJoCo solves with them would balance a force SAPIEN never applies: they are
+    solved without contacts while such a contact lasts (`runtime/rows.py`: deep_contact). SAPIEN's fastest DoF stays
+    under MuJoCo's (measured 1.26 against 103 rad/s); balanced against the deep contacts (the mistake) it goes
+    non-finite (mujoco 3.17.0, sapien 3.0.3)."""
+    from support.corpus import suite_path
+    from support.lockstep import paired_rollout
+
+    spec = mujoco.MjSpec.from_file(str(suite_path("quadruped")))
+    spec.body("torso").pos = [0.0, 0.0, 0.0]
+    result = MJCFLoader().load(spec)
+    if not deep_rule:
+        monkeypatch.setattr(rows, "deep_contact", lambda data, timestep, cap: False)
+    model = result.model
+    rng = np.random.default_rng(0)
+    paired = paired_rollout(result, model, mujoco.MjData(model), 20,
+                            lambda step, data: rng.uniform(-1.0, 1.0, model.nu))
+    calm = paired.sapien_speed.max() <= paired.mujoco_speed.max()
+    assert calm == deep_rule, (paired.sapien_speed.max(), paired.mujoco_speed.max())

@@ -19,6 +19,7 @@ import numpy as np
 
 from .. import mj
 from ..build.mapping import Mapping
+from ..build.physx_settings import MAX_DEPENETRATION_VELOCITY
 from .dof_step import DofKey, Step
 
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
@@ -75,6 +76,7 @@ class RowTerm:
         self.soft = False
         self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
+        self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
 
     def set_limits(self, limits: list[HardLimit]) -> None:
         """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
@@ -90,6 +92,10 @@ class RowTerm:
         self.clear_of(step)
         self.mirror_state(step)
         mujoco.mj_forward(self.mirror, self.data)
+        if self.contacts and deep_contact(self.data, step.timestep, self.depenetration):
+            self.mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+            mujoco.mj_forward(self.mirror, self.data)
+            self.mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         force = self.joint_rows()
         for art, dofs, mujoco_dofs in self.targets:
             step.forces[art][dofs] += force[mujoco_dofs]
@@ -154,6 +160,19 @@ class RowTerm:
         self.hold(joints, soft=False)
 
     removed = release
+
+
+def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
+    """A contact so deep that MuJoCo's soft push would change its speed within one step by more than PhysX's
+    depenetration cap (`cap`, m/s) lets PhysX push: dt K I depth, from MuJoCo's own stiffness K and impedance I of
+    the row. The joint rows MuJoCo solves with it balance a contact force PhysX will not apply, so `RowTerm` solves
+    them without contacts that step (tests/test_loader_limit.py::test_a_robot_started_deep_in_the_floor_stays_calm)."""
+    rows = data.efc_type[:data.nefc] >= int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
+    if not rows.any():
+        return False
+    kbip = data.efc_KBIP[:data.nefc][rows]
+    depth = np.maximum(data.efc_margin[:data.nefc][rows] - data.efc_pos[:data.nefc][rows], 0.0)
+    return bool((timestep * kbip[:, 0] * kbip[:, 2] * depth > cap).any())
 
 
 def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
