@@ -81,10 +81,11 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
     assert np.isfinite(result.articulations[0].qvel).all()
 
 
-UNHOLDABLE = ('<mujoco><option timestep="{timestep}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
+UNHOLDABLE = ('<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
               '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
               '</mujoco>')
-HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravcomp": "0", "timestep": "0.002"}
+HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravcomp": "0", "timestep": "0.002",
+            "tolerance": "1e-8"}
 
 
 @pytest.mark.parametrize("field, value, element, message", [
@@ -97,6 +98,7 @@ HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravco
     ("gravcomp", "1e39", "body 'arm'", r"body_gravcomp .* is beyond 1e\+15"),
     ("timestep", "-1", "option 'timestep'", r"is not within \(0, 1\] s"),  # MuJoCo steps backwards
     ("timestep", "1e30", "option 'timestep'", r"is not within \(0, 1\] s"),  # float32 states overflow
+    ("tolerance", "inf", "option 'tolerance'", "opt.tolerance .* is non-finite"),  # MuJoCo's solver stops at once
 ])
 def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(field, value, element, message,
                                                                                 monkeypatch):
@@ -141,8 +143,7 @@ def test_a_constraint_solver_without_iterations_is_a_typed_error(iterations, mon
 
     import loader.mjcf_loader
 
-    xml = UNHOLDABLE.format(**HOLDABLE).replace('<option timestep="0.002"/>',
-                                                 f'<option timestep="0.002" iterations="{iterations}"/>')
+    xml = UNHOLDABLE.format(**HOLDABLE).replace('<option ', f'<option iterations="{iterations}" ')
     with pytest.raises(MJCFError, match="option 'iterations'.*no constraint force"):
         MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     monkeypatch.setattr(loader.mjcf_loader, "check_numbers", lambda model, path: None)

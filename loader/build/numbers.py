@@ -39,6 +39,10 @@ FIELDS = (
 DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")  # per DoF, named by the DoF's joint
 
 
+OPTION_FIELDS = tuple(name for name in dir(mujoco.MjOption) if not name.startswith("_")
+                      and isinstance(getattr(mujoco.MjOption(), name), (float, np.ndarray)))  # real-valued options
+
+
 def _bad(values: np.ndarray, length: bool) -> np.ndarray:
     """Rows (elements) holding a number PhysX cannot hold."""
     values = np.asarray(values, dtype=np.float64)
@@ -88,7 +92,7 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
         raise MJCFError(path, f"option 'iterations' = {model.opt.iterations}: MuJoCo's constraint solver applies no "
                         "constraint force (limits, contacts and equalities stay slack), which PhysX cannot follow",
                         hint="give <option iterations> at least 1", rejected_by="the loader cannot follow the model")
-    for field in ("timestep", "gravity", "wind", "density", "viscosity"):
+    for field in OPTION_FIELDS:  # every real-valued option: the solver's tolerances too
         if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
             _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)
 
