@@ -1,15 +1,34 @@
-"""Sessions run in the environment the README's set-up commands prepared (no per-session venv):
-the pinned simulators are large, and installing them once is the set-up step."""
+"""Each session makes its own environment under .nox/ (uv where it is installed, else virtualenv), reuses it on
+later runs, and installs the project there with the extras the session needs, again only when pyproject.toml
+changes. `pipx run nox -s conformance` (or `uvx nox ...`) is therefore the whole set-up."""
+
+import hashlib
+from pathlib import Path
 
 import nox
 
-nox.options.default_venv_backend = "none"
+nox.options.default_venv_backend = "uv|virtualenv"
+nox.options.reuse_existing_virtualenvs = True
 nox.options.sessions = ["tests"]
+PYPROJECT = Path(__file__).resolve().parent / "pyproject.toml"
+
+
+def install(session: nox.Session, *extras: str) -> None:
+    """`pip install -e .[extras]` into the session's environment, skipped while a stamp there says the same
+    pyproject.toml and extras are installed."""
+    target = f".[{','.join(extras)}]" if extras else "."
+    stamp = Path(session.virtualenv.location) / ".mjcf-sapien-installed"
+    key = hashlib.sha256(PYPROJECT.read_bytes() + target.encode()).hexdigest()
+    if stamp.is_file() and stamp.read_text() == key:
+        return
+    session.install("-e", target)
+    stamp.write_text(key)
 
 
 @nox.session
 def tests(session: nox.Session) -> None:
     """The project's test suite (what CI runs)."""
+    install(session, "harness", "menagerie", "robots", "test")
     session.run("python", "-m", "pytest", *session.posargs)
 
 
@@ -17,6 +36,7 @@ def tests(session: nox.Session) -> None:
 def lint(session: nox.Session) -> None:
     """Static checks: ruff, and the house rules (no measured number in a loader docstring, no import cycle, no class
     over 120 lines in the loader, no private attribute read across objects)."""
+    install(session, "harness", "test")
     session.run("python", "-m", "ruff", "check", "loader", "conformance", "tests", "noxfile.py")
     session.run("python", "tests/support/house.py")
 
@@ -25,6 +45,7 @@ def lint(session: nox.Session) -> None:
 def conformance(session: nox.Session) -> None:
     """MuJoCo vs SAPIEN conformance over the corpus manifest; arguments pass through to `run`
     (e.g. `nox -s conformance -- --model humanoid --tiers dynamics`; a leading `run` is accepted too)."""
+    install(session, "harness", "menagerie", "robots")
     args = list(session.posargs)
     if args[:1] != ["run"]:
         args = ["run", *args]
@@ -34,6 +55,7 @@ def conformance(session: nox.Session) -> None:
 @nox.session
 def bench(session: nox.Session) -> None:
     """Loader time vs MuJoCo compile time and the harness's steps per second, as JSON (reports/bench.json)."""
+    install(session, "harness", "menagerie")
     session.run("python", "-m", "conformance", "bench", *session.posargs)
 
 
@@ -42,6 +64,7 @@ def fuzz(session: nox.Session) -> None:
     """Generated MJCF fragments against MuJoCo, many examples, hypothesis database kept in .hypothesis/fragments;
     `nox -s fuzz -- --examples 5000` sets the total; prints examples per second at the end. Shrunk
     counterexamples are written to corpus/regressions/."""
+    install(session, "harness", "menagerie", "test")
     session.run("python", "-m", "conformance.fragments", *session.posargs)
 
 
@@ -51,4 +74,5 @@ def robustness(session: nox.Session) -> None:
     missing files, truncation, binary garbage, unsupported elements, long, deep and huge models), each loaded and
     stepped in its own process and judged with MuJoCo as the oracle; `nox -s robustness -- --mutants 10000 --seed 1`.
     Exits non-zero on any crash, hang, untyped error, silently wrong load or divergence MuJoCo does not share."""
+    install(session, "harness", "menagerie")
     session.run("python", "-m", "conformance", "robustness", *session.posargs)

@@ -20,7 +20,7 @@ from conformance.robustness.session import Workspace, registered, replay, run, s
 
 ROOT = Path(__file__).resolve().parent.parent
 MUTANTS = ROOT / "corpus" / "regressions" / "mutants"
-PROFILE_MUTANTS = 150  # the bounded profile that runs with the tests; `nox -s robustness` runs any number
+PROFILE_MUTANTS = 300  # the bounded profile that runs with the tests; `nox -s robustness` runs any number
 
 
 def _write(workspace: Workspace, source: Path, data: bytes, name: str = "t") -> str:
