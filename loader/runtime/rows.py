@@ -167,6 +167,8 @@ def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
     depenetration cap (`cap`, m/s) lets PhysX push: dt K I depth, from MuJoCo's own stiffness K and impedance I of
     the row. The joint rows MuJoCo solves with it balance a contact force PhysX will not apply, so `RowTerm` solves
     them without contacts that step (tests/test_loader_limit.py::test_a_robot_started_deep_in_the_floor_stays_calm)."""
+    if not data.ncon:
+        return False
     rows = data.efc_type[:data.nefc] >= int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
     if not rows.any():
         return False
