@@ -81,11 +81,20 @@ def headline(model_status: str, verdicts: list[Verdict]) -> str:
     return f"{text} in {worst.tier}" + (f" at {where}" if where else "")
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_text(path: Path, text: str) -> None:
-    """Write via a temporary file in the same folder and rename: readers see the old or the new file."""
+    """Write via a temporary file in the same folder and rename: readers see the old or the new file. The file gets
+    the mode `open()` would give it (0644 under the usual umask), not mkstemp's private 0600: a report is for
+    sharing (tests/test_conformance_runner.py::test_summary_files_are_readable_by_everyone)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "w") as f:
             f.write(text)
             f.flush()

@@ -143,3 +143,14 @@ def test_a_missing_path_is_a_usage_error_and_writes_nothing(tmp_path):
     proc = run_cli(str(tmp_path / "nothere.xml"), "--out", str(tmp_path / "out"), "--quiet", "--no-record")
     assert proc.returncode == 2 and "nothere.xml: no such file or folder" in proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_summary_files_are_readable_by_everyone(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--manifest", str(SELFTEST), "--model",
+                           "pendulum", "--out", str(tmp_path), "--quiet", "--no-record", "--tiers", "structure"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, check=False,
+                          preexec_fn=lambda: os.umask(0o022))
+    assert proc.returncode == 0, proc.stderr
+    run = (tmp_path / "latest").resolve()
+    written = [run / "summary.json", run / "summary.md", run / "models" / "pendulum.json"]
+    assert {p.name: oct(p.stat().st_mode & 0o777) for p in written} == {p.name: "0o644" for p in written}
