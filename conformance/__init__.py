@@ -1,5 +1,9 @@
 """MuJoCo vs SAPIEN conformance harness: tiers, corpus, runner, Rerun recordings and summaries."""
 
+from .noise import silence_imports
+
+silence_imports()  # before the imports below bring in SAPIEN
+
 from .manifest import TIER_NAMES, Manifest, ModelEntry
 from .report import Metric, TierReport, Trace
 from .tolerances import Tolerances

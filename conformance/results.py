@@ -27,6 +27,7 @@ class ModelResult:
     recording: str | None = None
     seconds: float | None = None
     traceback: str | None = None
+    warnings: dict[str, int] = field(default_factory=dict)  # third-party warnings by kind (conformance/noise.py)
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:

@@ -155,7 +155,7 @@ def build(run: dict, entries: list[ModelEntry], results: dict[str, ModelResult])
         models.append({
             "id": entry.id, "source": entry.source, "status": result.status, "reason": result.reason,
             "recording": result.recording, "seconds": result.seconds, "settings": result.settings,
-            "load": result.load,
+            "load": result.load, "warnings": result.warnings,
             "verdicts": {v.tier: {"outcome": v.outcome, "raw": v.raw, "expected": v.expected,
                                   "expected_reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
                                   "worse_than_expected": v.worse, "metrics": v.detail.get("metrics", []),

@@ -12,6 +12,7 @@ from pathlib import Path
 from . import tolerances as tolerances_mod
 from .isolation import ISOLATED_TIERS, isolate
 from .manifest import TIER_NAMES, ModelEntry
+from .noise import Tally
 from .report import TierReport
 from .results import ModelResult
 from .summary import atomic_write_json
@@ -126,6 +127,8 @@ def evaluate(job: Job) -> ModelResult:
 def main(job: Job) -> None:
     """Worker process entry point: evaluate and write the result file atomically."""
     logging.basicConfig(level=logging.WARNING)
-    result = evaluate(job)
+    with Tally(job.run_dir) as tally:
+        result = evaluate(job)
+    result.warnings = dict(tally.counts)
     atomic_write_json(result_path(job.run_dir, job.entry.id), result.to_dict())
 

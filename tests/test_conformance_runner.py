@@ -154,3 +154,26 @@ def test_summary_files_are_readable_by_everyone(tmp_path):
     run = (tmp_path / "latest").resolve()
     written = [run / "summary.json", run / "summary.md", run / "models" / "pendulum.json"]
     assert {p.name: oct(p.stat().st_mode & 0o777) for p in written} == {p.name: "0o644" for p in written}
+
+
+DEPRECATED = """<mujoco model="heavy"><compiler settotalmass="2"/>
+  <worldbody><body><joint type="hinge"/><geom size="0.1" fromto="0 0 0 0 0 -0.3" type="capsule"/></body></worldbody>
+</mujoco>"""
+
+
+def test_third_party_warnings_are_counted_not_printed(tmp_path):
+    (tmp_path / "heavy.xml").write_text(DEPRECATED)  # MuJoCo warns at compile: settotalmass is deprecated
+    elsewhere = tmp_path / "cwd"
+    elsewhere.mkdir()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-m", "conformance", "run", str(tmp_path / "heavy.xml"), "--out",
+                           str(tmp_path / "out"), "--no-record", "--tiers", "structure,inertia"], cwd=elsewhere,
+                          env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    terminal = proc.stdout + proc.stderr
+    assert "settotalmass" not in terminal and "libvulkan" not in terminal and "Warning:" not in terminal
+    run = (tmp_path / "out" / "latest").resolve()
+    (model,) = json.loads((run / "summary.json").read_text())["models"]
+    assert any(k.startswith("MuJoCo: compiler attribute 'settotalmass'") for k in model["warnings"])
+    assert "settotalmass" in (run / "MUJOCO_LOG.TXT").read_text()
+    assert not list(elsewhere.iterdir()), "MuJoCo's log goes into the run folder, not the working directory"
