@@ -80,6 +80,7 @@ def _entries(args) -> list:
 
 
 def cmd_run(args) -> int:
+    from . import summary
     from .runner import RunOptions, run
 
     entries = _entries(args)
@@ -92,8 +93,7 @@ def cmd_run(args) -> int:
     except KeyboardInterrupt:
         print("interrupted: partial summary written", file=sys.stderr)
         return 130
-    print((run_dir / "summary.md").read_text())
-    print(f"report: {run_dir}")
+    print(summary.terminal(doc, run_dir))
     if not doc["ok"]:
         print(f"{len(doc['worse_than_expected'])} outcome(s) worse than the manifest expects", file=sys.stderr)
         return 1

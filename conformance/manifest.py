@@ -14,8 +14,11 @@ TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "act
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
 # `changed` (an expected failure whose metric left the band its reason was measured in) and `diverged` (SAPIEN left
 # the finite, physical states: conformance/divergence.py) come from the run alone: no manifest may expect them.
-OUTCOME_RANK = {"pass": 0, "chaotic": 1, "skipped": 2, "fail": 3, "changed": 4, "diverged": 5}
-EXPECTABLE = ("pass", "chaotic", "skipped", "fail")
+# `error` (the model did not load) is one outcome for the whole model, on the pseudo-tier `load`: a manifest expects
+# it with `tier = "load"`, and nothing else on that tier.
+OUTCOME_RANK = {"pass": 0, "chaotic": 1, "skipped": 2, "fail": 3, "error": 4, "changed": 5, "diverged": 6}
+EXPECTABLE = ("pass", "chaotic", "skipped", "fail", "error")
+LOAD = "load"
 # An expected failure stays the failure its reason describes while its metric's max lies within this factor of the
 # value `seen` when the reason was written; outside it the outcome is `changed` until the reason is re-measured.
 BAND_FACTOR = 10.0
@@ -92,9 +95,12 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
     expect = {}
     for exp in raw.get("expect", []):
         tier, outcome, reason = exp.get("tier"), exp.get("outcome"), exp.get("reason")
-        if tier not in TIER_NAMES or outcome not in EXPECTABLE or not reason:
+        if tier not in (*TIER_NAMES, LOAD) or outcome not in EXPECTABLE or not reason:
             raise ValueError(f"{where}: model {raw['id']!r} has a bad expectation {exp} "
                              f"(needs tier in {TIER_NAMES}, outcome in {list(EXPECTABLE)}, reason)")
+        if (tier == LOAD) != (outcome == "error"):
+            raise ValueError(f"{where}: model {raw['id']!r}: a load error is expected as tier = {LOAD!r}, "
+                             f"outcome = 'error' (and only so), not {exp}")
         seen = exp.get("seen")
         if outcome == "fail" and not (exp.get("metric") and isinstance(seen, (int, float)) and seen > 0):
             raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: an expected failure names the `metric` its "

@@ -124,9 +124,8 @@ def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
                 proc.join()
                 results[model_id] = _collect(job, proc.exitcode, timed_out, elapsed)
                 del running[model_id]
-                status = results[model_id].status
-                bar.set_postfix_str(f"{model_id}: " + (summary.headline(status, summary.judge(job.entry, results[model_id]))
-                                                       if status == "ok" else status))
+                result = results[model_id]
+                bar.set_postfix_str(f"{model_id}: {summary.headline(result.status, summary.judge(job.entry, result))}")
                 bar.update(1)
                 write_summary()
             time.sleep(_POLL_S)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .divergence import Divergence
 from .isolation import claim_holds, order_in_timestep
-from .manifest import OUTCOME_RANK, Expectation, ModelEntry
+from .manifest import LOAD, OUTCOME_RANK, Expectation, ModelEntry
 from .results import ModelResult
 
 
@@ -42,7 +42,13 @@ def _left_band(expectation: Expectation, detail: dict) -> str | None:
 
 def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
     """Compare a worker result with what the manifest expects, tier by tier. A divergence is worse than any
-    expectation; an expected failure whose metric left its band is `changed`, also worse."""
+    expectation; an expected failure whose metric left its band is `changed`, also worse. A model that did not load
+    is one `error` verdict on `load`, MuJoCo's (or the loader's) message its note, judged against the model's worst
+    expectation (tests/test_conformance_summary.py::test_a_load_error_is_one_error_outcome)."""
+    if result.status == "error":
+        expected = max((e.outcome for e in entry.expect.values()), key=OUTCOME_RANK.get, default="pass")
+        return [Verdict(entry.id, LOAD, "error", "error", expected, OUTCOME_RANK["error"] > OUTCOME_RANK[expected],
+                        {"notes": [load_message(result.reason)], "metrics": []})]
     verdicts = []
     for tier in entry.tiers:
         report = result.tiers.get(tier)
@@ -68,17 +74,55 @@ def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
     return verdicts
 
 
+def load_message(reason: str) -> str:
+    """A failed load's message on one line: what MuJoCo (or the loader) said, without the worker's prefix."""
+    return " ".join(reason.removeprefix("load failed: ").split())
+
+
 def headline(model_status: str, verdicts: list[Verdict]) -> str:
-    """A model's worst outcome in a few words (for the progress bar): worse-than-expected first, then the worst raw
-    outcome; a divergence names its tier and first bad step."""
-    if not verdicts:
+    """A model's worst outcome in a few words (the progress bar, the terminal summary): worse-than-expected first,
+    then the worst raw outcome; a load error shows its message, a divergence its tier and first bad step, a lost
+    worker how it was lost (tests/test_conformance_summary.py::test_the_headline_is_the_worst_outcome)."""
+    if model_status in ("crashed", "timeout", "pending") or not verdicts:
         return model_status
     worst = max(verdicts, key=lambda v: (v.worse, OUTCOME_RANK[v.raw]))
+    if worst.raw == "error":
+        text = f"error: {_clip(' '.join(worst.detail.get('notes') or []), 100)}"
+        return text if not worst.worse else f"{text} (expected {worst.expected})"
     text = worst.outcome if not worst.worse else f"{worst.outcome} (expected {worst.expected})"
     if worst.outcome == "pass":
         return "pass"
     where = divergence_text(worst.detail.get("divergence"))
     return f"{text} in {worst.tier}" + (f" at {where}" if where else "")
+
+
+def _clip(text: str, width: int) -> str:
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def _verdicts(m: dict) -> list[Verdict]:
+    """A summary document's model back as verdicts."""
+    return [Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v)
+            for t, v in m["verdicts"].items()]
+
+
+def terminal(summary: dict, run_dir: Path) -> str:
+    """The run on the terminal: one short line per model (its headline, marked where worse than the manifest
+    expects), the tally, the third-party warnings counted, and where the full report is (summary.md)."""
+    width = max((len(m["id"]) for m in summary["models"]), default=0)
+    lines = []
+    for m in summary["models"]:
+        verdicts = _verdicts(m)
+        mark = "WORSE" if any(v.worse for v in verdicts) else "ok"
+        lines.append(f"{m['id']:<{width}}  {mark:<5}  {headline(m['status'], verdicts)}")
+    worse = sum(1 for m in summary["models"] if any(v["worse_than_expected"] for v in m["verdicts"].values()))
+    lines.append(f"{len(summary['models'])} models, {worse} worse than the manifest expects")
+    counts = [sum(m.get("warnings", {}).values()) for m in summary["models"]]
+    if sum(counts):
+        lines.append(f"third-party warnings: {sum(counts)} in {sum(1 for c in counts if c)} models, counted by kind "
+                     f"in summary.json (MuJoCo's in {run_dir / 'MUJOCO_LOG.TXT'})")
+    lines.append(f"report: {run_dir / 'summary.md'}")
+    return "\n".join(lines)
 
 
 def _umask() -> int:
@@ -130,6 +174,8 @@ def divergence_text(divergence: dict | None) -> str:
 
 
 def _cell(v: Verdict) -> str:
+    if v.raw == "error":
+        return f"error: {' '.join(v.detail.get('notes') or [])}".replace("|", "\\|")
     if v.detail.get("divergence"):
         return f"{v.outcome}: {divergence_text(v.detail['divergence'])}"
     metrics = v.detail.get("metrics") or []
@@ -261,14 +307,14 @@ def markdown(summary: dict, tiers: list[str]) -> str:
     lines += ["| model | " + " | ".join(tiers) + " |", "|---" * (len(tiers) + 1) + "|"]
     for m in summary["models"]:
         cells = []
-        for t in tiers:
+        for t in tiers if LOAD not in m["verdicts"] else [LOAD]:  # a load error: one cell, the rest empty
             v = m["verdicts"].get(t)
             if v is None:
                 cells.append("" if m["status"] != "pending" else "pending")
                 continue
             text = _cell(Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v))
             cells.append(("**" + text + "**") if v["worse_than_expected"] else text)
-        lines.append(f"| {m['id']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {m['id']} | " + " | ".join(cells + [""] * (len(tiers) - len(cells))) + " |")
     legend = ("Cells: outcome, then the metric closest to (or furthest past) its tolerance: max error, tolerance "
               "and margin = tolerance - max (units and every other metric in summary.json); where float32 cannot "
               "resolve part of an error, max is what is left beyond it and raw the error itself.")

@@ -84,6 +84,8 @@ def _write(tmp_path: Path, text: str) -> Path:
     ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "fail"', "bad expectation"),
     ('id = "a"\nsource = "x.xml"\n[model.override]\nsettings = { dynamics = { horizon_s = 1.0 } }', "reason"),
     ('id = "a"\nsource = "x.xml"\nfault = "explode"', "fault"),
+    ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "error"\nreason = "r"', "load error"),
+    ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "load"\noutcome = "skipped"\nreason = "r"', "load error"),
 ])
 def test_bad_entries_are_rejected_with_the_file_named(tmp_path, body, message):
     path = _write(tmp_path, "[[model]]\n" + body + "\n")

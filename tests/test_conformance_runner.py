@@ -177,3 +177,14 @@ def test_third_party_warnings_are_counted_not_printed(tmp_path):
     assert any(k.startswith("MuJoCo: compiler attribute 'settotalmass'") for k in model["warnings"])
     assert "settotalmass" in (run / "MUJOCO_LOG.TXT").read_text()
     assert not list(elsewhere.iterdir()), "MuJoCo's log goes into the run folder, not the working directory"
+
+
+def test_malformed_xml_is_one_error_outcome_with_mujocos_message(tmp_path):
+    (tmp_path / "broken.xml").write_text("<mujoco><worldbody><body><geom size='0.1'/></body></worldbody>")  # unclosed
+    proc = run_cli(str(tmp_path / "broken.xml"), "--out", str(tmp_path / "out"), "--quiet", "--no-record")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "broken  WORSE  error: ValueError: XML parse error" in proc.stdout
+    summary = json.loads((tmp_path / "out" / "latest" / "summary.json").read_text())
+    (model,) = summary["models"]
+    assert list(model["verdicts"]) == ["load"] and model["verdicts"]["load"]["outcome"] == "error"
+    assert "| broken | **error: ValueError: XML parse error" in (tmp_path / "out" / "latest" / "summary.md").read_text()

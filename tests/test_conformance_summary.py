@@ -137,3 +137,38 @@ def test_a_model_result_round_trips_through_json_and_rejects_an_unknown_status()
     assert ModelResult.from_dict({**doc, "written_by": "a later version"}) == ModelResult.from_dict(doc)
     with pytest.raises(ValueError, match="unknown status 'okay'"):
         ModelResult("m", "okay")
+
+
+PARSE_ERROR = "load failed: ValueError: XML parse error 15:\nError=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1\n"
+
+
+def test_a_load_error_is_one_error_outcome():
+    entry = ModelEntry(id="m", source="x", tiers=("structure", "dynamics"))
+    (v,) = summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))
+    assert (v.tier, v.raw, v.expected, v.worse) == ("load", "error", "pass", True)
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": ModelResult("m", "error",
+                                                                                           reason=PARSE_ERROR)})
+    assert not doc["ok"] and doc["worse_than_expected"] == ["m/load: error (expected pass)"]
+    assert ("| m | **error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1** "
+            "|  |") in summary.markdown(doc, ["structure", "dynamics"])
+
+
+@pytest.mark.parametrize("expected,worse", [("pass", True), ("fail", True), ("error", False)])
+def test_an_error_is_worse_than_any_expectation_but_error(expected, worse):
+    expect = {"load": Expectation("load", "error", "MuJoCo rejects it")} if expected == "error" else (
+        {"dynamics": _gap()} if expected == "fail" else {})
+    entry = ModelEntry(id="m", source="x", tiers=("dynamics",), expect=expect)
+    (v,) = summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))
+    assert v.worse is worse
+
+
+def test_the_headline_is_the_worst_outcome():
+    entry = ModelEntry(id="m", source="x", tiers=("structure", "contact", "dynamics"), expect={"dynamics": _gap()})
+    result = _result("ok", SEEN, structure="pass", contact="fail", dynamics="fail")
+    assert summary.headline("ok", summary.judge(entry, result)) == "fail (expected pass) in contact"
+    result = _result("ok", SEEN, structure="pass", contact="pass", dynamics="fail")
+    assert summary.headline("ok", summary.judge(entry, result)) == "expected-fail in dynamics"
+    assert summary.headline("error", summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))) == (
+        "error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1 "
+        "(expected pass)")
+    assert summary.headline("crashed", summary.judge(entry, ModelResult("m", "crashed"))) == "crashed"
