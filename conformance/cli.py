@@ -67,15 +67,29 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _known(manifest_path: str) -> dict[Path, manifest_mod.ModelEntry]:
+    """The manifest's models by resolved file (the first healthy entry of a file: not a harness self-test fault)."""
+    from .corpus import resolve
+
+    if not Path(manifest_path).is_file():
+        return {}
+    known: dict[Path, manifest_mod.ModelEntry] = {}
+    for entry in manifest_mod.load(manifest_path).models:
+        path = resolve(entry).path
+        if path is not None and entry.fault is None:
+            known.setdefault(path.resolve(), entry)
+    return known
+
+
 def _entries(args) -> list:
-    if getattr(args, "paths", None):
-        return list(manifest_mod.from_paths(args.paths).models)
     if getattr(args, "corpus", None):
         named = Path(args.manifest).parent / f"{args.corpus}.toml"
         if not named.is_file():
             known = sorted(p.stem for p in named.parent.glob("*.toml") if p.stem != "manifest")
             raise ValueError(f"no corpus {args.corpus!r}: no {named}; named corpora: {', '.join(known) or 'none'}")
         args.manifest = str(named)
+    if getattr(args, "paths", None):  # a file that is a manifest model keeps its expectations
+        return list(manifest_mod.from_paths(args.paths, known=_known(args.manifest)).models)
     return manifest_mod.load(args.manifest).select(args.model)
 
 

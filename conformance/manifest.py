@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import tomllib
@@ -162,18 +162,35 @@ def expand_paths(paths: list[str]) -> list[Path]:
     return out
 
 
-def from_paths(paths: list[str], tiers: tuple[str, ...] = TIER_NAMES, timeout_s: float = 300.0) -> Manifest:
-    """An ad-hoc manifest for MJCF files given on the command line (every tier expected to pass). A file's id is its
-    stem; where stems repeat (robot.xml, scene.xml in every robot's folder) the parent folder names it."""
+# File stems that name a role, not a robot (Menagerie's scene.xml beside every robot): the folder names the model
+GENERIC_STEMS = ("robot", "scene", "model", "main", "mjmodel", "index")
+
+
+def from_paths(paths: list[str], tiers: tuple[str, ...] = TIER_NAMES, timeout_s: float = 300.0,
+               known: dict[Path, ModelEntry] | None = None) -> Manifest:
+    """An ad-hoc manifest for MJCF files given on the command line. A file that is a manifest model (`known`: its
+    resolved path -> entry) is that entry, with its id, tiers and expectations; any other file expects every tier to
+    pass and is named by its stem, or by its parent folder where the stem is generic (`GENERIC_STEMS`) or repeats
+    (tests/test_conformance_manifest.py::test_command_line_paths_become_entries_named_by_their_folder_where_stems_repeat)."""
     files = expand_paths(paths)
+    known = known or {}
     stems = [f.stem for f in files]
     models, seen = [], set()
     for f in files:
-        base = f.stem if stems.count(f.stem) == 1 else (f.parent.name or f.stem)
+        entry = known.get(f.resolve())
+        if entry is not None:
+            base = entry.id
+        elif f.stem.lower() in GENERIC_STEMS or stems.count(f.stem) > 1:
+            base = f.resolve().parent.name or f.stem
+        else:
+            base = f.stem
         mid, n = base, 1
         while mid in seen:
             n += 1
             mid = f"{base}_{n}"
         seen.add(mid)
-        models.append(ModelEntry(id=mid, source=str(f.resolve()), tiers=tiers, timeout_s=timeout_s))
+        if entry is not None:
+            models.append(replace(entry, id=mid))
+        else:
+            models.append(ModelEntry(id=mid, source=str(f.resolve()), tiers=tiers, timeout_s=timeout_s))
     return Manifest("<command line>", tuple(models))

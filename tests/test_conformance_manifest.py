@@ -130,9 +130,12 @@ def test_command_line_paths_become_entries_named_by_their_folder_where_stems_rep
         (tmp_path / folder).mkdir()
         (tmp_path / folder / "robot.xml").write_text("<mujoco/>")
     (tmp_path / "sub" / "arm.xml").write_text("<mujoco/>")
+    (tmp_path / "ur5e").mkdir()
+    (tmp_path / "ur5e" / "scene.xml").write_text("<mujoco/>")
     m = manifest.from_paths([str(tmp_path / "panda" / "robot.xml"), str(tmp_path / "go2" / "robot.xml"),
-                             str(tmp_path / "sub")])
-    assert [e.id for e in m.models] == ["panda", "go2", "arm", "sub"]  # a folder stands for its .xml files
+                             str(tmp_path / "sub"), str(tmp_path / "ur5e" / "scene.xml")])
+    # a folder stands for its .xml files; a generic stem (scene) takes its folder's name even where it is alone
+    assert [e.id for e in m.models] == ["panda", "go2", "arm", "sub", "ur5e"]
     assert all(e.expected(t) == "pass" for e in m.models for t in manifest.TIER_NAMES)
     with pytest.raises(ValueError, match="nothere.xml: no such file or folder"):
         manifest.from_paths([str(tmp_path / "nothere.xml")])
@@ -150,3 +153,13 @@ def test_every_tolerance_is_justified_and_overridable():
         tol.with_overrides({"kinematics.nope": 1.0})
     with pytest.raises(KeyError):
         tol["nope.nope"]
+
+
+def test_a_command_line_file_that_is_a_manifest_model_keeps_its_expectations(tmp_path):
+    (tmp_path / "arm.xml").write_text("<mujoco/>")
+    (tmp_path / "other.xml").write_text("<mujoco/>")
+    expect = {"contact": manifest.Expectation("contact", "skipped", "no contact")}
+    entry = ModelEntry(id="my_arm", source="fixture:arm.xml", tiers=("contact",), expect=expect)
+    m = manifest.from_paths([str(tmp_path)], known={(tmp_path / "arm.xml").resolve(): entry})
+    assert [(e.id, e.expected("contact"), e.tiers) for e in m.models] == [
+        ("my_arm", "skipped", ("contact",)), ("other", "pass", manifest.TIER_NAMES)]

@@ -188,3 +188,14 @@ def test_malformed_xml_is_one_error_outcome_with_mujocos_message(tmp_path):
     (model,) = summary["models"]
     assert list(model["verdicts"]) == ["load"] and model["verdicts"]["load"]["outcome"] == "error"
     assert "| broken | **error: ValueError: XML parse error" in (tmp_path / "out" / "latest" / "summary.md").read_text()
+
+
+def test_a_path_that_is_a_manifest_model_takes_the_manifests_expectations(tmp_path):
+    from conformance.corpus import dm_control_suite_dir
+
+    # cartpole disables contact: its contact tier is skipped, which the default manifest expects
+    cartpole = dm_control_suite_dir() / "cartpole.xml"
+    by_path = run_cli(str(cartpole), "--out", str(tmp_path / "a"), "--quiet", "--no-record", "--tiers", "contact")
+    by_id = run_cli("--model", "cartpole", "--out", str(tmp_path / "b"), "--quiet", "--no-record", "--tiers", "contact")
+    assert (by_path.returncode, by_id.returncode) == (0, 0), by_path.stdout + by_id.stdout
+    assert by_path.stdout.splitlines()[0] == by_id.stdout.splitlines()[0] == "cartpole  ok     skipped in contact"
