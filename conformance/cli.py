@@ -8,6 +8,7 @@ from pathlib import Path
 
 from . import manifest as manifest_mod
 from .manifest import TIER_NAMES
+from .versions import project_version
 
 
 def _default_manifest() -> Path:
@@ -28,38 +29,57 @@ def _tiers(text: str) -> tuple[str, ...]:
     return tiers
 
 
+class _Defaults(argparse.HelpFormatter):
+    """Help that shows every option's default, where it has one (not None, False or an empty list)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if action.option_strings and "(default" not in text and not (
+                default is None or default is False or default == [] or default == argparse.SUPPRESS):
+            text += " (default: %(default)s)"
+        return text
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m conformance",
                                 description="MuJoCo vs SAPIEN conformance harness")
+    p.add_argument("--version", action="version", version=project_version())
     sub = p.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="run the tiers over the manifest or over MJCF files")
-    run.add_argument("paths", nargs="*", help="MJCF files to check instead of the manifest")
+    defaults = _Defaults
+    run = sub.add_parser("run", help="run the tiers over the manifest or over MJCF files", formatter_class=defaults,
+                         description="Exit status: 0 when no outcome is worse than the manifest expects, 1 when one "
+                         "is, 2 for a usage error (nothing is written), 130 when interrupted.")
+    run.add_argument("paths", nargs="*", help="MJCF files or folders of them to check instead of the manifest's "
+                     "models (a manifest model's file keeps its expectations)")
     run.add_argument("--corpus", default=None, help="a named corpus beside the default one: corpus/<NAME>.toml "
                      "(full: the default corpus and more real robots, from the robots extra)")
     run.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
     run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
-    run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)}")
+    run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model)")
     run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
-    run.add_argument("--out", default="reports", help="folder that receives reports/<run>/")
-    run.add_argument("--jobs", type=int, default=0, help="worker processes (default: all cores)")
+    run.add_argument("--out", default="reports", help="folder that receives one <run>/ folder per run (summary.md, "
+                     "summary.json, recordings) and the link latest")
+    run.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
     run.add_argument("--timeout-scale", type=float, default=1.0, help="multiply every model's timeout")
     run.add_argument("--tolerances", default=None, help="tolerance file (default: the packaged one)")
     run.add_argument("--no-record", action="store_true", help="skip the .rrd recordings")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    bench = sub.add_parser("bench", help="loader time vs MuJoCo compile time, harness steps per second")
-    bench.add_argument("paths", nargs="*")
-    bench.add_argument("--manifest", default=str(DEFAULT_MANIFEST))
-    bench.add_argument("--model", action="append", default=[])
-    bench.add_argument("--out", default=str(Path("reports") / "bench.json"))
+    bench = sub.add_parser("bench", help="loader time vs MuJoCo compile time, harness steps per second",
+                           formatter_class=defaults)
+    bench.add_argument("paths", nargs="*", help="MJCF files or folders of them instead of the manifest's models")
+    bench.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
+    bench.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
+    bench.add_argument("--out", default=str(Path("reports") / "bench.json"), help="JSON report")
     bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
     robust = sub.add_parser("robustness", help="mutants of the corpus's real files, each loaded and stepped in its "
                             "own process; exit 1 on any bad outcome",
-                            formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                            formatter_class=defaults)
     robust.add_argument("--mutants", type=int, default=1000, help="how many mutants")
     robust.add_argument("--seed", type=int, default=0, help="seed of the mutations and the random ctrl")
     robust.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus whose files are mutated")
     robust.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
-    robust.add_argument("--jobs", type=int, default=0, help="processes at once (default: all cores)")
+    robust.add_argument("--jobs", type=int, default=0, help="processes at once (0: all cores)")
     robust.add_argument("--out", default=str(Path("reports") / "robustness.json"), help="JSON report")
     robust.add_argument("--save", default=None, help="folder for shrunk bad mutants (e.g. corpus/regressions/"
                         "mutants); default: not saved")

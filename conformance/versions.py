@@ -17,3 +17,13 @@ def versions() -> dict[str, str]:
             out[dist] = "not installed"
     out["python"] = platform.python_version()
     return out
+
+
+def project_version() -> str:
+    """`mjcf-sapien <version>` and the simulators' versions, for `--version`."""
+    try:
+        own = importlib.metadata.version("mjcf-sapien")
+    except importlib.metadata.PackageNotFoundError:
+        own = "(not installed)"
+    found = versions()
+    return f"mjcf-sapien {own} (mujoco {found['mujoco']}, sapien {found['sapien']}, python {found['python']})"

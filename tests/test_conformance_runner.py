@@ -128,21 +128,44 @@ def test_mjcf_paths_on_the_command_line(tmp_path):
     assert (tmp_path / "latest" / "pendulum.rrd").exists()
 
 
-def test_unknown_model_is_a_usage_error(tmp_path):
-    proc = run_cli("--manifest", str(SELFTEST), "--model", "nope", "--out", str(tmp_path), "--quiet")
-    assert proc.returncode == 2 and "nope" in proc.stderr
+USAGE_ERRORS = {
+    "a missing path": (["{tmp}/nothere.xml"], "nothere.xml: no such file or folder"),
+    "a folder without .xml files": (["{tmp}/empty"], "empty: a folder without .xml files"),
+    "an unknown model": (["--manifest", str(SELFTEST), "--model", "nope"], "no model ['nope']"),
+    "an unknown named corpus": (["--corpus", "nosuch"], "no corpus 'nosuch'"),
+    "an unknown tier": (["--tiers", "physics"], "unknown tiers ['physics']"),
+    "a missing manifest": (["--manifest", "{tmp}/none.toml"], "none.toml"),
+    "a manifest that is not TOML": (["--manifest", "{tmp}/broken.toml"], "Expected"),
+}
 
 
-def test_an_unknown_named_corpus_is_a_usage_error_naming_the_known_ones(tmp_path):
+@pytest.mark.parametrize("case", USAGE_ERRORS)
+def test_a_usage_error_exits_2_names_the_problem_and_writes_nothing(tmp_path, case):
+    args, message = USAGE_ERRORS[case]
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "broken.toml").write_text("[[model]\nid = ")
+    proc = run_cli(*[a.format(tmp=tmp_path) for a in args], "--out", str(tmp_path / "out"), "--quiet", "--no-record")
+    assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "out").exists(), "a usage error writes nothing"
+
+
+def test_an_unknown_named_corpus_lists_the_known_ones(tmp_path):
     proc = run_cli("--corpus", "nosuch", "--out", str(tmp_path), "--quiet", "--no-record")
-    assert proc.returncode == 2 and "no corpus 'nosuch'" in proc.stderr and "full" in proc.stderr
-    assert not any(tmp_path.iterdir())  # nothing written
+    assert "named corpora: full" in proc.stderr
 
 
-def test_a_missing_path_is_a_usage_error_and_writes_nothing(tmp_path):
-    proc = run_cli(str(tmp_path / "nothere.xml"), "--out", str(tmp_path / "out"), "--quiet", "--no-record")
-    assert proc.returncode == 2 and "nothere.xml: no such file or folder" in proc.stderr
-    assert not (tmp_path / "out").exists()
+def test_version_and_help_show_what_a_newcomer_needs():
+    import mujoco
+
+    version = subprocess.run([sys.executable, "-m", "conformance", "--version"], cwd=ROOT, capture_output=True,
+                             text=True, timeout=60, check=False)
+    assert version.returncode == 0 and version.stdout.startswith("mjcf-sapien ")
+    assert f"mujoco {mujoco.__version__}" in version.stdout
+    helped = run_cli("--help")
+    text = " ".join(helped.stdout.split())
+    assert helped.returncode == 0
+    assert "one <run>/ folder per run" in text and "(default: reports)" in text and "--seed SEED seed of" in text
+    assert "seed of configurations and commands (default: 0)" in text
 
 
 def test_summary_files_are_readable_by_everyone(tmp_path):
