@@ -17,11 +17,13 @@ from .build.texture import MJCFTexture
 from .errors import Unsupported, command_vector
 from .runtime import contacts
 from .runtime.controller import Controller
+from .state import MuJoCoState
 
 
 @dataclass
-class LoadResult:
-    """Everything `MJCFLoader.load` built, with the compiled MuJoCo model it came from."""
+class LoadResult(MuJoCoState):
+    """Everything `MJCFLoader.load` built, with the compiled MuJoCo model it came from; the state in MuJoCo's layout
+    through `get_state`, `set_state`, `keyframe_state` (`loader/state.py`)."""
 
     path: str
     spec: mujoco.MjSpec
@@ -46,24 +48,13 @@ class LoadResult:
         """The first articulation (what ManiSkill's loader returns)."""
         return self.articulations[0] if self.articulations else None
 
-    def state(self, key: int | str | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """MuJoCo (qpos, qvel) of keyframe `key` (index or name), or of qpos0 when `key` is None."""
-        if key is None:
-            return self.model.qpos0.copy(), np.zeros(self.model.nv)
-        keyframe = self.model.keyframe(key)
-        return keyframe.qpos.copy(), keyframe.qvel.copy()
-
-    def ctrl(self, key: int | str | None = None) -> np.ndarray:
-        """MuJoCo ctrl of keyframe `key`, or zeros (MuJoCo's initial ctrl) when `key` is None."""
-        return np.zeros(self.model.nu) if key is None else self.model.keyframe(key).ctrl.copy()
-
     def reset(self, key: int | str | None = None) -> None:
         """Put the SAPIEN scene into the state (and ctrl and activation) of keyframe `key`, or qpos0 with zero
         ctrl and activation; equalities back to their initial active state (as MuJoCo's mj_resetData)."""
         for link in self.equalities:
             if link.soft is not None:
                 link.soft.set_active(bool(self.model.eq_active0[link.soft.equality]))
-        self.mapping.set_state(self.articulations, *self.state(key))
+        self.mapping.set_state(self.articulations, *self.keyframe_state(key))
         self.set_act(None if key is None else self.model.keyframe(key).act)
         self.set_ctrl(self.ctrl(key), advance=False)
 

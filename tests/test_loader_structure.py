@@ -99,11 +99,36 @@ def test_tendon_armature_is_listed_not_dropped_silently():
 
 def test_keyframe_is_usable_as_the_initial_state(load):
     result = load(suite_path("dog"))
-    qpos, _ = result.state(0)
+    qpos, _ = result.keyframe_state(0)
     np.testing.assert_allclose(qpos, result.model.key_qpos[0])
     result.reset(0)
     back, _ = result.mapping.get_state(result.articulations)
     np.testing.assert_allclose(back[7:], qpos[7:], atol=1e-5)
+    result.reset()
+
+
+def test_the_state_api_round_trips(load, rng):
+    from support.oracle import body_poses, link_of, random_qpos
+
+    from loader import ControlError
+
+    result = load(suite_path("dog"))  # a free root, hinges, several joints per body, keyframes
+    model = result.model
+    qpos, qvel = random_qpos(model, rng), rng.uniform(-1.0, 1.0, model.nv)
+    result.set_state(qpos, qvel)
+    got_qpos, got_qvel = result.get_state()
+    np.testing.assert_allclose(got_qpos, qpos, atol=1e-5)  # SAPIEN holds float32
+    np.testing.assert_allclose(got_qvel, qvel, atol=1e-5)
+    xpos, _ = body_poses(model, qpos)  # MuJoCo's kinematics of the same qpos: the links are where MuJoCo puts them
+    assert max(float(np.abs(link_of(result, b).entity_pose.p - xpos[b]).max()) for b in range(1, model.nbody)) < 1e-5
+    with pytest.raises(ControlError, match="qpos has shape"):
+        result.set_state(qpos[:-1])
+    np.testing.assert_allclose(result.get_state()[0], qpos, atol=1e-5)  # a rejected state changes nothing
+    result.set_state(qpos)
+    assert not result.get_state()[1].any(), "qvel None: at rest"
+    np.testing.assert_array_equal(result.keyframe_state(0)[0], model.key_qpos[0])
+    with pytest.warns(DeprecationWarning, match="keyframe_state"):
+        np.testing.assert_array_equal(result.state(0)[0], model.key_qpos[0])
     result.reset()
 
 
