@@ -34,9 +34,7 @@ class Session:
         }
 
     def settings(self) -> dict:
-        import sapien
-
-        scene_config = sapien.physx.get_scene_config()
+        scene_config = self.result.scene.physx_system.config  # the scene's own, fixed when its system was made
         return {
             "mujoco": reference_settings(self.model, self.model),
             "sapien": {

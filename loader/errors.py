@@ -78,6 +78,11 @@ class UnsupportedFeatureWarning(UserWarning):
     """A model feature was dropped or approximated; the load result lists each one."""
 
 
+class SceneMismatchWarning(UserWarning):
+    """A scene given with `MJCFLoader.set_scene` simulates differently from the model (timestep, gravity, solver);
+    the message names each difference and what to set."""
+
+
 @dataclass
 class Notes:
     """What a load could not map exactly: `unsupported` is dropped, `approximations` is mapped inexactly."""

@@ -83,7 +83,8 @@ class MJCFLoader:
         articulations = [builder.build() for builder in parsed.articulation_builders]
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
         mapping = _mapping(model, parsed, articulations)
-        controller, actuators, equalities = runtime_plan(model, mapping, self.scene, articulations, parsed.notes)
+        timestep = physx_settings.scene_timestep(self.scene, model)
+        controller, actuators, equalities = runtime_plan(model, mapping, self.scene, articulations, parsed.notes, timestep)
         if self.solver_iterations == "auto":
             tune_iterations(articulations, model, controller, mapping, parsed.notes)
         result = LoadResult(
@@ -104,8 +105,7 @@ class MJCFLoader:
         compiled = compile_mjcf(mjcf_file, package_dir)
         model = compiled.model
         check_numbers(model, compiled.path)  # before anything is built: a failed load leaves the scene as it was
-        if self.scene is None:
-            self.scene = physx_settings.create_scene(model)
+        self.scene = physx_settings.matched_scene(self.scene, model, compiled.path)  # warns where a given one differs
         tree = plan_tree(model, self.fix_root_link)
         notes = tree.notes
         find_unmapped(model, notes)
@@ -137,7 +137,7 @@ class MJCFLoader:
             builder.set_initial_pose(art.root_pose)
             builder.floating = art.floating
             builder.name = art.name
-            builder.timestep = float(model.opt.timestep)
+            builder.timestep = physx_settings.scene_timestep(self.scene, model)
             builder.solver_iterations = None if self.solver_iterations == "auto" else self.solver_iterations
             link_builders = []
             for link in art.links:

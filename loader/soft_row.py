@@ -23,12 +23,14 @@ class SoftRow:
     solimp: tuple[float, float, float, float, float]  # dmin, dmax, width, midpoint, power
 
     @classmethod
-    def of(cls, model: mujoco.MjModel, solref, solimp) -> SoftRow:
+    def of(cls, model: mujoco.MjModel, solref, solimp, timestep: float | None = None) -> SoftRow:
+        """The row of `solref`, `solimp` for steps of `timestep` (None: the model's), which refsafe clamps against."""
+        timestep = float(model.opt.timestep if timestep is None else timestep)
         timeconst, dampratio = (float(x) for x in solref)
         dmax = min(max(float(solimp[1]), 0.0001), 0.9999)
         if timeconst > 0:
             if not mj.disabled(model, "refsafe"):
-                timeconst = max(timeconst, 2.0 * float(model.opt.timestep))
+                timeconst = max(timeconst, 2.0 * timestep)
             stiffness = 1.0 / max(MJMINVAL, dmax * dmax * timeconst * timeconst * dampratio * dampratio)
             damping = 2.0 / max(MJMINVAL, dmax * timeconst)
         else:  # the direct form: -stiffness, -damping, scaled by dmax

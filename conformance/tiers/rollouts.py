@@ -34,10 +34,9 @@ def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndar
 
 
 def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
-    """Timestep, gravity and solver of the SAPIEN scene against the MuJoCo reference."""
-    import sapien
-
-    config = sapien.physx.get_scene_config()
+    """Timestep, gravity and solver of the SAPIEN scene (its PhysX system's own configuration) against the MuJoCo
+    reference."""
+    config = result.scene.physx_system.config
     gravity = np.zeros(3) if ref.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else ref.opt.gravity
     out = []
     if abs(result.scene.timestep - ref.opt.timestep) > 1e-6 * ref.opt.timestep:  # SAPIEN stores float32

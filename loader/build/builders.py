@@ -113,7 +113,7 @@ class MJCFArticulationBuilder(ArticulationBuilder):
         super().__init__()
         self.floating = False
         self.name = ""
-        self.timestep = 0.002  # the model's, set by the loader: drives compensate MuJoCo's explicit terms
+        self.timestep = 0.002  # the scene's, set by the loader: drives compensate MuJoCo's explicit terms
         self.solver_iterations: tuple[int, int] | None = None  # (position, velocity); None keeps PhysX's
 
     def create_link_builder(self, parent: MJCFLinkBuilder | None = None) -> MJCFLinkBuilder:

@@ -18,6 +18,7 @@ from ..runtime.equalities import SoftConnect, SoftWeld
 from ..soft_row import SoftRow, diag_approx
 from .fixed_tendons import fixed_tendon_terms
 from .mapping import Mapping
+from .physx_settings import scene_timestep
 
 EQ = mujoco.mjtEq
 
@@ -103,6 +104,7 @@ def _coupling(model, e, name, mapping, notes) -> EqualityLink:
 
 def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> EqualityLink:
     """connect: the two anchor points coincide (translation locked); weld: the relative pose is held too."""
+    timestep = scene_timestep(scene, model)
     if int(model.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
         reason = "site-based connect/weld is not mapped"
         notes.drop("equality", name, reason)
@@ -150,10 +152,10 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
              "child_is_body1": child_body == body1} if weld else {}
     soft = (SoftWeld if weld else SoftConnect)(
         drive, child, np.asarray(child_frame.p, dtype=float), parent, np.asarray(parent_frame.p, dtype=float),
-        parent_pose, sapien.Pose(q=parent_frame.q), SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e]),
+        parent_pose, sapien.Pose(q=parent_frame.q), SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e], timestep),
         np.asarray(rows, dtype=float), e, child_body, parent_body, mapping.bodies[child_body].articulation,
         child_rotation=np.asarray(child_frame.q, dtype=float), **extra)
-    soft.lock(float(model.opt.timestep))  # rigid until the first set_ctrl
+    soft.lock(timestep)  # rigid until the first set_ctrl
     if not model.eq_active0[e]:
         soft.set_active(False)
     kind = "weld" if weld else "connect"

@@ -5,12 +5,15 @@ docs/mapping.md#physx-settings.
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 import sapien
 
 from .. import drive, mj
 from ..drive import DofDrive
+from ..errors import SceneMismatchWarning
 
 MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
 MAX_LINK_ANGULAR_VELOCITY = 1e4  # rad/s
@@ -19,28 +22,78 @@ MAX_DEPENETRATION_VELOCITY = 0.1  # m/s; see docs/mapping.md#physx-settings and
 # tests/test_loader_contact.py::test_arms_started_inside_each_other_come_apart_as_slowly_as_in_mujoco
 
 
-def configure(model: mujoco.MjModel) -> None:
-    """Process-global PhysX configuration matched to `model`; call before creating a PhysX system.
-
-    PGS (not TGS): TGS adds a gap of order dt to MuJoCo's semi-implicit Euler.
-    """
+def matched_config(model: mujoco.MjModel) -> sapien.physx.PhysxSceneConfig:
+    """The PhysX scene configuration matched to `model`: MuJoCo's gravity (zero where disabled) and PGS, not TGS
+    (TGS adds a gap of order dt to MuJoCo's semi-implicit Euler)."""
+    config = sapien.physx.get_scene_config()
     gravity = np.zeros(3) if mj.disabled(model, "gravity") else model.opt.gravity
-    sapien.physx.set_scene_config(gravity=np.asarray(gravity, np.float32), enable_tgs=False)
-    sapien.physx.set_body_config(sleep_threshold=0.0)
+    config.gravity = np.asarray(gravity, np.float32)
+    config.enable_tgs = False
+    return config
 
 
 def create_scene(model: mujoco.MjModel) -> sapien.Scene:
     """A CPU PhysX scene with gravity, solver and timestep matched to `model` (and a render system where a
-    render device exists, so that visual shapes can be added)."""
+    render device exists, so that visual shapes can be added).
+
+    SAPIEN 3.0 reads a system's gravity and solver only from the process-global scene configuration, when the system
+    is created: it is set for that moment and restored right after, so scenes the caller creates later are as they
+    would have been (tests/test_loader_scene.py::test_the_loader_leaves_physx_global_configuration_as_it_found_it).
+    Sleeping is switched off per articulation (`apply_articulation_settings`), not globally.
+    """
     from .visual import has_render_device
 
-    configure(model)
-    systems = [sapien.physx.PhysxCpuSystem()]
+    previous = sapien.physx.get_scene_config()
+    sapien.physx.set_scene_config(matched_config(model))
+    try:
+        systems = [sapien.physx.PhysxCpuSystem()]
+    finally:
+        sapien.physx.set_scene_config(previous)
     if has_render_device():
         systems.append(sapien.render.RenderSystem())
     scene = sapien.Scene(systems)
     scene.timestep = float(model.opt.timestep)
     return scene
+
+
+def matched_scene(scene: sapien.Scene | None, model: mujoco.MjModel, path) -> sapien.Scene:
+    """`scene`, with a SceneMismatchWarning for each way it simulates differently from `model`; without one, a scene
+    matched to the model (`create_scene`)."""
+    if scene is None:
+        return create_scene(model)
+    for mismatch in scene_mismatches(scene, model):
+        warnings.warn(f"{path}: the scene given with set_scene differs from the model: {mismatch}",
+                      SceneMismatchWarning, stacklevel=5)
+    return scene
+
+
+def scene_timestep(scene: sapien.Scene, model: mujoco.MjModel) -> float:
+    """The timestep the per-step mapping uses: the scene's. PhysX stores it as float32, so a scene holding the
+    model's timestep rounded to float32 runs the model's own (float64) one."""
+    if np.float32(scene.timestep) == np.float32(model.opt.timestep):
+        return float(model.opt.timestep)
+    return float(scene.timestep)
+
+
+def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
+    """What a caller's scene sets differently from what MuJoCo simulates, each with what to set: the timestep,
+    gravity and the solver (tests/test_loader_scene.py::test_a_scene_with_another_timestep_is_warned_and_used)."""
+    out = []
+    if scene_timestep(scene, model) != float(model.opt.timestep):
+        out.append(f"its timestep is {scene.timestep:g} s, the model's {model.opt.timestep:g} s: the loader maps "
+                   "drives, actuators and constraint rows for the scene's timestep, so the motion is MuJoCo's at "
+                   "that timestep, not the file's (set scene.timestep to keep the file's)")
+    config = getattr(scene.physx_system, "config", None)
+    if config is None:
+        return out
+    wanted = matched_config(model)
+    if not np.allclose(np.asarray(config.gravity), np.asarray(wanted.gravity), rtol=0.0, atol=1e-6):
+        out.append(f"its gravity is {np.asarray(config.gravity).tolist()}, the model's {wanted.gravity.tolist()} "
+                   "(sapien.physx.set_scene_config(gravity=...) before creating the scene's PhysX system)")
+    if config.enable_tgs:
+        out.append("it uses PhysX's TGS solver, which adds a gap of order dt to MuJoCo's semi-implicit Euler "
+                   "(sapien.physx.set_scene_config(enable_tgs=False) before creating the scene's PhysX system)")
+    return out
 
 
 def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, plans, timestep: float) -> None:

@@ -46,7 +46,7 @@ def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
     qpos0 (or `qpos`)."""
     data = mj.forward_at(model, qpos)
     dof_of = mapping.mujoco_dofs()
-    timestep = float(model.opt.timestep)
+    timestep = controller.timestep
     implicit = int(model.opt.integrator) in IMPLICIT
     actuators, tendons = controller.term("actuators", on=True), controller.term("tendons", on=True)
     # under implicit integrators the tendon actuators' kv diagonal and the passive tendon dampers' join the drives

@@ -23,9 +23,11 @@ class Activation:
 
     model: mujoco.MjModel
     act: np.ndarray = field(default=None)
+    timestep: float | None = None  # one PhysX step (the scene's); None: the model's
 
     def __post_init__(self):
         m = self.model
+        self.timestep = float(m.opt.timestep if self.timestep is None else self.timestep)
         if self.act is None:
             self.act = np.zeros(m.na)
         self.actuators = np.array([a for a in range(m.nu) if int(m.actuator_dyntype[a]) in MAPPED], dtype=int)
@@ -48,7 +50,7 @@ class Activation:
         act = self.act[self.adr]
         u = np.asarray(ctrl, dtype=np.float64)[self.actuators]
         rate = np.where(self.integrator, u, (u - act) / self.tau)
-        timestep = float(self.model.opt.timestep)
+        timestep = self.timestep
         step = np.where(self.exact, rate * self.tau * (1.0 - np.exp(-timestep / self.tau)), timestep * rate)
         return np.clip(act + step, self.low, self.high)
 

@@ -38,8 +38,9 @@ class Controller:
     """The loaded model's per-step terms, in stage order (a term absent from a model is simply not there)."""
 
     def __init__(self, model: mujoco.MjModel, mapping, articulations: list, passive: dict[DofKey, DofDrive],
-                 terms: list, activation: Activation | None = None):
+                 terms: list, activation: Activation | None = None, timestep: float | None = None):
         self.model = model
+        self.timestep = float(model.opt.timestep if timestep is None else timestep)  # the scene's: one PhysX step
         self.mapping = mapping
         self.articulations = articulations
         self.joints = [art.active_joints for art in articulations]  # the property builds a new list per call
@@ -85,7 +86,7 @@ class Controller:
         step = Step(articulations, self.joints, [np.asarray(art.get_qpos(), np.float64) for art in articulations],
                     [np.asarray(art.get_qvel(), np.float64) for art in articulations], forces,
                     {key: DofStep(law, law.constant) for key, law in self.passive.items()}, inputs, ctrl, act,
-                    qfrc_applied, "actuators" not in self.off, float(model.opt.timestep), int(model.opt.integrator) not in IMPLICIT, advance)
+                    qfrc_applied, "actuators" not in self.off, self.timestep, int(model.opt.integrator) not in IMPLICIT, advance)
         for term in self.terms:
             term.contribute(step)
 
@@ -106,7 +107,7 @@ class Controller:
     def release(self) -> None:
         """Hand the joints to a caller that drives them itself: passive drives, own armature, PhysX's hard limits at
         MuJoCo's range, no `qf`, equalities locked; the next `set_ctrl` takes them over again."""
-        timestep = float(self.model.opt.timestep)
+        timestep = self.timestep
         for term in [*self.terms, *self.off.values()]:
             if term.name == "drives":
                 term.release(self.joints, self.articulations, timestep)
@@ -145,16 +146,19 @@ class Controller:
         self._readers = None
 
 
-def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> tuple[Controller, list, list]:
+def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
+         timestep: float | None = None) -> tuple[Controller, list, list]:
     """Every per-step term the compiled model needs, planned once at load: (controller, actuator maps, equality
-    links). The equalities' PhysX objects (fixed tendons, D6 joints) are built here too."""
+    links). The equalities' PhysX objects (fixed tendons, D6 joints) are built here too. `timestep`: the scene's
+    (None: the model's), which every per-step law uses."""
+    timestep = float(model.opt.timestep if timestep is None else timestep)
     passive = passive_laws(model, mapping)
     actuators, maps = plan_actuators(model, mapping, passive, notes)
     equalities = map_equalities(model, scene, articulations, mapping, notes)
     rowed = [link for link in equalities if link.kind == "MuJoCo row"]
     rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], [link.index for link in rowed],
-                     notes, [link.soft for link in rowed if link.soft is not None])
-    activation = Activation(model) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
+                     notes, [link.soft for link in rowed if link.soft is not None], timestep)
+    activation = Activation(model, timestep=timestep) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
     tendons = map_tendons(model, mapping, notes)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
@@ -166,4 +170,4 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes) -> t
     terms += [SlideTerm(slides)] if slides else []
     terms += [term for term in (fluid, gravcomp) if term is not None]
     terms += [EqualityTerm(connects)] if connects else []
-    return Controller(model, mapping, articulations, passive, terms, activation), maps, equalities
+    return Controller(model, mapping, articulations, passive, terms, activation, timestep), maps, equalities

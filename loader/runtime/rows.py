@@ -193,7 +193,7 @@ def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
 
 
 def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], couplings: list[int],
-              notes, standby: list | None = None) -> RowTerm | None:
+              notes, standby: list | None = None, timestep: float | None = None) -> RowTerm | None:
     """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
     (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges and slides) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps
     only those rows: contacts are PhysX's (solved with the rows only while SAPIEN has them), other equalities are
@@ -212,6 +212,8 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
     if not limited and not frictional and not couplings and not tendons:
         return None
     mirror = copy.deepcopy(model)
+    if timestep is not None:
+        mirror.opt.timestep = timestep  # MuJoCo solves the rows for one step of the scene
     for j, target in enumerate(mapping.joints):
         if target.kind not in MAPPED_JOINTS:
             mirror.jnt_limited[j] = 0
