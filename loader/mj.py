@@ -20,6 +20,16 @@ def name(model: mujoco.MjModel, kind: str, index: int) -> str:
     return mujoco.mj_id2name(model, _OBJECT[kind], int(index)) or f"{kind}{index}"
 
 
+UNNAMED_MODEL = "MuJoCo Model"  # the name MuJoCo gives a document without <mujoco model="...">
+
+
+def model_name(model: mujoco.MjModel) -> str | None:
+    """`<mujoco model="...">`, or None where the document names none."""
+    names = bytes(model.names)
+    own = names[: names.find(b"\0")].decode("utf-8", "replace")
+    return own if own and own != UNNAMED_MODEL else None
+
+
 def disabled(model: mujoco.MjModel, *flags: str) -> bool:
     """Whether any of `<flag NAME="disable"/>` is set (`"limit"`, `"constraint"`, `"spring"`, ...)."""
     bits = 0

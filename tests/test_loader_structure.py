@@ -132,6 +132,24 @@ def test_the_state_api_round_trips(load, rng):
     result.reset()
 
 
+TREES = """<mujoco{named}><worldbody>
+  <body name="arm"><joint axis="0 1 0"/><geom size="0.1" contype="0"/></body>
+  {second}</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("named,second,names", [
+    (' model="picker"', "", ["picker"]),
+    ("", "", ["arm"]),  # a document without a model name: the root body's
+    (' model="picker"', '<body name="cube"><freejoint/><geom size="0.1" contype="0"/></body>', ["arm", "cube"]),
+])
+def test_articulations_are_named_after_the_model_or_their_root(tmp_path, named, second, names):
+    (tmp_path / "scene.xml").write_text(TREES.format(named=named, second=second))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = MJCFLoader().load(tmp_path / "scene.xml")
+    assert [art.name for art in result.articulations] == names
+
+
 def test_no_render_device_skips_visuals_but_keeps_physics():
     from loader import has_render_device
 

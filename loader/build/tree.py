@@ -39,6 +39,9 @@ class LinkPlan:
 
 @dataclass
 class ArticulationPlan:
+    """One kinematic tree. Its name is the model's (`<mujoco model=...>`) where the document holds one tree, else
+    its root body's (tests/test_loader_structure.py::test_articulations_are_named_after_the_model_or_their_root)."""
+
     name: str
     root_body: int
     floating: bool
@@ -117,4 +120,6 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
             art.links.append(link)
             parent_index = len(art.links) - 1
         body_link[b] = (a, len(art.links) - 1)
+    if len(articulations) == 1 and mj.model_name(model):  # one tree is the model: it takes the model's name
+        articulations[0].name = mj.model_name(model)
     return TreePlan(articulations, body_link, notes)
