@@ -65,6 +65,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--tolerances", default=None, help="tolerance file (default: the packaged one)")
     run.add_argument("--no-record", action="store_true", help="skip the .rrd recordings")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("-v", "--verbose", action="store_true", help="each of the loader's notes under its model "
+                     "(without: counted per kind on the model's line)")
     bench = sub.add_parser("bench", help="loader time vs MuJoCo compile time, harness steps per second",
                            formatter_class=defaults)
     bench.add_argument("paths", nargs="*", help="MJCF files or folders of them instead of the manifest's models")
@@ -127,7 +129,7 @@ def cmd_run(args) -> int:
     except KeyboardInterrupt:
         print("interrupted: partial summary written", file=sys.stderr)
         return 130
-    print(summary.terminal(doc, run_dir))
+    print(summary.terminal(doc, run_dir, verbose=args.verbose))
     if not doc["ok"]:
         print(f"{len(doc['worse_than_expected'])} outcome(s) worse than the manifest expects", file=sys.stderr)
         return 1

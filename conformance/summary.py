@@ -106,15 +106,36 @@ def _verdicts(m: dict) -> list[Verdict]:
             for t, v in m["verdicts"].items()]
 
 
-def terminal(summary: dict, run_dir: Path) -> str:
+def _notes_by_kind(load: dict) -> str:
+    """A model's loader notes as counts per kind: 'approximated joint 1, geom 45; unsupported tendon 10'."""
+    parts = []
+    for key, word in (("approximations", "approximated"), ("unsupported", "unsupported")):
+        kinds: dict[str, int] = {}
+        for note in (load or {}).get(key, []):
+            kinds[note["kind"]] = kinds.get(note["kind"], 0) + 1
+        if kinds:
+            parts.append(f"{word} " + ", ".join(f"{k} {n}" for k, n in kinds.items()))
+    return "; ".join(parts)
+
+
+def terminal(summary: dict, run_dir: Path, verbose: bool = False) -> str:
     """The run on the terminal: one short line per model (its headline, marked where worse than the manifest
-    expects), the tally, the third-party warnings counted, and where the full report is (summary.md)."""
+    expects, and the loader's notes counted per kind; `verbose`: each note on its own line below), the tally, the
+    third-party warnings counted, and where the full report is (summary.md)
+    (tests/test_conformance_runner.py::test_the_terminal_gets_one_line_per_model_and_the_file_the_table)."""
     width = max((len(m["id"]) for m in summary["models"]), default=0)
     lines = []
     for m in summary["models"]:
         verdicts = _verdicts(m)
         mark = "WORSE" if any(v.worse for v in verdicts) else "ok"
-        lines.append(f"{m['id']:<{width}}  {mark:<5}  {headline(m['status'], verdicts)}")
+        notes = _notes_by_kind(m.get("load"))
+        lines.append(f"{m['id']:<{width}}  {mark:<5}  {headline(m['status'], verdicts)}"
+                     + (f"  (loader: {notes})" if notes else ""))
+        if verbose:
+            load = m.get("load") or {}
+            lines += [f"    {word} {n['kind']} '{n['name']}': {n['reason']}"
+                      for key, word in (("approximations", "approximated"), ("unsupported", "unsupported"))
+                      for n in load.get(key, [])]
     worse = sum(1 for m in summary["models"] if any(v["worse_than_expected"] for v in m["verdicts"].values()))
     lines.append(f"{len(summary['models'])} models, {worse} worse than the manifest expects")
     counts = [sum(m.get("warnings", {}).values()) for m in summary["models"]]

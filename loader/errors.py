@@ -95,3 +95,27 @@ class Notes:
 
     def approximate(self, kind: str, name: str, reason: str) -> None:
         self.approximations.append(Unsupported(kind, name, reason))
+
+
+def warn_notes(path, unsupported: list[Unsupported], approximations: list[Unsupported], each: bool = False,
+               stacklevel: int = 3) -> None:
+    """UnsupportedFeatureWarning for a load's notes: one per category and kind, with the count and the first note
+    (the lists on the result hold every one), or one per note with `each`
+    (tests/test_loader_structure.py::test_unsupported_features_are_listed_and_warned_once_per_kind)."""
+    import warnings
+    from pathlib import Path
+
+    name = Path(str(path)).name
+    for category, notes in (("unsupported", unsupported), ("approximated", approximations)):
+        if each:
+            for note in notes:
+                warnings.warn(f"{name}: {category} {note}", UnsupportedFeatureWarning, stacklevel=stacklevel)
+            continue
+        kinds: dict[str, list[Unsupported]] = {}
+        for note in notes:
+            kinds.setdefault(note.kind, []).append(note)
+        listed = "result.unsupported" if category == "unsupported" else "result.approximations"
+        for kind, same in kinds.items():
+            more = f"; {len(same) - 1} more in {listed}" if len(same) > 1 else ""
+            warnings.warn(f"{name}: {category} {kind} x{len(same)}: '{same[0].name}': {same[0].reason}{more}",
+                          UnsupportedFeatureWarning, stacklevel=stacklevel)

@@ -7,7 +7,6 @@ compile (MuJoCo) -> plan the kinematic tree -> plan shapes and their collision f
 from __future__ import annotations
 
 import os
-import warnings
 from dataclasses import dataclass
 
 import mujoco
@@ -29,7 +28,7 @@ from .build.solver_iterations import tune_iterations
 from .build.texture import textures
 from .build.tree import TreePlan, plan_tree
 from .build.visual import add_visual, visuals_available
-from .errors import Notes, UnsupportedFeatureWarning
+from .errors import Notes, warn_notes
 from .result import LoadResult
 from .runtime.controller import plan as runtime_plan
 
@@ -53,6 +52,7 @@ class MJCFLoader:
     `solver_iterations`: "auto" (default) raises an articulation's PhysX position iterations until its joint
     drives converge (`build/solver_iterations.py`); a (position, velocity) pair sets them; None keeps SAPIEN's
     (10, 1).
+    `warn_each_note`: one UnsupportedFeatureWarning per note instead of one per kind with its count.
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -61,6 +61,7 @@ class MJCFLoader:
         self.scene: sapien.Scene | None = None
         self.fix_root_link = True
         self.solver_iterations: tuple[int, int] | str | None = "auto"
+        self.warn_each_note = False
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -94,10 +95,7 @@ class MJCFLoader:
             unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
             actuators=actuators, equalities=equalities, controller=controller,
         )
-        for entry in result.unsupported:
-            warnings.warn(f"{result.path}: unsupported {entry}", UnsupportedFeatureWarning, stacklevel=2)
-        for entry in result.approximations:
-            warnings.warn(f"{result.path}: approximated {entry}", UnsupportedFeatureWarning, stacklevel=2)
+        warn_notes(result.path, result.unsupported, result.approximations, each=self.warn_each_note)
         result.reset()
         return result
 

@@ -195,6 +195,7 @@ def test_third_party_warnings_are_counted_not_printed(tmp_path):
     assert proc.returncode == 0, proc.stderr
     terminal = proc.stdout + proc.stderr
     assert "settotalmass" not in terminal and "libvulkan" not in terminal and "Warning:" not in terminal
+    assert "third-party warnings: " in proc.stdout and " in 1 models, counted by kind in summary.json" in proc.stdout
     run = (tmp_path / "out" / "latest").resolve()
     (model,) = json.loads((run / "summary.json").read_text())["models"]
     assert any(k.startswith("MuJoCo: compiler attribute 'settotalmass'") for k in model["warnings"])
@@ -222,3 +223,23 @@ def test_a_path_that_is_a_manifest_model_takes_the_manifests_expectations(tmp_pa
     by_id = run_cli("--model", "cartpole", "--out", str(tmp_path / "b"), "--quiet", "--no-record", "--tiers", "contact")
     assert (by_path.returncode, by_id.returncode) == (0, 0), by_path.stdout + by_id.stdout
     assert by_path.stdout.splitlines()[0] == by_id.stdout.splitlines()[0] == "cartpole  ok     skipped in contact"
+
+
+THREE_CYLINDERS = """<mujoco model="rack"><worldbody><body><joint axis="0 1 0"/>
+  <geom type="cylinder" size=".05 .1"/><geom type="cylinder" size=".05 .1" pos=".2 0 0"/>
+  <geom type="cylinder" size=".05 .1" pos=".4 0 0"/></body></worldbody></mujoco>"""
+
+
+def test_the_terminal_gets_one_line_per_model_and_the_file_the_table(tmp_path):
+    (tmp_path / "rack.xml").write_text(THREE_CYLINDERS)  # each cylinder is a convex approximation in PhysX
+    args = (str(tmp_path / "rack.xml"), "--quiet", "--no-record", "--tiers", "structure")
+    plain = run_cli(*args, "--out", str(tmp_path / "a"))
+    assert plain.returncode == 0, plain.stderr
+    run = (tmp_path / "a" / "latest").resolve()
+    assert plain.stdout.splitlines() == ["rack  ok     pass  (loader: approximated geom 3)",
+                                         "1 models, 0 worse than the manifest expects",
+                                         f"report: {run / 'summary.md'}"]
+    assert "| rack | pass" in (run / "summary.md").read_text()
+    detailed = run_cli(*args, "--out", str(tmp_path / "b"), "-v").stdout.splitlines()
+    notes = [line for line in detailed if line.startswith("    approximated geom ")]
+    assert len(notes) == 3 and all("cylinder" in line for line in notes)

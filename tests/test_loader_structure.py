@@ -58,13 +58,31 @@ SPATIAL_SPRING = """<mujoco><worldbody><site name="top" pos="0 0 1"/><body><join
   <tendon><spatial name="rope" stiffness="5"><site site="top"/><site site="tip"/></spatial></tendon></mujoco>"""
 
 
-def test_unsupported_features_are_listed_and_warned_once_each():
+CYLINDERS = SPATIAL_SPRING.replace('<geom size=".1" pos=".2 0 0"/>', "".join(
+    f'<geom type="cylinder" size=".05 .1" pos=".{k} 0 0"/>' for k in (2, 3, 4)))  # each a convex approximation
+
+
+def test_unsupported_features_are_listed_and_warned_once_per_kind(tmp_path):
+    (tmp_path / "rope.xml").write_text(CYLINDERS)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = MJCFLoader().load(mujoco.MjSpec.from_string(SPATIAL_SPRING))
+        result = MJCFLoader().load(tmp_path / "rope.xml")
     assert ("tendon", "rope") in {(entry.kind, entry.name) for entry in result.unsupported}  # a spatial spring
     ours = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
-    assert len(ours) == len(result.unsupported) + len(result.approximations)
+    kinds = {("unsupported", e.kind) for e in result.unsupported} | {("approximated", e.kind)
+                                                                      for e in result.approximations}
+    assert len(ours) == len(kinds) < len(result.unsupported) + len(result.approximations)
+    geoms = [str(w.message) for w in ours if str(w.message).startswith("rope.xml: approximated geom x3: ")]
+    assert len(geoms) == 1 and "2 more in result.approximations" in geoms[0]
+    assert all(w.filename == __file__ for w in ours), "the warning points at the caller's line, not the loader's"
+    assert not any(str(tmp_path) in str(w.message) for w in ours), "the file's name, not its whole path"
+    loader = MJCFLoader()
+    loader.warn_each_note = True
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        loader.load(tmp_path / "rope.xml")
+    each = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
+    assert len(each) == len(result.unsupported) + len(result.approximations)
 
 
 def test_nonlinear_damping_and_actuator_passive_terms_are_listed_not_dropped_silently():
