@@ -104,6 +104,9 @@ def _known(manifest_path: str) -> dict[Path, manifest_mod.ModelEntry]:
 
 
 def _entries(args) -> list:
+    if getattr(args, "paths", None) and getattr(args, "model", None):
+        raise ValueError(f"--model {' '.join(args.model)} picks manifest models and the paths pick files: give one "
+                         "or the other (a path that is a manifest model's file keeps its expectations)")
     if getattr(args, "corpus", None):
         named = Path(args.manifest).parent / f"{args.corpus}.toml"
         if not named.is_file():

@@ -136,6 +136,7 @@ USAGE_ERRORS = {
     "an unknown tier": (["--tiers", "physics"], "unknown tiers ['physics']"),
     "a missing manifest": (["--manifest", "{tmp}/none.toml"], "none.toml"),
     "a manifest that is not TOML": (["--manifest", "{tmp}/broken.toml"], "Expected"),
+    "paths and --model together": (["{tmp}/empty", "--model", "cartpole"], "give one or the other"),
 }
 
 
