@@ -223,7 +223,8 @@ def test_a_path_that_is_a_manifest_model_takes_the_manifests_expectations(tmp_pa
     by_path = run_cli(str(cartpole), "--out", str(tmp_path / "a"), "--quiet", "--no-record", "--tiers", "contact")
     by_id = run_cli("--model", "cartpole", "--out", str(tmp_path / "b"), "--quiet", "--no-record", "--tiers", "contact")
     assert (by_path.returncode, by_id.returncode) == (0, 0), by_path.stdout + by_id.stdout
-    assert by_path.stdout.splitlines()[0] == by_id.stdout.splitlines()[0] == "cartpole  ok     skipped in contact"
+    assert by_path.stdout.splitlines()[0] == by_id.stdout.splitlines()[0]
+    assert by_path.stdout.startswith("cartpole  ok     skipped in contact")
 
 
 THREE_CYLINDERS = """<mujoco model="rack"><worldbody><body><joint axis="0 1 0"/>
