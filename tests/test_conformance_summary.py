@@ -170,5 +170,5 @@ def test_the_headline_is_the_worst_outcome():
     assert summary.headline("ok", summary.judge(entry, result)) == "expected-fail in dynamics"
     assert summary.headline("error", summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))) == (
         "error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1 "
-        "(expected pass)")
+        "(expected fail)")  # judged against the model's worst expectation
     assert summary.headline("crashed", summary.judge(entry, ModelResult("m", "crashed"))) == "crashed"
