@@ -15,7 +15,7 @@ X_TO_Z = np.array([_S, 0.0, -_S, 0.0])
 def unit_quat(q) -> np.ndarray:
     """`q` normalized as MuJoCo's kinematics normalize a stored quaternion (mju_normalize4): one shorter than
     mjMINVAL is the identity. MuJoCo keeps a vanishing quaternion as written, and float32 normalizes it to
-    NaN (tests/test_loader_structure.py::test_a_vanishing_quaternion_is_the_identity_as_in_mujoco)."""
+    NaN (tests/test_loader_structure.py::test_a_vanishing_body_quaternion_is_the_identity_as_in_mujoco)."""
     q = np.asarray(q, dtype=np.float64)
     norm = float(np.linalg.norm(q))
     return q / norm if norm >= mujoco.mjMINVAL else np.array([1.0, 0.0, 0.0, 0.0])

@@ -39,6 +39,11 @@ FIELDS = (
 DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")  # per DoF, named by the DoF's joint
 
 
+# frames MuJoCo's kinematics rotate by their compiled quaternion as it is (a body's own quaternion is normalized,
+# `frames.unit_quat`); the compiler normalizes every quaternion but a vanishing one
+FRAME_QUATS = (("inertial", "body_iquat"), ("geom", "geom_quat"), ("site", "site_quat"), ("camera", "cam_quat"))
+UNIT = 1e-6  # |norm - 1| of a compiled quaternion beyond which it was left unnormalized
+
 OPTION_FIELDS = tuple(name for name in dir(mujoco.MjOption) if not name.startswith("_")
                       and isinstance(getattr(mujoco.MjOption(), name), (float, np.ndarray)))  # real-valued options
 
@@ -72,6 +77,19 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
         if rows.size:
             index = int(rows[0]) if kind != "mesh" else int(np.searchsorted(model.mesh_vertadr, rows[0], "right") - 1)
             _raise(path, kind, mj.name(model, kind, index), field, np.asarray(values[rows[0]]), length)
+    for kind, field in FRAME_QUATS:
+        values = getattr(model, field)
+        rows = np.flatnonzero(np.abs(np.linalg.norm(values, axis=1) - 1.0) > UNIT) if len(values) else []
+        if len(rows):
+            index = int(rows[0])
+            inertial = field == "body_iquat"
+            label = (f"body '{mj.name(model, 'body', index)}' <inertial>" if inertial
+                     else f"{kind} '{mj.name(model, kind, index)}'")
+            raise MJCFError(path, f"{label}: {field} = {np.array2string(values[index], precision=4)} is not a unit "
+                            "quaternion: MuJoCo's compiler leaves a quaternion this short as written and its "
+                            "kinematics turn it into a scaled, degenerate rotation",
+                            hint=f"give {label} a quaternion of non-vanishing length (or none)",
+                            rejected_by="the loader cannot follow the model")
     for field in DOF_FIELDS:
         rows = np.flatnonzero(_bad(getattr(model, field), False))
         if rows.size:
