@@ -4,7 +4,7 @@ Good outcomes: `typed_error` (the loader raised MJCFError or another of its type
 structure, kinematics and inertia tiers pass; 50 steps under random ctrl stay finite and within the divergence
 bound MuJoCo's own run sets), `shared_divergence` (MuJoCo's own run blows up too, or
 warns that its joint-space inertia is singular).
-Bad outcomes: `crash` (the process died), `hang` (past the timeout), `untyped_error` (any other exception),
+Bad outcomes: `crash` (the process died), `hang` (past its timeout in its own CPU time, or blocked), `untyped_error` (any other exception),
 `silently_wrong` (loaded where MuJoCo rejects the document, or a static tier is
 `WRONG_FACTOR` times past its tolerance), `divergence` (SAPIEN leaves
 the finite, physical states while MuJoCo does not).
@@ -13,8 +13,11 @@ crash or a hang is an outcome, not the end of the session. Tested by tests/test_
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 import os
+import resource
+import signal
 import time
 import traceback
 import warnings
@@ -147,16 +150,27 @@ def _child(path: str, seed: int, conn) -> None:
     conn.close()
 
 
+WALL_FACTOR = 4.0  # a child that uses no CPU (blocked) is a hang after this many times its timeout in wall time
+
+
+def _limited(target, cpu_seconds: float, path: str, seed: int, conn) -> None:
+    """`target` under a CPU-time limit: the kernel stops the child (SIGXCPU) past `cpu_seconds` of its own CPU."""
+    limit = max(1, math.ceil(cpu_seconds))
+    resource.setrlimit(resource.RLIMIT_CPU, (limit, limit + 5))
+    target(path, seed, conn)
+
+
 class Running:
     """`classify` running in a forked child (`start`): `finish()` gives its outcome once there is one, `join()`
-    waits for it. A child that dies is a `crash`, one past its timeout a `hang`."""
+    waits for it. A child that dies is a `crash`; one past its timeout in its own CPU time (so that children
+    slowed by others on a busy machine are not hangs), or past WALL_FACTOR times it in wall time, a `hang`."""
 
     def __init__(self, path: str, seed: int, timeout: float, target=_child) -> None:
         ctx = multiprocessing.get_context("fork")  # the parent's imports are shared: a child costs milliseconds
         self.receive, send = ctx.Pipe(duplex=False)
-        self.child = ctx.Process(target=target, args=(path, seed, send), daemon=True)
+        self.child = ctx.Process(target=_limited, args=(target, timeout, path, seed, send), daemon=True)
         self.timeout = timeout
-        self.deadline = time.monotonic() + timeout
+        self.deadline = time.monotonic() + WALL_FACTOR * timeout
         self.child.start()
         send.close()
 
@@ -169,9 +183,12 @@ class Running:
                 outcome = Outcome(**self.receive.recv())
             except EOFError:
                 self.child.join(5.0)
-                outcome = Outcome("crash", "process", f"the process died (exit code {self.child.exitcode})")
+                if self.child.exitcode == -signal.SIGXCPU:
+                    outcome = Outcome("hang", "process", f"no outcome after {self.timeout:.0f} s of CPU time")
+                else:
+                    outcome = Outcome("crash", "process", f"the process died (exit code {self.child.exitcode})")
         elif self.left() <= 0.0:
-            outcome = Outcome("hang", "process", f"no outcome after {self.timeout:.0f} s")
+            outcome = Outcome("hang", "process", f"no outcome after {WALL_FACTOR * self.timeout:.0f} s")
         else:
             return None
         self.close()

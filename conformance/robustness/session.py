@@ -24,7 +24,7 @@ import tomllib
 from .mutations import Mutant, mutate
 from .outcome import BAD, Outcome, Running, start
 
-TIMEOUT_S = 60.0  # per mutant; a 10,000-body model loads in about 15 s on one core
+TIMEOUT_S = 60.0  # CPU seconds per mutant (outcome.Running); a 10,000-body model loads in about 15 s
 HUGE_TIMEOUT_S = 240.0
 SHRINK_TRIES = 60
 REGISTRY = "mutants.toml"
