@@ -62,7 +62,7 @@ class Trace:
     """A compared rollout: times, both sides' joint positions (MuJoCo layout), the command, body poses.
 
     Poses are world (x, y, z, qw, qx, qy, qz) per step and MuJoCo body; SAPIEN poses are the links the
-    mapping assigns to those bodies (NaN where a body has no link)."""
+    mapping assigns to those bodies (NaN where a body has no link). The recording plays it in the 3D view."""
 
     name: str
     time: np.ndarray  # (T,)
@@ -73,6 +73,7 @@ class Trace:
     mujoco_body_pose: np.ndarray  # (T, nbody, 7)
     sapien_body_pose: np.ndarray  # (T, nbody, 7)
     sapien_link_pose: np.ndarray  # (T, L, 7) every articulation link, helper links included
+    contact: bool = False  # whether both sides ran with contacts on
 
 
 @dataclass

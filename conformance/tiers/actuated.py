@@ -34,7 +34,14 @@ from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of
 from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped, verdict
 from ..tolerances import Tolerances
-from .rollouts import compare_settled, disable_contacts, is_floating, settings_metric, settings_mismatches
+from .rollouts import (
+    compare_settled,
+    disable_contacts,
+    is_floating,
+    settings_metric,
+    settings_mismatches,
+    settle_trace,
+)
 
 
 def unmapped(result) -> list[int]:
@@ -329,5 +336,6 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
                       settings={**matched, "steps": steps, "start": start, "ctrl_scale": scale,
                                 "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "mujoco_self_spread": float(spread.max(initial=0.0))},
                       series={"final_pose_band": poses.series},
+                      traces=[settle_trace(result, ref, run, sp, "actuated_contact")],
                       actuators=ActuatorTrace([a.name for a in result.actuators], time[:-1],
                                               commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp.force))

@@ -14,7 +14,7 @@ from .. import chaos, reference, sapien_side
 from ..divergence import SpeedBound, first_divergence
 from ..report import TierReport, metric, skipped, verdict
 from ..tolerances import Tolerances
-from .rollouts import compare_settled, sapien_rollout
+from .rollouts import compare_settled, sapien_rollout, settle_trace
 
 
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -51,4 +51,4 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
                      f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable")
     return TierReport("contact", verdict(metrics, bool(chaotic), diverged), metrics, notes, divergence=diverged,
                       settings={**matched, "steps": steps, "start": start, "chaos": gate.to_dict(), "mujoco_self_spread": float(spread.max(initial=0.0))},
-                      series={"final_pose_band": poses.series})
+                      series={"final_pose_band": poses.series}, traces=[settle_trace(result, ref, run, sp, "contact")])

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .. import sapien_side
-from ..report import Metric
+from .. import reference, sapien_side
+from ..report import Metric, Trace
 
 
 def is_floating(model: mujoco.MjModel) -> bool:
@@ -31,6 +31,15 @@ def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndar
                               lambda t, q, v: sapien_side.apply_generalized_force(result, command[t]))
     sapien_side.apply_generalized_force(result, np.zeros(model.nv))
     return run
+
+
+def settle_trace(result, ref: mujoco.MjModel, run, sp: sapien_side.Run, name: str) -> Trace:
+    """A contact rollout as a `Trace` for the recording (no generalized command: any ctrl is in the actuators)."""
+    steps = run.qpos.shape[0]
+    return Trace(name, np.arange(steps) * ref.opt.timestep, run.qpos, sp.qpos,
+                 reference.qpos_difference(ref, run.qpos, sp.qpos), np.zeros((steps, ref.nv)), run.body_pose,
+                 sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, ref.nbody)),
+                 sp.link_pose, contact=True)
 
 
 def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
