@@ -64,6 +64,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--timeout-scale", type=float, default=1.0, help="multiply every model's timeout")
     run.add_argument("--tolerances", default=None, help="tolerance file (default: the packaged one)")
     run.add_argument("--no-record", action="store_true", help="skip the .rrd recordings")
+    run.add_argument("--visual-meshes", action="store_true",
+                     help="recordings also draw MuJoCo's visual-only geoms (default: collision geoms)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("-v", "--verbose", action="store_true", help="each of the loader's notes under its model "
                      "(without: counted per kind on the model's line)")
@@ -126,6 +128,7 @@ def cmd_run(args) -> int:
     options = RunOptions(out=Path(args.out), seed=args.seed, jobs=args.jobs, tiers=args.tiers,
                          tolerance_file=args.tolerances, timeout_scale=args.timeout_scale,
                          progress=not args.quiet, record=not args.no_record,
+                         visual_meshes=args.visual_meshes,
                          extra={"manifest": args.manifest if not args.paths else None})
     try:
         run_dir, doc = run(entries, options)

@@ -33,6 +33,7 @@ class RunOptions:
     timeout_scale: float = 1.0
     progress: bool = True
     record: bool = True
+    visual_meshes: bool = False  # recordings also draw MuJoCo's visual-only geoms
     run_name: str | None = None
     extra: dict = field(default_factory=dict)
 
@@ -91,7 +92,7 @@ def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
             results[entry.id] = ModelResult(entry.id, "skipped", reason=resolved.skip_reason)
             continue
         jobs.append(Job(entry, str(resolved.path), str(run_dir), options.seed, entry.tiers,
-                        options.tolerance_file, options.record))
+                        options.tolerance_file, options.record, options.visual_meshes))
 
     def write_summary(interrupted: bool = False) -> dict:
         doc = summary.build({**meta, "interrupted": interrupted, "tiers": tier_names}, entries, results)

@@ -15,7 +15,7 @@ from .manifest import TIER_NAMES, ModelEntry
 from .noise import Tally
 from .report import TierReport
 from .results import ModelResult
-from .summary import atomic_write_json
+from .summary import atomic_write_json, judge
 from .versions import versions
 
 log = logging.getLogger(__name__)
@@ -32,6 +32,7 @@ class Job:
     tiers: tuple[str, ...]
     tolerance_file: str | None = None
     record: bool = True
+    visual_meshes: bool = False  # the recording also draws MuJoCo's visual-only geoms
 
 
 def result_path(run_dir: str | Path, model_id: str) -> Path:
@@ -65,6 +66,13 @@ def _poison_steps(result) -> None:
                 articulation.set_qvel(np.full(articulation.dof, np.nan))
 
     result.scene.step = poisoned
+
+
+def judgements(entry: ModelEntry, result: ModelResult) -> dict[str, dict]:
+    """Per tier that ran, the summary's judgement and the manifest's expectation, for the recording's verdict."""
+    return {v.tier: {"outcome": v.outcome, "expected": v.expected, "worse": v.worse,
+                     "reason": entry.expect[v.tier].reason if v.tier in entry.expect else ""}
+            for v in judge(entry, result) if v.tier in result.tiers}
 
 
 def evaluate(job: Job) -> ModelResult:
@@ -113,8 +121,9 @@ def evaluate(job: Job) -> ModelResult:
         try:
             isolation = {t: r.get("isolation") for t, r in result.tiers.items() if r.get("isolation")}
             write_recording(rrd, session, reports, {"model": entry.id, "seed": job.seed,
-                                                      "versions": result.versions,
-                                                      "settings": result.settings, "isolation": isolation})
+                                                      "versions": result.versions, "verdicts": judgements(entry, result),
+                                                      "settings": result.settings, "isolation": isolation},
+                            visual=job.visual_meshes)
             result.recording = rrd.name
         except Exception as exc:  # noqa: BLE001 - a failed recording is noted, the verdicts stand
             log.warning("model %s: recording failed: %s", entry.id, exc)

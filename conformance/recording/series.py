@@ -1,0 +1,157 @@
+"""Time series, one `Scalars` batch per plot with a `SeriesLines` name per line
+(`test_rerun_recording.py::test_joint_series_are_grouped_batches_in_both_colours`).
+
+Joints are grouped by limb (`joint_groups`), at most GROUP_SIZE joints a plot, and
+each quantity has its own plots because its unit differs: positions (rad or m, MuJoCo in grey and SAPIEN in orange
+as in the 3D view), SAPIEN - MuJoCo, commands (N m or N), actuator ctrl and actuator forces. A tier's error is
+plotted divided by its metric's tolerance, so 1 is the tolerance whatever the unit."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import rerun as rr
+
+from ..report import ActuatorTrace, TierReport, Trace
+from .geometry import MUJOCO_COLOR, SAPIEN_COLOR
+from .paths import name_of, part
+from .timeline import strided, times
+
+GROUP_SIZE = 8  # joints in one plot: more lines than this are no longer told apart
+TOLERANCE_COLOR = [200, 0, 0, 255]
+_NQ = {0: 7, 1: 4}  # free, ball; hinge and slide have one
+_NV = {0: 6, 1: 3}
+
+
+def _tree(model: mujoco.MjModel) -> tuple[dict[int, list[int]], dict[int, list[int]]]:
+    """Children per body and joints per body."""
+    children: dict[int, list[int]] = {}
+    for b in range(1, model.nbody):
+        children.setdefault(int(model.body_parentid[b]), []).append(b)
+    joints: dict[int, list[int]] = {}
+    for j in range(model.njnt):
+        joints.setdefault(int(model.jnt_bodyid[j]), []).append(j)
+    return children, joints
+
+
+def joint_groups(model: mujoco.MjModel) -> list[tuple[str, list[int]]]:
+    """(group name, joints): a subtree of at most GROUP_SIZE joints is one group (a finger, a leg); a larger one
+    gives its chain down to the first branching as one group (split evenly into plots of at most GROUP_SIZE) and
+    recurses into the branches. Named after the subtree's (or chain's) first body."""
+    children, joints = _tree(model)
+
+    def count(b: int) -> int:
+        return len(joints.get(b, [])) + sum(count(c) for c in children.get(b, []))
+
+    out: list[tuple[str, list[int]]] = []
+
+    def visit(b: int) -> None:
+        name = name_of(model, mujoco.mjtObj.mjOBJ_BODY, b, "body")
+        if count(b) <= GROUP_SIZE:
+            subtree, stack = [], [b]
+            while stack:
+                body = stack.pop()
+                subtree += joints.get(body, [])
+                stack += reversed(children.get(body, []))
+            if subtree:
+                out.append((name, sorted(subtree)))
+            return
+        chain, body = list(joints.get(b, [])), b
+        while len(children.get(body, [])) == 1:
+            body = children[body][0]
+            chain += joints.get(body, [])
+        pieces = [[int(j) for j in p] for p in np.array_split(chain, -(-len(chain) // GROUP_SIZE))] if chain else []
+        out.extend((name if len(pieces) == 1 else f"{name} {k + 1}", piece) for k, piece in enumerate(pieces))
+        for child in children.get(body, []):
+            visit(child)
+
+    for root in children.get(0, []):
+        visit(root)
+    return out
+
+
+def _columns(model: mujoco.MjModel, joints: list[int], adr, count, labels=("x", "y", "z", "rx", "ry", "rz")):
+    """(indices, names) of a group's coordinates: one per hinge/slide, a free joint's first three, none for a
+    ball's quaternion (`count` says how many of a joint's entries to take)."""
+    index, names = [], []
+    for j in joints:
+        name = name_of(model, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
+        n = count(int(model.jnt_type[j]))
+        index += range(int(adr[j]), int(adr[j]) + n)
+        names += [name] if n == 1 else [f"{name} {labels[i]}" for i in range(n)]
+    return index, names
+
+
+def _plot(rec, path: str, index_columns, values: np.ndarray, names: list[str], colors=None) -> None:
+    rec.log(path, rr.SeriesLines(names=names, colors=colors), static=True)
+    rec.send_columns(path, indexes=index_columns,
+                     columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)).partition(
+                         [values.shape[1]] * values.shape[0]))
+
+
+def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> tuple[list[str], list[str]]:
+    """Per joint group: positions of both sides, SAPIEN - MuJoCo per DoF, and the command when there is one.
+    Returns the groups and those with a command."""
+    idx = times(trace.time)
+    groups, commanded = joint_groups(model), []
+    positions = lambda kind: 3 if kind == 0 else 0 if kind == 1 else 1
+    for name, joints in groups:
+        group = part(name)
+        q, names = _columns(model, joints, model.jnt_qposadr, positions)
+        if q:
+            values = np.concatenate([trace.mujoco_qpos[:, q], trace.sapien_qpos[:, q]], axis=1)
+            _plot(rec, f"joints/{group}/position", idx, values, [f"MuJoCo {n}" for n in names] +
+                  [f"SAPIEN {n}" for n in names], [MUJOCO_COLOR] * len(q) + [SAPIEN_COLOR] * len(q))
+        dof, names = _columns(model, joints, model.jnt_dofadr, lambda kind: _NV.get(kind, 1))
+        _plot(rec, f"joints/{group}/difference", idx, trace.qpos_error[:, dof], names)
+        if np.any(trace.command[:, dof]):
+            _plot(rec, f"commands/{group}", idx, trace.command[:, dof], names)
+            commanded.append(name)
+    return [g for g, _ in groups], commanded
+
+
+def log_actuators(rec: rr.RecordingStream, reports: dict[str, TierReport]) -> list[str]:
+    """Per actuated tier: the ctrl (as MuJoCo clamps it) and both sides' actuator force. Returns the tiers."""
+    logged = []
+    for tier, report in reports.items():
+        trace: ActuatorTrace | None = report.actuators
+        if trace is None or not trace.names:
+            continue
+        idx, n = times(trace.time), len(trace.names)
+        names = [name or f"actuator{a}" for a, name in enumerate(trace.names)]
+        _plot(rec, f"actuators/{part(tier)}/ctrl", idx, np.asarray(trace.ctrl, dtype=float), names)
+        force = np.concatenate([trace.mujoco_force, trace.sapien_force], axis=1)
+        _plot(rec, f"actuators/{part(tier)}/force", idx, force, [f"MuJoCo {x}" for x in names] +
+              [f"SAPIEN {x}" for x in names], [MUJOCO_COLOR] * n + [SAPIEN_COLOR] * n)
+        logged.append(tier)
+    return logged
+
+
+def log_tiers(rec: rr.RecordingStream, reports: dict[str, TierReport], dt: float, every: int) -> bool:
+    """Each tier series over its metric's tolerance at `tiers/<tier>/<series>`, and the line at 1. A series with no
+    metric of its name (MuJoCo's own chaos amplification) is kept as measured under `tier_series/`; returns whether
+    there was one."""
+    last, raw = 0, False
+    for tier, report in reports.items():
+        tolerance = {m.name: m for m in report.metrics}
+        for name, values in report.series.items():
+            values = np.asarray(values, dtype=float)
+            if tier == "kinematics":
+                idx = [rr.TimeColumn("configuration", sequence=np.arange(values.size))]
+            else:
+                stride = int(report.settings.get("one_step_every", every)) if name.startswith("one_step") else 1
+                idx = strided(values.size, stride, dt)
+                last = max(last, (values.size - 1) * stride)
+            m = tolerance.get(name)
+            if m is not None and m.tolerance > 0:
+                path, label = f"tiers/{tier}/{part(name)}", f"{tier} {name} / {m.tolerance:g} {m.unit}"
+                values = values / m.tolerance
+            else:
+                path, label, raw = f"tier_series/{tier}/{part(name)}", f"{tier} {name}", True
+            rec.log(path, rr.SeriesLines(names=[label]), static=True)
+            rec.send_columns(path, indexes=idx, columns=rr.Scalars.columns(scalars=values))
+    if last:
+        rec.log("tiers/tolerance", rr.SeriesLines(names=["tolerance"], colors=[TOLERANCE_COLOR]), static=True)
+        rec.send_columns("tiers/tolerance", indexes=strided(2, last, dt),
+                         columns=rr.Scalars.columns(scalars=[1.0, 1.0]))
+    return raw
