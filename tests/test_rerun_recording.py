@@ -277,6 +277,12 @@ def test_tier_errors_are_plotted_over_their_tolerance(recorded):
                 np.testing.assert_allclose([v[0] for v in rows], report.series[m.name] / m.tolerance)
                 plotted += 1
     assert plotted >= 4  # dynamics' one-step and rollout errors at least
+    kinematics = reports["kinematics"]
+    tolerance = next(m.tolerance for m in kinematics.metrics if m.name == "position")
+    rows = rrd["/tiers/kinematics/position_error_per_configuration"]
+    np.testing.assert_allclose([v[0] for v in rows["Scalars:scalars"]],
+                               kinematics.series["position_error_per_configuration"] / tolerance)
+    assert "sim_time" not in rows, "configurations are no time"
     assert [v[0] for v in rrd["/tiers/tolerance"]["Scalars:scalars"]] == [1.0, 1.0]
 
 

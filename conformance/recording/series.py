@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import rerun as rr
 
-from ..report import ActuatorTrace, TierReport, Trace
+from ..report import ActuatorTrace, Metric, TierReport, Trace
 from .geometry import MUJOCO_COLOR, SAPIEN_COLOR
 from .paths import name_of, part
 from .timeline import strided, times
@@ -127,10 +127,17 @@ def log_actuators(rec: rr.RecordingStream, reports: dict[str, TierReport]) -> li
     return logged
 
 
+def _metric_of(series: str, metrics: dict[str, Metric]) -> Metric | None:
+    """The metric a series measures: the one of its name, or whose name it extends (`position` for
+    `position_error_per_configuration`)."""
+    named = [m for name, m in metrics.items() if series == name or series.startswith(name + "_")]
+    return max(named, key=lambda m: len(m.name), default=None)
+
+
 def log_tiers(rec: rr.RecordingStream, reports: dict[str, TierReport], dt: float, every: int) -> bool:
     """Each tier series over its metric's tolerance at `tiers/<tier>/<series>`, and the line at 1. A series with no
-    metric of its name (MuJoCo's own chaos amplification) is kept as measured under `tier_series/`; returns whether
-    there was one."""
+    metric (MuJoCo's own chaos amplification) is kept as measured under `tier_series/`; returns whether there was
+    one."""
     last, raw = 0, False
     for tier, report in reports.items():
         tolerance = {m.name: m for m in report.metrics}
@@ -142,7 +149,7 @@ def log_tiers(rec: rr.RecordingStream, reports: dict[str, TierReport], dt: float
                 stride = int(report.settings.get("one_step_every", every)) if name.startswith("one_step") else 1
                 idx = strided(values.size, stride, dt)
                 last = max(last, (values.size - 1) * stride)
-            m = tolerance.get(name)
+            m = _metric_of(name, tolerance)
             if m is not None and m.tolerance > 0:
                 path, label = f"tiers/{tier}/{part(name)}", f"{tier} {name} / {m.tolerance:g} {m.unit}"
                 values = values / m.tolerance
