@@ -4,7 +4,7 @@ A MuJoCo mesh is logged once and drawn at every geom that uses it through per-st
 poses), so a mesh shared by many geoms costs its vertices once
 (`test_rerun_recording.py::test_each_distinct_mesh_is_logged_once_with_normals`). A colliding mesh geom is drawn as
 the convex hull MuJoCo collides it with, a visual one as authored. A mesh without normals is drawn unlit, hence the
-area-weighted vertex normals."""
+normals, creased (`test_rerun_recording.py::test_a_box_mesh_keeps_its_edges_a_curved_one_is_smooth`)."""
 
 from __future__ import annotations
 
@@ -14,18 +14,34 @@ import rerun as rr
 from .poses import xyzw
 
 FEATURE_ANGLE = np.deg2rad(20.0)  # hull edges between faces bent less than this are not drawn
+CREASE_ANGLE = np.deg2rad(30.0)  # faces bent more than this from each other are shaded apart (a box's edges)
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit normals per vertex: the sum of the adjacent faces' normals, each weighted by its area."""
+def creased(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices, faces, unit normals) shaded with creases: a triangle corner's normal is the area-weighted sum of
+    the normals of the faces around its vertex that bend less than CREASE_ANGLE from its own face, so a curved
+    surface is smooth and a box keeps its edges; corners of one vertex with one normal share a vertex."""
     v = np.asarray(vertices, dtype=float)
     f = np.asarray(faces, dtype=np.int64)
-    face_normals = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # length = twice the area
-    normals = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(normals, f[:, k], face_normals)
+    weighted = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # length = twice the area
+    unit = weighted / np.maximum(np.linalg.norm(weighted, axis=1, keepdims=True), 1e-30)
+    corner_v, corner_f = f.ravel(), np.repeat(np.arange(f.shape[0]), 3)
+    order = np.argsort(corner_v, kind="stable")
+    ordered = corner_v[order]
+    starts = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]])
+    counts = np.diff(np.r_[starts, ordered.size])
+    normals = np.zeros((corner_v.size, 3))
+    for k in np.unique(counts):  # every pair of corners at one vertex, vertices of equal degree at once
+        first = starts[counts == k][:, None, None]
+        ci = order[np.broadcast_to(first + np.arange(k)[None, :, None], (first.shape[0], k, k))].ravel()
+        cj = order[np.broadcast_to(first + np.arange(k)[None, None, :], (first.shape[0], k, k))].ravel()
+        near = np.einsum("ij,ij->i", unit[corner_f[ci]], unit[corner_f[cj]]) > np.cos(CREASE_ANGLE)
+        np.add.at(normals, ci[near], weighted[corner_f[cj[near]]])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
-    return np.where(length > 0, normals / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+    normals = np.where(length > 0, normals / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+    key = np.column_stack([corner_v, np.round(normals * 1e4).astype(np.int64)])
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return v[corner_v[first]], inverse.reshape(-1, 3), normals[first]
 
 
 def hull(model, m: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -52,9 +68,9 @@ def surface(model, m: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def mesh(vertices: np.ndarray, faces: np.ndarray, color) -> rr.Mesh3D:
-    return rr.Mesh3D(vertex_positions=np.asarray(vertices, dtype=np.float32),
-                     triangle_indices=np.asarray(faces, dtype=np.uint32),
-                     vertex_normals=vertex_normals(vertices, faces).astype(np.float32), albedo_factor=color)
+    v, f, n = creased(vertices, faces)
+    return rr.Mesh3D(vertex_positions=v.astype(np.float32), triangle_indices=f.astype(np.uint32),
+                     vertex_normals=n.astype(np.float32), albedo_factor=color)
 
 
 def feature_edges(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
