@@ -32,8 +32,10 @@ def drawn(model: mujoco.MjModel, g: int, visual: bool) -> bool:
 
 
 def bounding_box(model: mujoco.MjModel, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """The box every non-plane geom's bounding sphere stays in along the motion (bodies if there is none)."""
-    geoms = [g for g in range(model.ngeom) if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE]
+    """The box the robot's geoms' bounding spheres stay in along the motion: the geoms on bodies (the world's
+    terrain and walls are scenery), else every non-plane geom, else the bodies."""
+    solid = [g for g in range(model.ngeom) if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE]
+    geoms = [g for g in solid if model.geom_bodyid[g] != 0] or solid
     if geoms:
         centers = np.stack([geom_world(model, motion, g)[:, :3] for g in geoms], axis=1)  # (T, G, 3)
         radius = model.geom_rbound[geoms][None, :, None]

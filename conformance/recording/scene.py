@@ -21,6 +21,7 @@ from .timeline import times
 
 DEVIATION_COLOR = [220, 30, 30, 255]
 DEVIATION_SHARE = 0.05  # the magnified largest deviation reaches at least this fraction of the box's diagonal
+MAX_MAGNIFICATION = 1000  # a 1 mm deviation draws 1 m long; float32 noise (~1e-7 m) stays out of sight
 EYE_DIRECTION = np.array([1.0, -1.6, 0.7])  # from the box's center: front-right and above, Z up
 
 
@@ -44,13 +45,14 @@ def log_frames(rec: rr.RecordingStream, model: mujoco.MjModel, result, motion: M
 
 
 def magnification(motion: Motion, box) -> int:
-    """The power of ten that makes the largest body deviation at least DEVIATION_SHARE of the box's diagonal."""
+    """The power of ten that makes the largest body deviation at least DEVIATION_SHARE of the box's diagonal, at
+    most MAX_MAGNIFICATION."""
     error = np.linalg.norm(motion.sapien_body_pose[..., :3] - motion.mujoco_body_pose[..., :3], axis=-1)
     largest = float(np.nanmax(error, initial=0.0))
     diagonal = float(np.linalg.norm(box[1] - box[0]))
     if not math.isfinite(largest) or largest <= 0 or largest >= DEVIATION_SHARE * diagonal:
         return 1
-    return 10 ** math.ceil(math.log10(DEVIATION_SHARE * diagonal / largest))
+    return min(10 ** math.ceil(math.log10(DEVIATION_SHARE * diagonal / largest)), MAX_MAGNIFICATION)
 
 
 def log_deviation(rec: rr.RecordingStream, motion: Motion, scale: int) -> None:
