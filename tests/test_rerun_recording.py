@@ -3,6 +3,8 @@ itself where the recording claims a physical fact (where a mesh sits, whether th
 
 from __future__ import annotations
 
+import math
+import re
 import warnings
 from pathlib import Path
 
@@ -225,6 +227,27 @@ def test_joint_series_are_grouped_batches_in_both_colours(meshed):
     dof = int(model.jnt_dofadr[model.joint("elbow").id])
     difference = shared.replace("/position", "/difference")
     np.testing.assert_allclose(line(rrd, difference, "elbow"), trace.qpos_error[:, dof])
+
+
+def test_deviation_arrows_are_the_deviation_times_the_factor_named(meshed):
+    """Per step, an arrow from each MuJoCo body (where MuJoCo puts it) whose length divided by the power of ten the
+    3D view names is SAPIEN's body's offset from it."""
+    session, reports, rrd, _ = meshed
+    model = session.model
+    trace = recording.recorded_trace(reports)
+    shown = next(r for r in rrd["/verdict"]["TextDocument:text"][-1][0].splitlines() if r.startswith("3D view:"))
+    factor = int(re.search(r" x(\d+)$", shown).group(1))
+    assert math.log10(factor).is_integer()
+    origins, vectors = rrd["/deviation"]["Arrows3D:origins"], rrd["/deviation"]["Arrows3D:vectors"]
+    assert len(origins) == len(vectors) == trace.time.size
+    moving = list(range(1, model.nbody))  # every body of the fixture has a link
+    data = mujoco.MjData(model)
+    for step in (0, trace.time.size // 2, trace.time.size - 1):
+        data.qpos[:] = trace.mujoco_qpos[step]
+        mujoco.mj_kinematics(model, data)
+        np.testing.assert_allclose(origins[step], data.xpos[moving], atol=1e-6)  # float32, within 1 m
+        offset = trace.sapien_body_pose[step, moving, :3] - trace.mujoco_body_pose[step, moving, :3]
+        np.testing.assert_allclose(np.array(vectors[step]) / factor, offset, rtol=1e-5, atol=1e-9)
 
 
 def test_sapien_is_drawn_as_outlines_over_mujocos_surfaces(meshed, recorded):
