@@ -170,6 +170,7 @@ def test_each_distinct_mesh_is_logged_once_with_normals(meshed):
                                    atol=1e-5)  # float32 poses of a robot within 1 m
     visual_only = [e for e, c in visual.items() if "Mesh3D:vertex_positions" in c and e not in rrd]
     assert len(visual_only) == 1 and len(visual[visual_only[0]]["InstancePoses3D:translations"][0]) == 1
+    assert visual[visual_only[0]]["Mesh3D:albedo_factor"][-1] == [packed((51, 153, 102, 255))]  # the fixture's rgba
 
 
 def _mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -79,7 +79,9 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
     box = geometry.bounding_box(model, motion)
     scale = scene.magnification(motion, box)
     shown = (f"the {trace.name} rollout of {_tier_of(reports, trace)}" if trace is not None else "the start state")
-    shown += f", contacts {'on' if motion.contact else 'off'}; red arrows: SAPIEN's bodies off MuJoCo's x{scale}"
+    shown += f", contacts {'on' if motion.contact else 'off'}"
+    if trace is not None:
+        shown += f"; red arrows: SAPIEN's bodies off MuJoCo's x{scale}"
     layout = Layout(f"MuJoCo (grey), SAPIEN (orange lines): {shown}", eye=scene.eye(box))
     tmp = path.with_name(f".{path.name}.partial")  # the runner removes it if the worker dies
     rec.save(tmp)

@@ -2,9 +2,9 @@
 over them, so surfaces that coincide (the conforming case) never z-fight and a gap between them shows as lines
 off the surface (`test_rerun_recording.py::test_sapien_is_drawn_as_outlines_over_mujocos_surfaces`).
 
-MuJoCo draws its collision geoms (contype or conaffinity set); visual-only geoms are drawn on request. Planes are
-drawn only when the motion shown has contacts on, and at a size fitted to the robot's bounding box, not MuJoCo's
-infinite or rendering size (`test_rerun_recording.py::test_the_failing_contact_rollout_plays_with_the_floor`)."""
+MuJoCo draws its collision geoms (contype or conaffinity set); visual-only meshes are drawn on request, in their
+authored colours. Planes are drawn only when the motion shown has contacts on, and at a size fitted to the robot's
+bounding box, not MuJoCo's infinite or rendering size (`test_rerun_recording.py::test_the_failing_contact_rollout_plays_with_the_floor`)."""
 
 from __future__ import annotations
 
@@ -85,6 +85,13 @@ def _mujoco_primitive(model: mujoco.MjModel, g: int):
     return None  # meshes are instanced, planes fitted; height fields and SDFs are not drawn
 
 
+def authored_color(model: mujoco.MjModel, g: int) -> list[int]:
+    """A geom's colour as MuJoCo renders it (its material's, else its own), opaque: a visual mesh looks as
+    authored, apart from the grey collision geometry."""
+    rgba = model.mat_rgba[model.geom_matid[g]] if model.geom_matid[g] >= 0 else model.geom_rgba[g]
+    return [*(int(255 * c + 0.5) for c in np.clip(rgba[:3], 0, 1)), 255]
+
+
 def geom_path(model: mujoco.MjModel, g: int) -> str:
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
     return f"{body_path(model, int(model.geom_bodyid[g]))}/geom/{part(name)}"
@@ -123,7 +130,8 @@ def log_mujoco(rec: rr.RecordingStream, model: mujoco.MjModel, motion: Motion, b
     for (m, colliding), geoms in users.items():
         path = mesh_path(model, m, colliding)
         vertices, faces = meshes.hull(model, m) if colliding else meshes.surface(model, m)
-        rec.log(path, meshes.mesh(vertices, faces, MUJOCO_COLOR), static=True)
+        color = MUJOCO_COLOR if colliding else authored_color(model, geoms[0])
+        rec.log(path, meshes.mesh(vertices, faces, color), static=True)
         poses = np.stack([geom_world(model, motion, g) for g in geoms], axis=1)  # (T, k, 7)
         if motion.time is None:
             rec.log(path, rr.InstancePoses3D(translations=poses[0, :, :3], quaternions=xyzw(poses[0, :, 3:])),
