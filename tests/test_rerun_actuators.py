@@ -31,12 +31,19 @@ def _scalars(rrd, entity: str) -> np.ndarray:
     return np.array([v[0] for v in rrd[entity]["Scalars:scalars"]])
 
 
+def _plot_of(rrd, tier: str, quantity: str, name: str) -> str:
+    """The one plot of `quantity` (ctrl, force) in `tier` that has a line called `name`."""
+    (entity,) = [e for e, cols in rrd.items() if e.startswith(f"/actuators/{tier}/") and e.endswith(f"/{quantity}")
+                 and name in cols["SeriesLines:names"][-1]]
+    return entity
+
+
 def _ctrl(rrd, tier: str, name: str) -> np.ndarray:
-    return line(rrd, f"/actuators/{tier}/ctrl", name)
+    return line(rrd, _plot_of(rrd, tier, "ctrl", name), name)
 
 
 def _force(rrd, tier: str, side: str, name: str) -> np.ndarray:
-    return line(rrd, f"/actuators/{tier}/force", f"{side} {name}")
+    return line(rrd, _plot_of(rrd, tier, "force", f"{side} {name}"), f"{side} {name}")
 
 
 @pytest.mark.parametrize("tier", ["actuated", "actuated_contact"])
@@ -48,7 +55,8 @@ def test_ctrl_and_forces_per_actuator_are_recorded(recorded, tier):
         np.testing.assert_array_equal(_ctrl(rrd, tier, name), trace.ctrl[:, a])
         np.testing.assert_array_equal(_force(rrd, tier, "MuJoCo", name), trace.mujoco_force[:, a])
         np.testing.assert_array_equal(_force(rrd, tier, "SAPIEN", name), trace.sapien_force[:, a])
-        np.testing.assert_array_equal(rrd[f"/actuators/{tier}/ctrl"]["step"], np.arange(trace.time.size))
+        seconds = [t.total_seconds() for t in rrd[_plot_of(rrd, tier, "ctrl", name)]["sim_time"]]
+        np.testing.assert_allclose(seconds, trace.time, atol=1e-9)
         assert np.ptp(trace.ctrl[:, a]) > 0, "every actuator's ctrl moves (the hold, then a step)"
 
 
@@ -74,11 +82,20 @@ def test_recorded_force_is_what_mujoco_computes_for_the_recorded_ctrl(recorded):
 
 
 def test_actuated_error_series_are_recorded(recorded):
-    _, reports, rrd = recorded
+    session, reports, rrd = recorded
     report = reports["actuated"]
     tolerance = {m.name: m.tolerance for m in report.metrics}
     for name in ("rollout_qpos", "one_step_qvel"):
         np.testing.assert_allclose(_scalars(rrd, f"/tiers/actuated/{name}"), report.series[name] / tolerance[name])
-    steps = rrd["/tiers/actuated/one_step_qvel"]["step"]
-    every = report.settings["one_step_every"]
-    np.testing.assert_array_equal(steps, np.arange(len(steps)) * every)
+    seconds = np.array([t.total_seconds() for t in rrd["/tiers/actuated/one_step_qvel"]["sim_time"]])
+    every, dt = report.settings["one_step_every"], session.model.opt.timestep
+    np.testing.assert_allclose(seconds / dt, np.arange(len(seconds)) * every, atol=1e-6)
+
+
+def test_actuators_are_plotted_with_their_joints_limb(recorded):
+    """The servo (shoulder) and the motor (elbow) drive one arm: one plot; the tendon motor is plotted apart."""
+    *_, rrd = recorded
+    for tier in ("actuated", "actuated_contact"):
+        assert _plot_of(rrd, tier, "ctrl", "servo") == _plot_of(rrd, tier, "ctrl", "torque")
+        assert _plot_of(rrd, tier, "ctrl", "coupled") != _plot_of(rrd, tier, "ctrl", "servo")
+        assert _plot_of(rrd, tier, "force", "MuJoCo servo") == _plot_of(rrd, tier, "force", "SAPIEN torque")

@@ -10,7 +10,7 @@ Layout (entity paths):
   deviation                               per step, MuJoCo body -> SAPIEN body, magnified (geometry in scene.py)
   joints/<group>/{position,difference}    the shown rollout's joint series, one batch per joint group
   commands/<group>                        its generalized command, when it has one
-  actuators/<tier>/{ctrl,force}           the actuated tiers' ctrl (as MuJoCo clamps it) and both sides' actuator
+  actuators/<tier>/<group>/{ctrl,force}   the actuated tiers' ctrl (as MuJoCo clamps it) and both sides' actuator
                                           force per step (report.ActuatorTrace says how the SAPIEN force is derived)
   tiers/<tier>/<series>, tiers/tolerance  each tier's error series over its tolerance, and the line at 1
   tier_series/<tier>/<series>             series without a tolerance, as measured
@@ -93,7 +93,7 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
     scene.log_deviation(rec, motion, scale)
     if trace is not None:
         layout.groups, layout.commanded = series.log_joints(rec, model, trace)
-    layout.actuated = series.log_actuators(rec, reports)
+    layout.actuated = series.log_actuators(rec, model, reports)
     every = int(reports["dynamics"].settings.get("one_step_every", 1)) if "dynamics" in reports else 1
     layout.raw_series = series.log_tiers(rec, reports, float(model.opt.timestep), every)
     rec.log("verdict", rr.TextDocument(verdict_markdown(reports, {**meta, "shown": shown}),

@@ -20,7 +20,7 @@ class Layout:
     eye: rrb.EyeControls3D | None = None
     groups: list[str] = field(default_factory=list)  # joint group names (unescaped)
     commanded: list[str] = field(default_factory=list)
-    actuated: list[str] = field(default_factory=list)
+    actuated: dict[str, list[str]] = field(default_factory=dict)  # tier -> actuator groups
     raw_series: bool = False
 
 
@@ -38,10 +38,10 @@ def blueprint(layout: Layout) -> rrb.Blueprint:
     if layout.commanded:
         tabs.append(rrb.Grid(*[_plot(f"{g}: command (N m or N)", f"/commands/{part(g)}") for g in layout.commanded],
                              name="commands"))
-    for tier in layout.actuated:
-        tabs.append(rrb.Grid(_plot(f"{tier}: ctrl", f"/actuators/{tier}/ctrl"),
-                             _plot(f"{tier}: actuator force (N m or N)", f"/actuators/{tier}/force"),
-                             name=f"{tier} actuators"))
+    for tier, groups in layout.actuated.items():
+        views = [_plot(f"{g}: {what}", f"/actuators/{part(tier)}/{part(g)}/{entity}") for g in groups
+                 for what, entity in (("ctrl", "ctrl"), ("actuator force (N m or N)", "force"))]
+        tabs.append(rrb.Grid(*views, name=f"{tier} actuators"))
     if layout.raw_series:
         tabs.append(_plot("series without a tolerance", "/tier_series"))
     return rrb.Blueprint(

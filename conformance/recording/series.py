@@ -1,7 +1,7 @@
 """Time series, one `Scalars` batch per plot with a `SeriesLines` name per line
 (`test_rerun_recording.py::test_joint_series_are_grouped_batches_in_both_colours`).
 
-Joints are grouped by limb (`joint_groups`), at most GROUP_SIZE joints a plot, and
+Joints are grouped by limb (`joint_groups`), at most GROUP_SIZE joints a plot, actuators with their joints, and
 each quantity has its own plots because its unit differs: positions (rad or m, MuJoCo in grey and SAPIEN in orange
 as in the 3D view), SAPIEN - MuJoCo, commands (N m or N), actuator ctrl and actuator forces. A tier's error is
 plotted divided by its metric's tolerance, so 1 is the tolerance whatever the unit."""
@@ -60,8 +60,7 @@ def joint_groups(model: mujoco.MjModel) -> list[tuple[str, list[int]]]:
         while len(children.get(body, [])) == 1:
             body = children[body][0]
             chain += joints.get(body, [])
-        pieces = [[int(j) for j in p] for p in np.array_split(chain, -(-len(chain) // GROUP_SIZE))] if chain else []
-        out.extend((name if len(pieces) == 1 else f"{name} {k + 1}", piece) for k, piece in enumerate(pieces))
+        out.extend(_split(name, chain) if chain else [])
         for child in children.get(body, []):
             visit(child)
 
@@ -110,20 +109,45 @@ def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> 
     return [g for g, _ in groups], commanded
 
 
-def log_actuators(rec: rr.RecordingStream, reports: dict[str, TierReport]) -> list[str]:
-    """Per actuated tier: the ctrl (as MuJoCo clamps it) and both sides' actuator force. Returns the tiers."""
-    logged = []
+def _split(name: str, members: list[int]) -> list[tuple[str, list[int]]]:
+    """One group, split evenly into plots of at most GROUP_SIZE, numbered when split."""
+    pieces = [[int(i) for i in p] for p in np.array_split(members, -(-len(members) // GROUP_SIZE))]
+    return [(name if len(pieces) == 1 else f"{name} {k + 1}", p) for k, p in enumerate(pieces)]
+
+
+def actuator_groups(model: mujoco.MjModel, names: list[str]) -> list[tuple[str, list[int]]]:
+    """(group name, rows of `names`): an actuator on a joint goes with its joint's group (`joint_groups`), others
+    (tendons, sites, bodies, or a name MuJoCo does not know) into `other`."""
+    of_joint = {j: g for g, joints in joint_groups(model) for j in joints}
+    on_joint = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
+    groups: dict[str, list[int]] = {}
+    for row, name in enumerate(names):
+        a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) if name else -1
+        if a < 0 and len(names) == model.nu:
+            a = row
+        joint = int(model.actuator_trnid[a, 0]) if a >= 0 and int(model.actuator_trntype[a]) in on_joint else -1
+        groups.setdefault(of_joint.get(joint, "other"), []).append(row)
+    return [piece for name, rows in groups.items() for piece in _split(name, rows)]
+
+
+def log_actuators(rec: rr.RecordingStream, model: mujoco.MjModel,
+                  reports: dict[str, TierReport]) -> dict[str, list[str]]:
+    """Per actuated tier and actuator group: the ctrl (as MuJoCo clamps it) and both sides' actuator force.
+    Returns the groups per tier."""
+    logged: dict[str, list[str]] = {}
     for tier, report in reports.items():
         trace: ActuatorTrace | None = report.actuators
         if trace is None or not trace.names:
             continue
-        idx, n = times(trace.time), len(trace.names)
+        idx = times(trace.time)
         names = [name or f"actuator{a}" for a, name in enumerate(trace.names)]
-        _plot(rec, f"actuators/{part(tier)}/ctrl", idx, np.asarray(trace.ctrl, dtype=float), names)
-        force = np.concatenate([trace.mujoco_force, trace.sapien_force], axis=1)
-        _plot(rec, f"actuators/{part(tier)}/force", idx, force, [f"MuJoCo {x}" for x in names] +
-              [f"SAPIEN {x}" for x in names], [MUJOCO_COLOR] * n + [SAPIEN_COLOR] * n)
-        logged.append(tier)
+        for group, rows in actuator_groups(model, trace.names):
+            base, label = f"actuators/{part(tier)}/{part(group)}", [names[r] for r in rows]
+            _plot(rec, f"{base}/ctrl", idx, np.asarray(trace.ctrl, dtype=float)[:, rows], label)
+            force = np.concatenate([trace.mujoco_force[:, rows], trace.sapien_force[:, rows]], axis=1)
+            _plot(rec, f"{base}/force", idx, force, [f"MuJoCo {x}" for x in label] + [f"SAPIEN {x}" for x in label],
+                  [MUJOCO_COLOR] * len(rows) + [SAPIEN_COLOR] * len(rows))
+            logged.setdefault(tier, []).append(group)
     return logged
 
 

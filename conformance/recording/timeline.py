@@ -1,5 +1,6 @@
-"""The timelines: `step` (sequence) and `sim_time` (seconds), which the blueprint pins. Kinematics configurations
-are on `configuration`, a separate timeline the blueprint does not open."""
+"""The timeline: `sim_time` (seconds), which the blueprint pins; a step is `sim_time / timestep`, so no second
+timeline repeats it on every row. Kinematics configurations are on `configuration`, a separate timeline the
+blueprint does not open."""
 
 from __future__ import annotations
 
@@ -10,12 +11,10 @@ TIMELINE = "sim_time"
 
 
 def times(time: np.ndarray) -> list:
-    """Index columns of a rollout sampled at `time` (seconds), one row per step."""
-    steps = np.arange(time.size)
-    return [rr.TimeColumn("step", sequence=steps), rr.TimeColumn(TIMELINE, duration=time)]
+    """Index column of a rollout sampled at `time` (seconds), one row per step."""
+    return [rr.TimeColumn(TIMELINE, duration=np.asarray(time, dtype=float))]
 
 
 def strided(count: int, stride: int, dt: float) -> list:
-    """Index columns of `count` samples taken every `stride` steps."""
-    steps = np.arange(count) * stride
-    return [rr.TimeColumn("step", sequence=steps), rr.TimeColumn(TIMELINE, duration=steps * dt)]
+    """Index column of `count` samples taken every `stride` steps."""
+    return [rr.TimeColumn(TIMELINE, duration=np.arange(count) * stride * dt)]
