@@ -6,7 +6,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from test_rerun_recording import line, read_rrd
+from test_rerun_recording import line, read_rrd, tier_line
 from test_tiers_actuated import ARM, _session
 
 from conformance import recording, tolerances
@@ -25,10 +25,6 @@ def recorded(tmp_path_factory):
     recording.write_recording(rrd, session, reports, {"model": "arm", "seed": 3,
                                                       "versions": {"mujoco": mujoco.__version__}})
     return session, reports, read_rrd(rrd)
-
-
-def _scalars(rrd, entity: str) -> np.ndarray:
-    return np.array([v[0] for v in rrd[entity]["Scalars:scalars"]])
 
 
 def _plot_of(rrd, tier: str, quantity: str, name: str) -> str:
@@ -86,8 +82,9 @@ def test_actuated_error_series_are_recorded(recorded):
     report = reports["actuated"]
     tolerance = {m.name: m.tolerance for m in report.metrics}
     for name in ("rollout_qpos", "one_step_qvel"):
-        np.testing.assert_allclose(_scalars(rrd, f"/tiers/actuated/{name}"), report.series[name] / tolerance[name])
-    seconds = np.array([t.total_seconds() for t in rrd["/tiers/actuated/one_step_qvel"]["sim_time"]])
+        np.testing.assert_allclose(tier_line(rrd, "actuated", name)[1], report.series[name] / tolerance[name])
+    entity, _ = tier_line(rrd, "actuated", "one_step_qvel")
+    seconds = np.array([t.total_seconds() for t in rrd[entity]["sim_time"]])
     every, dt = report.settings["one_step_every"], session.model.opt.timestep
     np.testing.assert_allclose(seconds / dt, np.arange(len(seconds)) * every, atol=1e-6)
 

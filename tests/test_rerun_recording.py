@@ -317,22 +317,38 @@ def test_the_verdict_panel_shows_the_expected_outcome_and_reason(judged):
     assert reason in text
 
 
+def tier_line(rrd, tier: str, series: str) -> tuple[str, np.ndarray]:
+    """(entity, values) of a tier series' line, found by its label `<tier> <series> / <tolerance> <unit>`; a line
+    shorter than its batch ends in NaN, dropped here."""
+    for entity, cols in rrd.items():
+        if entity.startswith(f"/tiers/{tier}/") and "SeriesLines:names" in cols:
+            names = cols["SeriesLines:names"][-1]
+            k = next((i for i, n in enumerate(names) if n.startswith(f"{tier} {series} / ")), None)
+            if k is not None:
+                values = np.array([row[k] for row in cols["Scalars:scalars"]])
+                return entity, values[~np.isnan(values)]
+    raise KeyError(f"{tier} {series}")
+
+
 def test_tier_errors_are_plotted_over_their_tolerance(recorded):
+    """Every series of a metric, divided by the metric's tolerance; dynamics' rollouts (same sampling) in one
+    batch; kinematics on its configuration timeline."""
     _, reports, rrd, _ = recorded
     plotted = 0
     for tier, report in reports.items():
         for m in report.metrics:
             if m.name in report.series and m.tolerance > 0:
-                rows = rrd[f"/tiers/{tier}/{m.name}"]["Scalars:scalars"]
-                np.testing.assert_allclose([v[0] for v in rows], report.series[m.name] / m.tolerance)
+                _, values = tier_line(rrd, tier, m.name)
+                np.testing.assert_allclose(values, report.series[m.name] / m.tolerance)
                 plotted += 1
     assert plotted >= 4  # dynamics' one-step and rollout errors at least
+    rollouts = {tier_line(rrd, "dynamics", f"rollout_{r}_qpos")[0] for r in ("zero", "torque", "pd")}
+    assert len(rollouts) == 1, rollouts
     kinematics = reports["kinematics"]
     tolerance = next(m.tolerance for m in kinematics.metrics if m.name == "position")
-    rows = rrd["/tiers/kinematics/position_error_per_configuration"]
-    np.testing.assert_allclose([v[0] for v in rows["Scalars:scalars"]],
-                               kinematics.series["position_error_per_configuration"] / tolerance)
-    assert "sim_time" not in rows, "configurations are no time"
+    entity, values = tier_line(rrd, "kinematics", "position_error_per_configuration")
+    np.testing.assert_allclose(values, kinematics.series["position_error_per_configuration"] / tolerance)
+    assert "sim_time" not in rrd[entity], "configurations are no time"
     assert [v[0] for v in rrd["/tiers/tolerance"]["Scalars:scalars"]] == [1.0, 1.0]
 
 

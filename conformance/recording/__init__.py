@@ -12,8 +12,9 @@ Layout (entity paths):
   commands/<group>                        its generalized command, when it has one
   actuators/<tier>/<group>/{ctrl,force}   the actuated tiers' ctrl (as MuJoCo clamps it) and both sides' actuator
                                           force per step (report.ActuatorTrace says how the SAPIEN force is derived)
-  tiers/<tier>/<series>, tiers/tolerance  each tier's error series over its tolerance, and the line at 1
-  tier_series/<tier>/<series>             series without a tolerance, as measured
+  tiers/<tier>/every_<k>_steps            each tier's error series over its tolerance, one batch per sampling
+  tiers/tolerance                         the line at 1
+  tier_series/<tier>/every_<k>_steps      series without a tolerance, as measured
   verdict                                 markdown: outcome and expectation per tier, seed, settings, versions
 
 The 3D view plays the rollout of the tier that failed (the contact rollout when contact failed), else the PD

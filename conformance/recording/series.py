@@ -158,31 +158,47 @@ def _metric_of(series: str, metrics: dict[str, Metric]) -> Metric | None:
     return max(named, key=lambda m: len(m.name), default=None)
 
 
-def log_tiers(rec: rr.RecordingStream, reports: dict[str, TierReport], dt: float, every: int) -> bool:
-    """Each tier series over its metric's tolerance at `tiers/<tier>/<series>`, and the line at 1. A series with no
-    metric (MuJoCo's own chaos amplification) is kept as measured under `tier_series/`; returns whether there was
-    one."""
-    last, raw = 0, False
+def _batches(reports: dict[str, TierReport], every: int) -> dict[tuple[str, str, int], list[tuple[str, np.ndarray]]]:
+    """Tier series batched by (root, tier, stride) with their line labels: `tiers` holds errors over their
+    metric's tolerance, `tier_series` series with no metric (MuJoCo's own chaos amplification), as measured.
+    Kinematics' stride 0 stands for its configuration timeline."""
+    out: dict[tuple[str, str, int], list[tuple[str, np.ndarray]]] = {}
     for tier, report in reports.items():
-        tolerance = {m.name: m for m in report.metrics}
+        metrics = {m.name: m for m in report.metrics}
         for name, values in report.series.items():
             values = np.asarray(values, dtype=float)
-            if tier == "kinematics":
-                idx = [rr.TimeColumn("configuration", sequence=np.arange(values.size))]
-            else:
-                stride = int(report.settings.get("one_step_every", every)) if name.startswith("one_step") else 1
-                idx = strided(values.size, stride, dt)
-                last = max(last, (values.size - 1) * stride)
-            m = _metric_of(name, tolerance)
+            stride = 0 if tier == "kinematics" else \
+                int(report.settings.get("one_step_every", every)) if name.startswith("one_step") else 1
+            m = _metric_of(name, metrics)
             if m is not None and m.tolerance > 0:
-                path, label = f"tiers/{tier}/{part(name)}", f"{tier} {name} / {m.tolerance:g} {m.unit}"
-                values = values / m.tolerance
+                key, label, values = ("tiers", tier, stride), f"{tier} {name} / {m.tolerance:g} {m.unit}", \
+                    values / m.tolerance
             else:
-                path, label, raw = f"tier_series/{tier}/{part(name)}", f"{tier} {name}", True
-            rec.log(path, rr.SeriesLines(names=[label]), static=True)
-            rec.send_columns(path, indexes=idx, columns=rr.Scalars.columns(scalars=values))
+                key, label = ("tier_series", tier, stride), f"{tier} {name}"
+            out.setdefault(key, []).append((label, values))
+    return out
+
+
+def log_tiers(rec: rr.RecordingStream, reports: dict[str, TierReport], dt: float, every: int) -> bool:
+    """Each tier's series, one batch per tier and sampling (`tiers/<tier>/every_<k>_steps`; a shorter series is
+    padded with NaN, which draws nothing), and the line at 1. Returns whether a series without a tolerance was
+    logged."""
+    last = 0
+    batches = _batches(reports, every)
+    for (root, tier, stride), lines in batches.items():
+        length = max(v.size for _, v in lines)
+        values = np.full((length, len(lines)), np.nan)
+        for k, (_, v) in enumerate(lines):
+            values[:v.size, k] = v
+        if stride == 0:
+            path, idx = f"{root}/{tier}/per_configuration", [rr.TimeColumn("configuration",
+                                                                            sequence=np.arange(length))]
+        else:
+            path, idx = f"{root}/{tier}/every_{stride}_steps", strided(length, stride, dt)
+            last = max(last, (length - 1) * stride)
+        _plot(rec, path, idx, values, [label for label, _ in lines])
     if last:
         rec.log("tiers/tolerance", rr.SeriesLines(names=["tolerance"], colors=[TOLERANCE_COLOR]), static=True)
         rec.send_columns("tiers/tolerance", indexes=strided(2, last, dt),
                          columns=rr.Scalars.columns(scalars=[1.0, 1.0]))
-    return raw
+    return any(root == "tier_series" for root, _, _ in batches)
