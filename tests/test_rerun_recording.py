@@ -400,3 +400,36 @@ def test_default_blueprint_pins_sim_time_and_separates_units(recorded):
         assert parts[0] != "commands" or len(parts) == 2, origin
     assert any(o.endswith("/position") for o in kinds["TimeSeries"])
     assert any(o.startswith("/commands/") for o in kinds["TimeSeries"])
+
+
+BALL_AND_HINGE = """
+<mujoco>
+  <worldbody>
+    <body name="swivel" pos="0 0 1">
+      <joint name="ball" type="ball" damping="0.1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+    </body>
+    <body name="swing" pos="1 0 1">
+      <joint name="hinge" type="hinge" axis="0 1 0" damping="0.1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_every_plot_the_blueprint_opens_has_data(tmp_path):
+    """A limb of one ball joint has no position plot (its quaternion is not a coordinate), only its difference."""
+    path = tmp_path / "ball.xml"
+    path.write_text(BALL_AND_HINGE)
+    session = _session(path)
+    tol = tolerances.load()
+    reports = {name: tier(session.result, session.model, 0, tol) for name, tier in TIERS.items()}
+    recording.write_recording(tmp_path / "ball.rrd", session, reports, {"model": "ball", "seed": 0})
+    rrd = read_rrd(tmp_path / "ball.rrd")
+    origins = [v["ViewBlueprint:space_origin"][0] for v in read_blueprint(tmp_path / "ball.rrd").values()
+               if v.get("ViewBlueprint:class_identifier") == ["TimeSeries"]]
+    assert "/joints/swivel/difference" in origins
+    for origin in origins:
+        assert any(e.startswith(origin) and "Scalars:scalars" in cols for e, cols in rrd.items()), origin
+

@@ -93,7 +93,7 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
     scene.log_frames(rec, model, result, motion, bodies, links)
     scene.log_deviation(rec, motion, scale)
     if trace is not None:
-        layout.groups, layout.commanded = series.log_joints(rec, model, trace)
+        layout.groups, layout.positioned, layout.commanded = series.log_joints(rec, model, trace)
     layout.actuated = series.log_actuators(rec, model, reports)
     every = int(reports["dynamics"].settings.get("one_step_every", 1)) if "dynamics" in reports else 1
     layout.raw_series = series.log_tiers(rec, reports, float(model.opt.timestep), every)

@@ -1,6 +1,7 @@
 """The default layout: the 3D view framed on the robot beside the verdict, plots in tabs below (one plot per joint
-group and quantity, legends hidden: a line's name shows on hover), the time panel on `sim_time`
-(`test_rerun_recording.py::test_default_blueprint_pins_sim_time_and_separates_units`)."""
+group and quantity, legends hidden: a line's name shows on hover; none without data), the time panel on `sim_time`
+(`test_rerun_recording.py::test_default_blueprint_pins_sim_time_and_separates_units`,
+`test_rerun_recording.py::test_every_plot_the_blueprint_opens_has_data`)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ class Layout:
     title: str
     eye: rrb.EyeControls3D | None = None
     groups: list[str] = field(default_factory=list)  # joint group names (unescaped)
+    positioned: list[str] = field(default_factory=list)  # the groups with position plots (not only ball joints)
     commanded: list[str] = field(default_factory=list)
     actuated: dict[str, list[str]] = field(default_factory=dict)  # tier -> actuator groups
     raw_series: bool = False
@@ -32,7 +34,7 @@ def blueprint(layout: Layout) -> rrb.Blueprint:
     tabs = [_plot("tier error / tolerance (1 = tolerance)", "/tiers")]
     if layout.groups:
         tabs.append(rrb.Grid(*[_plot(f"{g}: position (rad or m)", f"/joints/{part(g)}/position")
-                               for g in layout.groups], name="joint positions"))
+                               for g in layout.positioned], name="joint positions"))
         tabs.append(rrb.Grid(*[_plot(f"{g}: SAPIEN - MuJoCo (rad or m)", f"/joints/{part(g)}/difference")
                                for g in layout.groups], name="joint differences"))
     if layout.commanded:

@@ -88,11 +88,12 @@ def _plot(rec, path: str, index_columns, values: np.ndarray, names: list[str], c
                          [values.shape[1]] * values.shape[0]))
 
 
-def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> tuple[list[str], list[str]]:
-    """Per joint group: positions of both sides, SAPIEN - MuJoCo per DoF, and the command when there is one.
-    Returns the groups and those with a command."""
+def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel,
+               trace: Trace) -> tuple[list[str], list[str], list[str]]:
+    """Per joint group: positions of both sides (none for ball joints), SAPIEN - MuJoCo per DoF, and the command
+    when there is one. Returns the groups, those with positions and those with a command."""
     idx = times(trace.time)
-    groups, commanded = joint_groups(model), []
+    groups, positioned, commanded = joint_groups(model), [], []
     positions = lambda kind: 3 if kind == 0 else 0 if kind == 1 else 1
     for name, joints in groups:
         group = part(name)
@@ -101,12 +102,13 @@ def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> 
             values = np.concatenate([trace.mujoco_qpos[:, q], trace.sapien_qpos[:, q]], axis=1)
             _plot(rec, f"joints/{group}/position", idx, values, [f"MuJoCo {n}" for n in names] +
                   [f"SAPIEN {n}" for n in names], [MUJOCO_COLOR] * len(q) + [SAPIEN_COLOR] * len(q))
+            positioned.append(name)
         dof, names = _columns(model, joints, model.jnt_dofadr, lambda kind: _NV.get(kind, 1))
         _plot(rec, f"joints/{group}/difference", idx, trace.qpos_error[:, dof], names)
         if np.any(trace.command[:, dof]):
             _plot(rec, f"commands/{group}", idx, trace.command[:, dof], names)
             commanded.append(name)
-    return [g for g, _ in groups], commanded
+    return [g for g, _ in groups], positioned, commanded
 
 
 def _split(name: str, members: list[int]) -> list[tuple[str, list[int]]]:
