@@ -13,9 +13,8 @@ X_TO_Z = np.array([_S, 0.0, -_S, 0.0])
 
 
 def unit_quat(q) -> np.ndarray:
-    """`q` normalized as MuJoCo's kinematics normalize a stored quaternion (mju_normalize4): one shorter than
-    mjMINVAL is the identity. MuJoCo keeps a vanishing quaternion as written, and float32 normalizes it to
-    NaN (tests/test_loader_structure.py::test_a_vanishing_body_quaternion_is_the_identity_as_in_mujoco)."""
+    """`q` normalized in float64 before SAPIEN's float32 sees it (one shorter than mjMINVAL, which
+    `build/numbers.py` rejects before any pose is built, is the identity rather than NaN)."""
     q = np.asarray(q, dtype=np.float64)
     norm = float(np.linalg.norm(q))
     return q / norm if norm >= mujoco.mjMINVAL else np.array([1.0, 0.0, 0.0, 0.0])

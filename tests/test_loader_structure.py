@@ -311,49 +311,25 @@ def test_inertia_blocks_are_mujocos_full_matrix(name):
     assert not np.array_equal(broken, dense)
 
 
-VANISHING = """<mujoco><worldbody><body name="a" pos="0 0 1" quat="1e-30 1e-30 1e-30 1e-30"><joint axis="0 1 0"/>
-  <geom size=".1" mass="1"/><body name="b" pos=".2 0 0" quat="1e-30 0 1e-30 0"><joint axis="1 0 0"/>
-  <inertial pos=".1 0 0" mass="1" diaginertia="1 2 3"/></body></body></worldbody>
-</mujoco>"""
-
-
-def test_a_vanishing_body_quaternion_is_the_identity_as_in_mujoco():
-    """MuJoCo compiles a body quaternion of 1e-30 x 4 as written and its kinematics normalize it to the identity (a
-    robustness-session find: float32 normalized it to NaN). Link poses and inertia frames match MuJoCo's forward
-    pass. Mutation: a quaternion handed to SAPIEN unnormalized."""
-    import mujoco
-
-    from loader import MJCFLoader
-
-    result = MJCFLoader().load(mujoco.MjSpec.from_string(VANISHING))
-    model = result.model
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    links = {link.name: link for art in result.articulations for link in art.links}
-    for body in ("a", "b"):
-        b = model.body(body).id
-        pose = links[body].entity_pose
-        assert np.allclose(pose.p, data.xpos[b], atol=1e-6) and np.allclose(pose.q, data.xquat[b], atol=1e-6)
-        inertia = pose * links[body].cmass_local_pose
-        assert np.allclose(inertia.p, data.xipos[b], atol=1e-6)
-
-
 @pytest.mark.parametrize("element, where", [
+    ('<body name="b" pos=".2 0 0" quat="1e-30 0 1e-30 0"><joint/><geom size=".1"/></body>', "body 'b'"),
     ('<inertial pos="0 0 0" mass="1" diaginertia="1 2 3" quat="1e-30 1e-30 1e-30 1e-30"/>', "body 'a' <inertial>"),
     ('<geom size=".1" quat="1e-8 0 0 0"/>', "geom 'g'"),
     ('<site name="s" quat="1e-10 0 1e-10 0"/>', "site 's'"),
 ])
 def test_a_frame_quaternion_the_compiler_left_unnormalized_is_a_typed_error(element, where, monkeypatch):
     """MuJoCo's compiler leaves a quaternion shorter than about 1e-6 as written, and its kinematics rotate a geom,
-    site, camera or inertia frame by it unnormalized: a scaled, degenerate rotation (the inertia tensor of a
-    robustness-session mutant vanished). The loader names the element. Mutation: the check skipped loads it."""
+    site, camera or inertia frame by it unnormalized (a scaled, degenerate rotation: the inertia tensor of a
+    robustness-session mutant vanished) and give a body with one the world's orientation, whatever its parent's
+    (a mutant's joint axes 1.5 rad off). The loader names the element. Mutation: the check skipped loads it."""
     import mujoco
 
     import loader.mjcf_loader
     from loader import MJCFError, MJCFLoader
 
     element = element.replace('<geom size', '<geom name="g" size')
-    xml = f'<mujoco><worldbody><body name="a"><joint/><geom size=".1" mass="1"/>{element}</body></worldbody></mujoco>'
+    xml = (f'<mujoco><worldbody><body name="a" euler="0 90 0"><joint/><geom size=".1" mass="1"/>{element}</body>'
+           '</worldbody></mujoco>')
     with pytest.raises(MJCFError, match="is not a unit quaternion") as caught:
         MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     assert where in str(caught.value)

@@ -39,9 +39,10 @@ FIELDS = (
 DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")  # per DoF, named by the DoF's joint
 
 
-# frames MuJoCo's kinematics rotate by their compiled quaternion as it is (a body's own quaternion is normalized,
-# `frames.unit_quat`); the compiler normalizes every quaternion but a vanishing one
-FRAME_QUATS = (("inertial", "body_iquat"), ("geom", "geom_quat"), ("site", "site_quat"), ("camera", "cam_quat"))
+# frames MuJoCo's kinematics rotate by their compiled quaternion as it is (a body's, composed with its parent's, is
+# normalized, and set to the world's orientation when it vanishes); the compiler normalizes all but vanishing ones
+FRAME_QUATS = (("body", "body_quat"), ("inertial", "body_iquat"), ("geom", "geom_quat"), ("site", "site_quat"),
+               ("camera", "cam_quat"))
 UNIT = 1e-6  # |norm - 1| of a compiled quaternion beyond which it was left unnormalized
 
 OPTION_FIELDS = tuple(name for name in dir(mujoco.MjOption) if not name.startswith("_")
@@ -87,7 +88,7 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
                      else f"{kind} '{mj.name(model, kind, index)}'")
             raise MJCFError(path, f"{label}: {field} = {np.array2string(values[index], precision=4)} is not a unit "
                             "quaternion: MuJoCo's compiler leaves a quaternion this short as written and its "
-                            "kinematics turn it into a scaled, degenerate rotation",
+                            "kinematics turn it into a degenerate rotation (a body's into the world's orientation)",
                             hint=f"give {label} a quaternion of non-vanishing length (or none)",
                             rejected_by="the loader cannot follow the model")
     for field in DOF_FIELDS:
