@@ -80,24 +80,17 @@ class MJCFLoader:
              package_dir: str | os.PathLike | None = None) -> LoadResult:
         """Build everything into `scene` and return it with the mapping and the unsupported features."""
         parsed = self._parse(mjcf_file, package_dir)
-        model = parsed.compiled.model
         articulations = [builder.build() for builder in parsed.articulation_builders]
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
-        mapping = _mapping(model, parsed, articulations)
-        timestep = physx_settings.scene_timestep(self.scene, model)
-        controller, actuators, equalities = runtime_plan(model, mapping, self.scene, articulations, parsed.notes, timestep)
-        if self.solver_iterations == "auto":
-            tune_iterations(articulations, model, controller, mapping, parsed.notes)
-        result = LoadResult(
-            path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=self.scene,
-            articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
-            textures=textures(parsed.compiled.spec, model), mapping=mapping,
-            unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
-            actuators=actuators, equalities=equalities, controller=controller,
-        )
-        warn_notes(result.path, result.unsupported, result.approximations, each=self.warn_each_note)
-        result.reset()
-        return result
+        return finish(parsed, self.scene, articulations, actors, self.solver_iterations, self.warn_each_note)
+
+    def new_articulation_builder(self) -> MJCFArticulationBuilder:
+        """The builder of one kinematic tree (a subclass builds into a scene of sub-scenes: `loader.maniskill`)."""
+        return MJCFArticulationBuilder()
+
+    def new_actor_builder(self) -> MJCFActorBuilder:
+        """The builder of the world body's static geoms."""
+        return MJCFActorBuilder()
 
     def _parse(self, mjcf_file, package_dir) -> _Parsed:
         compiled = compile_mjcf(mjcf_file, package_dir)
@@ -130,7 +123,7 @@ class MJCFLoader:
 
         articulation_builders = []
         for art in tree.articulations:
-            builder = MJCFArticulationBuilder()
+            builder = self.new_articulation_builder()
             builder.set_scene(self.scene)
             builder.set_initial_pose(art.root_pose)
             builder.floating = art.floating
@@ -155,7 +148,7 @@ class MJCFLoader:
             articulation_builders.append(builder)
         actor_builders = []
         if model.body_geomnum[0]:
-            world = MJCFActorBuilder()
+            world = self.new_actor_builder()
             world.set_scene(self.scene)
             world.set_name("world")
             world.set_physx_body_type("static")
@@ -164,13 +157,36 @@ class MJCFLoader:
         return _Parsed(compiled, tree, articulation_builders, actor_builders, cameras(model), notes)
 
 
+def finish(parsed: _Parsed, scene: sapien.Scene, articulations: list, actors: list,
+           solver_iterations: tuple[int, int] | str | None = "auto", warn_each_note: bool = False,
+           stacklevel: int = 4) -> LoadResult:
+    """The mapping and the per-step terms of built articulations (one per tree, in order) in `scene`: the
+    `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller)."""
+    model = parsed.compiled.model
+    mapping = _mapping(model, parsed, articulations)
+    timestep = physx_settings.scene_timestep(scene, model)
+    controller, actuators, equalities = runtime_plan(model, mapping, scene, articulations, parsed.notes, timestep)
+    if solver_iterations == "auto":
+        tune_iterations(articulations, model, controller, mapping, parsed.notes)
+    result = LoadResult(
+        path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=scene,
+        articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
+        textures=textures(parsed.compiled.spec, model), mapping=mapping,
+        unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
+        actuators=actuators, equalities=equalities, controller=controller,
+    )
+    warn_notes(result.path, result.unsupported, result.approximations, each=warn_each_note, stacklevel=stacklevel)
+    result.reset()
+    return result
+
+
 def _mapping(model: mujoco.MjModel, parsed: _Parsed, articulations) -> Mapping:
     tree = parsed.tree
     link_index = []  # per articulation: link name -> index in art.links
     dof_index = []  # per articulation: child link name -> index in art.active_joints
     for art in articulations:
-        link_index.append({link.name: i for i, link in enumerate(art.links)})
-        dof_index.append({joint.child_link.name: i for i, joint in enumerate(art.active_joints)})
+        link_index.append({link.entity.name: i for i, link in enumerate(art.links)})  # unprefixed in sub-scenes
+        dof_index.append({joint.child_link.entity.name: i for i, joint in enumerate(art.active_joints)})
     bodies = [BodyLink(None, None, 0 if parsed.actor_builders else None)]
     for b in range(1, model.nbody):
         a, link = tree.body_link[b]

@@ -53,7 +53,7 @@ def make_shape(plan: ShapePlan, dynamic: bool) -> sapien.physx.PhysxCollisionSha
     return shape
 
 
-class _ShapesFromPlans:
+class ShapesFromPlans:
     """Mixin: attach the planned collision shapes (primitives and in-memory meshes) with their own groups,
     and in-memory visual meshes."""
 
@@ -81,7 +81,7 @@ class _ShapesFromPlans:
         return component
 
 
-class MJCFActorBuilder(_ShapesFromPlans, ActorBuilder):
+class MJCFActorBuilder(ShapesFromPlans, ActorBuilder):
     """Static actor for the world body's geoms."""
 
     def __init__(self):
@@ -98,7 +98,7 @@ class MJCFActorBuilder(_ShapesFromPlans, ActorBuilder):
         return entity
 
 
-class MJCFLinkBuilder(_ShapesFromPlans, LinkBuilder):
+class MJCFLinkBuilder(ShapesFromPlans, LinkBuilder):
     def __init__(self, index: int, parent):
         super().__init__(index, parent)
         self.shape_plans = []

@@ -83,7 +83,8 @@ def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
         out.append(f"its timestep is {scene.timestep:g} s, the model's {model.opt.timestep:g} s: the loader maps "
                    "drives, actuators and constraint rows for the scene's timestep, so the motion is MuJoCo's at "
                    "that timestep, not the file's (set scene.timestep to keep the file's)")
-    config = getattr(scene.physx_system, "config", None)
+    system = getattr(scene, "physx_system", None) or getattr(scene, "px", None)  # a scene of sub-scenes: `px`
+    config = getattr(system, "config", None)
     if config is None:
         return out
     wanted = matched_config(model)
@@ -99,7 +100,7 @@ def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
 def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, plans, timestep: float) -> None:
     """Joint armature, damping and springs from the plans, and the PhysX overrides, on a built articulation."""
     articulation.set_sleep_threshold(0.0)
-    by_name = {plan.name: plan for plan in plans}
+    by_name = {plan.name: plan for plan in plans}  # by entity name: a scene of sub-scenes prefixes the links' own
     for link in articulation.links:
         link.linear_damping = 0.0
         link.angular_damping = 0.0
@@ -107,7 +108,7 @@ def apply_articulation_settings(articulation: sapien.physx.PhysxArticulation, pl
         link.max_angular_velocity = MAX_LINK_ANGULAR_VELOCITY
         link.max_depenetration_velocity = MAX_DEPENETRATION_VELOCITY
         joint = link.joint
-        plan = by_name[link.name].joint
+        plan = by_name[link.entity.name].joint
         if joint.dof == 0:
             continue
         joint.set_friction(0.0)
