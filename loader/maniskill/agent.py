@@ -1,0 +1,116 @@
+"""ManiSkill robots from MJCF files: `register_agent(mjcf_path, uid)` registers a `BaseAgent` subclass whose robot
+is built by this package's loader, whose keyframes are the file's `<key>`s and whose control modes come from its
+actuators (`servos.py`): `pd_joint_pos` and `pd_joint_delta_pos` from position servos, `pd_joint_vel` from velocity
+servos, `mujoco_ctrl` (CPU) for MuJoCo's ctrl vector. Docs: docs/maniskill.md."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+from mani_skill.agents import registration
+from mani_skill.agents.base_agent import BaseAgent, Keyframe
+from mani_skill.agents.controllers.pd_joint_pos import (
+    PDJointPosControllerConfig,
+    PDJointPosMimicControllerConfig,
+)
+from mani_skill.agents.controllers.pd_joint_vel import PDJointVelControllerConfig
+from mani_skill.utils.structs.pose import Pose
+
+from ..mjcf_loader import MJCFLoader as CoreLoader
+from .mujoco_ctrl import MujocoCtrlConfig
+from .scene_loader import MJCFLoader
+from .servos import Servo, derive
+
+DELTA = 0.1  # pd_joint_delta_pos: ManiSkill's usual bound on a step's change of target (rad or m)
+
+
+class MJCFAgent(BaseAgent):
+    """A robot from an MJCF file (set up by `register_agent`). `results`: one `LoadResult` per sub-scene (CPU)."""
+
+    servos: ClassVar[list[Servo]] = []
+    ctrl_low: ClassVar[list[float]] = []
+    ctrl_high: ClassVar[list[float]] = []
+
+    def _load_articulation(self, initial_pose=None):
+        """The env's `initial_pose` places the file's world frame; the robot's root keeps its pose in it."""
+        if self.build_separate:
+            raise NotImplementedError("build_separate: MJCF agents build in every sub-scene at once")
+        loader = MJCFLoader()
+        loader.set_scene(self.scene)
+        loader.name = self.uid if self._agent_idx is None else f"{self.uid}-agent-{self._agent_idx}"
+        loader.fix_root_link = self.fix_root_link
+        loader.disable_self_collisions = self.disable_self_collisions
+        builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
+        root = Pose.create(builder.initial_pose)
+        builder.initial_pose = root if initial_pose is None else Pose.create(initial_pose) * root
+        self.robot = builder.build()
+        self.robot_link_names = [link.name for link in self.robot.get_links()]
+        self.results = loader.results
+        for result in self.results:
+            result.release()  # PD modes drive the joints; mujoco_ctrl takes them back
+
+    @property
+    def _controller_configs(self):
+        joints = [joint.name for joint in self.robot.active_joints]
+        positions = [s for s in self.servos if s.kind == "position"]
+        velocities = [s for s in self.servos if s.kind == "velocity"]
+        configs = dict(super()._controller_configs) if not positions else {
+            "pd_joint_pos": _pd_joint_pos(positions, delta=False),
+            "pd_joint_delta_pos": _pd_joint_pos(positions, delta=True)}
+        if velocities:
+            configs["pd_joint_vel"] = {"balance_passive_force": False, **{s.actuator: PDJointVelControllerConfig(
+                s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=False) for s in velocities}}
+        if not self.scene.gpu_sim_enabled:
+            configs["mujoco_ctrl"] = {"balance_passive_force": False, "ctrl": MujocoCtrlConfig(
+                joints, list(self.ctrl_low), list(self.ctrl_high), self.results)}
+        return configs
+
+
+def _pd_joint_pos(servos: list[Servo], delta: bool) -> dict:
+    """One controller for the single-joint servos, one mimic controller per coupled servo; gravity on, as the
+    servos hold against it in MuJoCo. Delta mode moves the target (`use_target`), so zero actions hold it."""
+    bounds = {"lower": -DELTA, "upper": DELTA, "normalize_action": True, "use_delta": True, "use_target": True} if delta else {}
+    single = [s for s in servos if not s.mimic]
+    configs: dict = {"balance_passive_force": False}
+    if single:
+        configs["arm"] = PDJointPosControllerConfig(
+            [s.joints[0] for s in single],
+            stiffness=[s.stiffness[0] for s in single], damping=[s.damping[0] for s in single],
+            force_limit=[s.force_limit[0] for s in single],
+            **(bounds or {"lower": [s.lower for s in single], "upper": [s.upper for s in single],
+                              "normalize_action": False}))
+        if not delta and any(s.lower is None for s in single):
+            configs["arm"].lower = configs["arm"].upper = None  # the joints' limits
+    for s in (s for s in servos if s.mimic):
+        configs[s.actuator] = PDJointPosMimicControllerConfig(
+            s.joints, stiffness=s.stiffness, damping=s.damping, force_limit=s.force_limit, mimic=s.mimic,
+            **(bounds or {"lower": s.lower, "upper": s.upper, "normalize_action": False}))
+    return configs
+
+
+def register_agent(mjcf_path: str | Path, uid: str, fix_root_link: bool = True, disable_self_collisions: bool = False,
+                   override: bool = False) -> type[MJCFAgent]:
+    """Register the robot of `mjcf_path` with ManiSkill as `uid` (then `gym.make(..., robot_uids=uid)`). The file
+    is loaded once here, in a scene of its own, for its keyframes and servos."""
+    path = str(Path(mjcf_path).resolve())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the env's load warns its notes
+        reference = CoreLoader().load(path)
+    model, articulation = reference.model, reference.articulations[0]
+    keyframes = {}
+    for k in range(model.nkey):
+        reference.reset(k)
+        keyframes[model.key(k).name or f"key{k}"] = Keyframe(
+            pose=articulation.get_root_pose(), qpos=np.asarray(articulation.get_qpos()),
+            qvel=np.asarray(articulation.get_qvel()))
+    limited = model.actuator_ctrllimited.astype(bool)
+    attributes = {
+        "uid": uid, "mjcf_path": path, "fix_root_link": fix_root_link, "disable_self_collisions": disable_self_collisions,
+        "keyframes": keyframes, "servos": derive(reference),
+        "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
+        "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist()}
+    agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)
+    return registration.register_agent(override=override)(agent)

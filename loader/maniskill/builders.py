@@ -1,0 +1,64 @@
+"""ManiSkill's scene builders with the loader's shapes and PhysX settings: one build makes the articulation in every
+sub-scene (`set_scene_idxs`), each with the model's inertia, collision groups, joint frames, armature, damping and
+PhysX overrides (tests/test_maniskill.py::test_an_arm_and_a_quadruped_load_into_a_maniskill_scene_as_in_mujoco)."""
+
+from __future__ import annotations
+
+import sapien
+from mani_skill.utils.building.actor_builder import ActorBuilder
+from mani_skill.utils.building.articulation_builder import ArticulationBuilder
+
+from ..build import physx_settings
+from ..build.builders import MJCFLinkBuilder, ShapesFromPlans
+
+
+class SceneActorBuilder(ShapesFromPlans, ActorBuilder):
+    """The world body's static geoms, built in every sub-scene."""
+
+    def __init__(self):
+        super().__init__()
+        self.shape_plans = []
+        self.mesh_visuals = []
+
+
+class SceneArticulationBuilder(ArticulationBuilder):
+    """One kinematic tree. `build()` makes it in each sub-scene, sets the loader's PhysX settings on each copy and
+    then calls `on_built(builder, articulation)` (the loader plans each sub-scene's per-step terms there)."""
+
+    def __init__(self):
+        super().__init__()
+        self.floating = False
+        self.timestep = 0.002  # the scene's, set by the loader
+        self.solver_iterations: tuple[int, int] | None = None
+        self.built: list[tuple[sapien.Scene, sapien.physx.PhysxArticulation]] = []  # of the last build
+        self.on_built = None
+
+    def create_link_builder(self, parent: MJCFLinkBuilder | None = None) -> MJCFLinkBuilder:
+        if self.link_builders:
+            assert parent is not None and parent in self.link_builders
+        builder = MJCFLinkBuilder(len(self.link_builders), parent)
+        self.link_builders.append(builder)
+        return builder
+
+    def _build_entities(self, fix_root_link=None, name_prefix="", initial_pose=None):
+        entities = super()._build_entities(fix_root_link=fix_root_link, name_prefix=name_prefix,
+                                           initial_pose=sapien.Pose() if initial_pose is None else initial_pose)
+        root = entities[0].find_component_by_type(sapien.physx.PhysxArticulationLinkComponent)
+        self.built.append(root.articulation)
+        return entities
+
+    def build(self, name=None, fix_root_link=None, build_mimic_joints=True):
+        self.built = []
+        articulation = super().build(name=name, fix_root_link=fix_root_link, build_mimic_joints=build_mimic_joints)
+        plans = [b.plan for b in self.link_builders]
+        sub_scenes = [self.scene.sub_scenes[0 if self.scene.parallel_in_single_scene else int(i)]
+                      for i in self.scene_idxs]
+        for physx_articulation in self.built:
+            physx_settings.apply_articulation_settings(physx_articulation, plans, self.timestep)
+            if self.solver_iterations is not None:
+                (physx_articulation.solver_position_iterations,
+                 physx_articulation.solver_velocity_iterations) = self.solver_iterations
+        self.built = list(zip(sub_scenes, self.built))
+        if self.on_built is not None:
+            self.on_built(self, articulation)
+        return articulation

@@ -1,0 +1,55 @@
+"""The `mujoco_ctrl` control mode: the action is MuJoCo's `ctrl` vector, applied before every physics step exactly as
+`LoadResult.set_ctrl` applies it, so a MuJoCo policy drives the robot unchanged (CPU only: the per-step terms read
+the state on the host). Gravity stays on, as in MuJoCo
+(tests/test_maniskill.py::test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from gymnasium import spaces
+from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
+from mani_skill.utils import common
+
+
+class MujocoCtrlController(BaseController):
+    """Holds the last action as `ctrl`; `set_ctrl` on each sub-scene's `LoadResult` before every physics step."""
+
+    config: MujocoCtrlConfig
+    sets_target_qpos = False
+    sets_target_qvel = False
+
+    def _initialize_action_space(self):
+        self.single_action_space = spaces.Box(np.float32(self.config.low), np.float32(self.config.high),
+                                              dtype=np.float32)
+        self.ctrl = np.zeros(len(self.config.low))
+
+    def set_drive_property(self):
+        for link in self.articulation.links:
+            link.disable_gravity = False
+        for result in self.config.results:
+            result.release()  # forget drive writes made by another mode, then own the drives again
+            result.set_ctrl(self.ctrl, advance=False)
+
+    def reset(self):
+        self.ctrl = np.zeros(len(self.config.low))
+        for result in self.config.results:
+            result.set_act(None)
+
+    def set_action(self, action):
+        action = common.to_numpy(self._preprocess_action(action))
+        self.ctrl = np.asarray(action, np.float64).reshape(-1, len(self.config.low))[0]
+
+    def before_simulation_step(self):
+        for result in self.config.results:
+            result.set_ctrl(self.ctrl)
+
+
+@dataclass
+class MujocoCtrlConfig(ControllerConfig):
+    low: list[float] = field(default_factory=list)  # ctrlrange (or -inf) per actuator
+    high: list[float] = field(default_factory=list)
+    results: list = field(default_factory=list)  # one LoadResult per sub-scene
+    normalize_action: bool = False
+    controller_cls = MujocoCtrlController

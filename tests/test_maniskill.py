@@ -1,0 +1,197 @@
+"""The loader inside ManiSkill 3.0.1 (`loader.maniskill`, the `maniskill` extra), on the CPU: a Menagerie arm and
+quadruped built into a ManiSkill scene as MuJoCo has them, `register_agent` robots in `Empty-v1` under every derived
+control mode, the position servos' PD drives holding a keyframe as MuJoCo's servos do, and `mujoco_ctrl` following
+MuJoCo stepped with the same ctrl at the scene's timestep. MuJoCo is the oracle. Skipped without mani_skill."""
+
+from __future__ import annotations
+
+import warnings
+
+import mujoco
+import numpy as np
+import pytest
+import sapien
+from support.corpus import menagerie_root
+from support.oracle import POSE_TOLERANCE, collision_filter_mismatches, link_pose_errors
+
+pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
+gym = pytest.importorskip("gymnasium")
+torch = pytest.importorskip("torch")
+
+import mani_skill.envs  # noqa: F401  registers Empty-v1
+from mani_skill.envs.scene import ManiSkillScene
+from mani_skill.envs.utils.system.backend import parse_sim_and_render_backend
+from mani_skill.utils.structs.types import SimConfig
+
+from loader import SceneMismatchWarning
+from loader.maniskill import MJCFLoader, register_agent
+
+ROBOTS = {"panda": "franka_emika_panda/panda.xml", "go1": "unitree_go1/go1.xml"}
+# rad, the largest |ManiSkill - MuJoCo| joint position over 1 s of the panda under pd_joint_delta_pos with zero
+# actions from its keyframe, MuJoCo holding the keyframe's ctrl (its servos sag 6.6e-3 under gravity): measured
+# 4.1e-5 (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0); with the arm's kp and kv swapped 4.5e-3
+HOLD_TOLERANCE = 1e-4
+# rad, the largest |ManiSkill - MuJoCo| joint position over 1 s of the panda under mujoco_ctrl (a 0.3 rad sine on
+# the arm's ctrl around its keyframe), MuJoCo at the scene's timestep: measured 4.4e-7 at 500 Hz (the model's)
+# and 100 Hz (ManiSkill's default) (same versions)
+FOLLOW_TOLERANCE = 1e-5
+
+
+def _path(robot: str):
+    root = menagerie_root()
+    if root is None or not (root / ROBOTS[robot]).is_file():
+        pytest.skip("Menagerie slice not installed")
+    return root / ROBOTS[robot]
+
+
+def _cpu_scene(timestep: float) -> ManiSkillScene:
+    """A one-sub-scene CPU ManiSkill scene as ManiSkill's env makes it, with MuJoCo's solver (PGS) and gravity."""
+    previous = sapien.physx.get_scene_config()
+    sapien.physx.set_scene_config(gravity=[0.0, 0.0, -9.81], enable_tgs=False)
+    try:
+        sub_scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    finally:
+        sapien.physx.set_scene_config(previous)
+    scene = ManiSkillScene([sub_scene], sim_config=SimConfig(), device=torch.device("cpu"),
+                           backend=parse_sim_and_render_backend("physx_cpu", "none"))
+    scene.timestep = timestep
+    return scene
+
+
+@pytest.fixture(scope="module")
+def agents():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return {robot: register_agent(_path(robot), f"mjcf_{robot}", override=True) for robot in ROBOTS}
+
+
+def _env(uid: str, mode: str, sim_freq: int, control_freq: int):
+    return gym.make("Empty-v1", robot_uids=uid, sim_backend="physx_cpu", render_backend="none", obs_mode="state",
+                    control_mode=mode, sim_config={"sim_freq": sim_freq, "control_freq": control_freq,
+                                                       "scene_config": {"enable_tgs": False}})
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_an_arm_and_a_quadruped_load_into_a_maniskill_scene_as_in_mujoco(robot, rng):
+    path = _path(robot)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    loader = MJCFLoader()
+    loader.set_scene(_cpu_scene(float(model.opt.timestep)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        articulation = loader.load(str(path), name=robot)
+    (result,) = loader.results
+    free = int(np.sum(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE))
+    assert articulation.max_dof == model.nv - 6 * free
+    qpos = rng.uniform(-0.1, 0.1, articulation.max_dof).astype(np.float32)
+    result.articulations[0].set_qpos(qpos)
+    np.testing.assert_array_equal(articulation.get_qpos()[0].numpy(), qpos)  # the result's is ManiSkill's robot
+    assert link_pose_errors(result, rng, 3) < (POSE_TOLERANCE, POSE_TOLERANCE)
+    assert collision_filter_mismatches(result) == []
+    links = result.articulations[0].links
+    masses = np.zeros(len(links))
+    for body in range(1, model.nbody):
+        masses[result.mapping.bodies[body].link] += model.body_mass[body]
+    np.testing.assert_allclose([link.mass for link in links], masses, rtol=1e-6)
+    joints = result.articulations[0].active_joints
+    for j in range(model.njnt):
+        for dof in result.mapping.joints[j].dofs:
+            assert joints[dof].armature[0] == pytest.approx(model.dof_armature[model.jnt_dofadr[j]], rel=1e-6)
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_every_derived_control_mode_makes_an_empty_env(robot, agents):
+    agent_class = agents[robot]
+    model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
+    modes = ["pd_joint_pos", "pd_joint_delta_pos", "mujoco_ctrl"]
+    for mode in modes:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            env = _env(agent_class.uid, mode, 500, 100)
+        try:
+            env.reset(seed=0)
+            agent = env.unwrapped.agent
+            assert mode in agent.supported_control_modes
+            if mode == "mujoco_ctrl":
+                assert env.action_space.shape == (model.nu,)
+            env.step(env.action_space.sample() * 0)
+            assert torch.isfinite(agent.robot.get_qpos()).all()
+        finally:
+            env.close()
+    assert set(agent_class.keyframes) == {model.key(k).name for k in range(model.nkey)}
+
+
+def test_an_arm_holds_its_keyframe_under_zero_delta_actions_as_in_mujoco(agents):
+    agent_class = agents["panda"]
+    model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = _env(agent_class.uid, "pd_joint_delta_pos", 500, 100)
+    try:
+        env.reset(seed=0)
+        agent = env.unwrapped.agent
+        agent.robot.set_qpos(agent_class.keyframes[model.key(0).name].qpos)
+        agent.controller.reset()
+        worst = 0.0
+        for _ in range(100):
+            env.step(np.zeros(env.action_space.shape))
+            for _ in range(5):
+                mujoco.mj_step(model, data)
+            worst = max(worst, float(np.abs(agent.results[0].get_state()[0] - data.qpos).max()))
+    finally:
+        env.close()
+    assert worst < HOLD_TOLERANCE
+
+
+@pytest.mark.parametrize("sim_freq", [500, 100])
+def test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl(agents, sim_freq):
+    agent_class = agents["panda"]
+    model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
+    model.opt.timestep = 1.0 / sim_freq
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = _env(agent_class.uid, "mujoco_ctrl", sim_freq, 100)
+    mismatch = [w for w in caught if issubclass(w.category, SceneMismatchWarning)]
+    assert bool(mismatch) == (sim_freq != 500), "a scene at another timestep than the file's is warned"
+    try:
+        env.reset(seed=0)
+        (result,) = env.unwrapped.agent.results
+        result.reset(0)
+        arm = np.r_[np.ones(7), 0.0]
+        worst = 0.0
+        for step in range(100):
+            ctrl = (model.key_ctrl[0] + 0.3 * np.sin(2 * np.pi * step / 50) * arm).astype(np.float32)
+            env.step(ctrl)
+            data.ctrl[:] = ctrl
+            for _ in range(sim_freq // 100):
+                mujoco.mj_step(model, data)
+            worst = max(worst, float(np.abs(result.get_state()[0] - data.qpos).max()))
+    finally:
+        env.close()
+    assert worst < FOLLOW_TOLERANCE
+
+
+def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agents):
+    if not torch.cuda.is_available() or not sapien.physx.is_gpu_enabled():
+        pytest.skip("needs CUDA and SAPIEN's GPU PhysX")
+    agent_class = agents["panda"]
+    model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make("Empty-v1", robot_uids=agent_class.uid, sim_backend="physx_cuda", render_backend="none",
+                       obs_mode="state", num_envs=2, control_mode="pd_joint_delta_pos")
+    try:
+        env.reset(seed=0)
+        assert "mujoco_ctrl" not in env.unwrapped.agent.supported_control_modes
+        assert sum("CPU-only" in str(w.message) for w in caught) == 1
+        for sub_scene in env.unwrapped.scene.sub_scenes:
+            (articulation,) = {c.articulation for entity in sub_scene.entities for c in entity.components
+                               if isinstance(c, sapien.physx.PhysxArticulationLinkComponent)}
+            armature = [joint.armature[0] for joint in articulation.active_joints]
+            np.testing.assert_allclose(armature, model.dof_armature, rtol=1e-6)
+    finally:
+        env.close()
