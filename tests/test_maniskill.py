@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 import sapien
-from support.corpus import menagerie_root
+from support.corpus import menagerie_root, suite_path
 from support.oracle import POSE_TOLERANCE, collision_filter_mismatches, link_pose_errors
 
 pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
@@ -27,17 +27,20 @@ from loader import SceneMismatchWarning
 from loader.maniskill import MJCFLoader, register_agent
 
 ROBOTS = {"panda": "franka_emika_panda/panda.xml", "go1": "unitree_go1/go1.xml"}
+AGENTS = [*ROBOTS, "acrobot"]  # acrobot: a motor-only robot (dm_control's suite)
 # rad, the largest |ManiSkill - MuJoCo| joint position over 1 s of the panda under pd_joint_delta_pos with zero
 # actions from its keyframe, MuJoCo holding the keyframe's ctrl (its servos sag 6.6e-3 under gravity): measured
 # 4.1e-5 (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0); with the arm's kp and kv swapped 4.5e-3
 HOLD_TOLERANCE = 1e-4
-# rad, the largest |ManiSkill - MuJoCo| joint position over 1 s of the panda under mujoco_ctrl (a 0.3 rad sine on
-# the arm's ctrl around its keyframe), MuJoCo at the scene's timestep: measured 4.4e-7 at 500 Hz (the model's)
-# and 100 Hz (ManiSkill's default) (same versions)
+# rad, the largest |ManiSkill - MuJoCo| joint position over 1 s under mujoco_ctrl (a 0.3 sine on the ctrl of the
+# joint actuators around the first keyframe), MuJoCo at the scene's timestep on implicitfast: measured 4.4e-7 for
+# the panda at 500 Hz (the model's) and at 100 Hz (ManiSkill's default), 4.4e-7 for the acrobot (same versions)
 FOLLOW_TOLERANCE = 1e-5
 
 
 def _path(robot: str):
+    if robot not in ROBOTS:
+        return suite_path(robot)
     root = menagerie_root()
     if root is None or not (root / ROBOTS[robot]).is_file():
         pytest.skip("Menagerie slice not installed")
@@ -62,7 +65,7 @@ def _cpu_scene(timestep: float) -> ManiSkillScene:
 def agents():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return {robot: register_agent(_path(robot), f"mjcf_{robot}", override=True) for robot in ROBOTS}
+        return {robot: register_agent(_path(robot), f"mjcf_{robot}", override=True) for robot in AGENTS}
 
 
 def _env(uid: str, mode: str, sim_freq: int, control_freq: int):
@@ -99,8 +102,10 @@ def test_an_arm_and_a_quadruped_load_into_a_maniskill_scene_as_in_mujoco(robot, 
             assert joints[dof].armature[0] == pytest.approx(model.dof_armature[model.jnt_dofadr[j]], rel=1e-6)
 
 
-@pytest.mark.parametrize("robot", ROBOTS)
+@pytest.mark.parametrize("robot", AGENTS)
 def test_every_derived_control_mode_makes_an_empty_env(robot, agents):
+    """Each actuator is one action in every mode (a coupled gripper one, a motor-only robot's PD modes on the
+    joints its motors drive)."""
     agent_class = agents[robot]
     model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
     modes = ["pd_joint_pos", "pd_joint_delta_pos", "mujoco_ctrl"]
@@ -112,8 +117,7 @@ def test_every_derived_control_mode_makes_an_empty_env(robot, agents):
             env.reset(seed=0)
             agent = env.unwrapped.agent
             assert mode in agent.supported_control_modes
-            if mode == "mujoco_ctrl":
-                assert env.action_space.shape == (model.nu,)
+            assert env.action_space.shape == (model.nu,)
             env.step(env.action_space.sample() * 0)
             assert torch.isfinite(agent.robot.get_qpos()).all()
         finally:
@@ -145,26 +149,32 @@ def test_an_arm_holds_its_keyframe_under_zero_delta_actions_as_in_mujoco(agents)
     assert worst < HOLD_TOLERANCE
 
 
-@pytest.mark.parametrize("sim_freq", [500, 100])
-def test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl(agents, sim_freq):
-    agent_class = agents["panda"]
+@pytest.mark.parametrize(("robot", "sim_freq"), [("panda", 500), ("panda", 100), ("acrobot", 100)])
+def test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl(agents, robot, sim_freq):
+    agent_class = agents[robot]
     model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
+    file_timestep = model.opt.timestep
     model.opt.timestep = 1.0 / sim_freq
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST  # what the mapping assumes (the acrobot's RK4
+    # is approximated by it: docs/mapping.md#integrators)
     data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
+    key = 0 if model.nkey else None
+    if key is not None:
+        mujoco.mj_resetDataKeyframe(model, data, key)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         env = _env(agent_class.uid, "mujoco_ctrl", sim_freq, 100)
     mismatch = [w for w in caught if issubclass(w.category, SceneMismatchWarning)]
-    assert bool(mismatch) == (sim_freq != 500), "a scene at another timestep than the file's is warned"
+    assert bool(mismatch) == (np.float32(1.0 / sim_freq) != np.float32(file_timestep)), "another timestep is warned"
     try:
         env.reset(seed=0)
         (result,) = env.unwrapped.agent.results
-        result.reset(0)
-        arm = np.r_[np.ones(7), 0.0]
+        result.reset(key)
+        around = model.key_ctrl[0] if key is not None else np.zeros(model.nu)
+        joint_actuators = model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT
         worst = 0.0
         for step in range(100):
-            ctrl = (model.key_ctrl[0] + 0.3 * np.sin(2 * np.pi * step / 50) * arm).astype(np.float32)
+            ctrl = (around + 0.3 * np.sin(2 * np.pi * step / 50) * joint_actuators).astype(np.float32)
             env.step(ctrl)
             data.ctrl[:] = ctrl
             for _ in range(sim_freq // 100):

@@ -22,7 +22,7 @@ from mani_skill.utils.structs.pose import Pose
 from ..mjcf_loader import MJCFLoader as CoreLoader
 from .mujoco_ctrl import MujocoCtrlConfig
 from .scene_loader import MJCFLoader
-from .servos import Servo, derive
+from .servos import Motor, Servo, derive, motors
 
 DELTA = 0.1  # pd_joint_delta_pos: ManiSkill's usual bound on a step's change of target (rad or m)
 
@@ -31,6 +31,7 @@ class MJCFAgent(BaseAgent):
     """A robot from an MJCF file (set up by `register_agent`). `results`: one `LoadResult` per sub-scene (CPU)."""
 
     servos: ClassVar[list[Servo]] = []
+    motors: ClassVar[list[Motor]] = []
     ctrl_low: ClassVar[list[float]] = []
     ctrl_high: ClassVar[list[float]] = []
 
@@ -57,9 +58,14 @@ class MJCFAgent(BaseAgent):
         joints = [joint.name for joint in self.robot.active_joints]
         positions = [s for s in self.servos if s.kind == "position"]
         velocities = [s for s in self.servos if s.kind == "velocity"]
-        configs = dict(super()._controller_configs) if not positions else {
-            "pd_joint_pos": _pd_joint_pos(positions, delta=False),
-            "pd_joint_delta_pos": _pd_joint_pos(positions, delta=True)}
+        if positions:
+            configs = {"pd_joint_pos": _pd_joint_pos(positions, delta=False),
+                       "pd_joint_delta_pos": _pd_joint_pos(positions, delta=True)}
+        else:  # ManiSkill's default PD gains on the joints the motors drive (all joints without motors)
+            configs = dict(super()._controller_configs)
+            driven = {m.joint: m.force_limit for m in self.motors}
+            for config in configs.values() if driven else []:
+                config.joint_names, config.force_limit = list(driven), list(driven.values())
         if velocities:
             configs["pd_joint_vel"] = {"balance_passive_force": False, **{s.actuator: PDJointVelControllerConfig(
                 s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=False) for s in velocities}}
@@ -109,7 +115,7 @@ def register_agent(mjcf_path: str | Path, uid: str, fix_root_link: bool = True, 
     limited = model.actuator_ctrllimited.astype(bool)
     attributes = {
         "uid": uid, "mjcf_path": path, "fix_root_link": fix_root_link, "disable_self_collisions": disable_self_collisions,
-        "keyframes": keyframes, "servos": derive(reference),
+        "keyframes": keyframes, "servos": derive(reference), "motors": motors(reference),
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist()}
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)

@@ -34,6 +34,32 @@ class Servo:
     mimic: dict[str, dict] = field(default_factory=dict)  # ManiSkill's: joint -> {"joint", "multiplier", "offset"}
 
 
+@dataclass
+class Motor:
+    """A direct-force actuator on one joint: ManiSkill's default PD gains drive that joint, within the torque
+    MuJoCo's motor can give it (|gear| times the largest force its forcerange and ctrlrange allow)."""
+
+    actuator: str
+    joint: str
+    force_limit: float
+
+
+def motors(result) -> list[Motor]:
+    """The mapped motors (gain, no bias, no dynamics) on hinge and slide joints."""
+    model = result.model
+    out = []
+    for a, act in enumerate(result.actuators):
+        if not act.mapped or act.joint is None or act.dynamics != "none" or any(act.bias) or act.gain == 0:
+            continue
+        j = int(model.actuator_trnid[a, 0])
+        target = result.mapping.joints[j]
+        limits = [max(abs(x) for x in act.forcerange)] if act.forcerange is not None else []
+        limits += [abs(act.gain) * max(abs(x) for x in act.ctrlrange)] if act.ctrlrange is not None else []
+        out.append(Motor(act.name, result.articulations[target.articulation].active_joints[target.dofs[0]].name,
+                         abs(act.gear) * min(limits) if limits else UNLIMITED))
+    return out
+
+
 def _couplings(model: mujoco.MjModel) -> dict[int, tuple[int, float, float]]:
     """Dependent joint -> (independent joint, multiplier, offset) of each active linear joint equality."""
     out = {}
