@@ -33,6 +33,15 @@ def tests(session: nox.Session) -> None:
 
 
 @nox.session
+def maniskill(session: nox.Session) -> None:
+    """`loader.maniskill` inside ManiSkill 3.0.1 (tests/test_maniskill.py). Not part of `tests`: the extra brings torch,
+    whose default Linux wheel pulls CUDA; here its CPU build is installed first."""
+    session.install("torch==2.13.0", "--extra-index-url", "https://download.pytorch.org/whl/cpu")
+    install(session, "harness", "menagerie", "maniskill", "test")
+    session.run("python", "-m", "pytest", "tests/test_maniskill.py", *session.posargs)
+
+
+@nox.session
 def lint(session: nox.Session) -> None:
     """Static checks: ruff, and the house rules (no measured number in a loader docstring, no import cycle, no class
     over 120 lines in the loader, no private attribute read across objects)."""
