@@ -56,7 +56,7 @@ def parser() -> argparse.ArgumentParser:
                      "(full: the default corpus and more real robots, from the robots extra)")
     run.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
     run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
-    run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model)")
+    run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)")
     run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
     run.add_argument("--out", default="reports", help="folder that receives one <run>/ folder per run (summary.md, "
                      "summary.json, recordings) and the link latest")

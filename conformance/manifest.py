@@ -10,7 +10,9 @@ import tomllib
 from .isolation import GAPS, ISOLATED_TIERS
 
 TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "actuated_contact", "actuated",
-              "dynamics")
+              "dynamics", "maniskill")
+OPTIONAL_TIERS = ("maniskill",)  # run only when asked (`--tiers`, a model's `tiers`): it needs the maniskill extra
+DEFAULT_TIERS = tuple(t for t in TIER_NAMES if t not in OPTIONAL_TIERS)
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
 # `changed` (an expected failure whose metric left the band its reason was measured in) and `diverged` (SAPIEN left
 # the finite, physical states: conformance/divergence.py) come from the run alone: no manifest may expect them.
@@ -52,7 +54,7 @@ class ModelEntry:
     # "dm_control:<file>", "menagerie:<path>", "package:<package>/<path inside it>", "fixture:<path relative to the
     # manifest>" or a path
     source: str
-    tiers: tuple[str, ...] = TIER_NAMES
+    tiers: tuple[str, ...] = DEFAULT_TIERS
     timeout_s: float = 300.0
     tolerances: dict[str, float] = field(default_factory=dict)
     settings: dict[str, dict] = field(default_factory=dict)
@@ -85,7 +87,7 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
     for key in ("id", "source"):
         if key not in raw:
             raise ValueError(f"{where}: model entry lacks {key!r}")
-    tiers = tuple(raw.get("tiers", defaults.get("tiers", TIER_NAMES)))
+    tiers = tuple(raw.get("tiers", defaults.get("tiers", DEFAULT_TIERS)))
     bad = [t for t in tiers if t not in TIER_NAMES]
     if bad:
         raise ValueError(f"{where}: model {raw['id']!r} names unknown tiers {bad}; known: {list(TIER_NAMES)}")
@@ -112,6 +114,9 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
             raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: passes_without {list(claimed)} needs "
                              f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}")
         expect[tier] = Expectation(tier, outcome, reason, claimed, str(exp.get("metric", "")), float(seen or 0.0))
+    if "actuated" in expect and "maniskill" not in expect:  # the same rollout through ManiSkill: the same known gap
+        known = expect["actuated"]
+        expect["maniskill"] = replace(known, tier="maniskill", reason=f"as actuated: {known.reason}", passes_without=())
     fault = raw.get("fault")
     if fault is not None and fault not in FAULTS:
         raise ValueError(f"{where}: model {raw['id']!r} fault must be one of {FAULTS}")
@@ -166,7 +171,7 @@ def expand_paths(paths: list[str]) -> list[Path]:
 GENERIC_STEMS = ("robot", "scene", "model", "main", "mjmodel", "index")
 
 
-def from_paths(paths: list[str], tiers: tuple[str, ...] = TIER_NAMES, timeout_s: float = 300.0,
+def from_paths(paths: list[str], tiers: tuple[str, ...] = DEFAULT_TIERS, timeout_s: float = 300.0,
                known: dict[Path, ModelEntry] | None = None) -> Manifest:
     """An ad-hoc manifest for MJCF files given on the command line. A file that is a manifest model (`known`: its
     resolved path -> entry) is that entry, with its id, tiers and expectations; any other file expects every tier to

@@ -162,4 +162,4 @@ def test_a_command_line_file_that_is_a_manifest_model_keeps_its_expectations(tmp
     entry = ModelEntry(id="my_arm", source="fixture:arm.xml", tiers=("contact",), expect=expect)
     m = manifest.from_paths([str(tmp_path)], known={(tmp_path / "arm.xml").resolve(): entry})
     assert [(e.id, e.expected("contact"), e.tiers) for e in m.models] == [
-        ("my_arm", "skipped", ("contact",)), ("other", "pass", manifest.TIER_NAMES)]
+        ("my_arm", "skipped", ("contact",)), ("other", "pass", manifest.DEFAULT_TIERS)]

@@ -172,3 +172,29 @@ def test_a_tiny_tensor_wrong_by_more_than_the_floor_is_caught(tmp_path):
     dummy.inertia = np.full(3, 1e-9, np.float32)
     report = _tier(session, "inertia")
     assert report.status == "fail" and not next(m for m in report.metrics if m.name == "tensor").passed
+
+
+def test_the_maniskill_tier_catches_a_robot_built_there_without_armature(monkeypatch):
+    """The `maniskill` tier drives ManiSkill's own copy of the robot: a mistake in the ManiSkill build (the
+    armature dropped) fails it while the same tier passes on the untouched build."""
+    pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
+    from support.corpus import menagerie_root
+
+    from loader.build import physx_settings
+
+    root = menagerie_root()
+    if root is None or not (root / "franka_emika_panda/panda.xml").is_file():
+        pytest.skip("Menagerie slice not installed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = open_session(str(root / "franka_emika_panda/panda.xml"))
+    assert _tier(session, "maniskill").status == "pass"
+    settings = physx_settings.apply_articulation_settings
+
+    def without_armature(articulation, plans, timestep):
+        settings(articulation, plans, timestep)
+        for joint in articulation.active_joints:
+            joint.set_armature(np.zeros(1, np.float32))
+
+    monkeypatch.setattr(physx_settings, "apply_articulation_settings", without_armature)
+    assert _tier(session, "maniskill").status in ("fail", "diverged")

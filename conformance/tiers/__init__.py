@@ -14,6 +14,7 @@ from .contact import contact
 from .dynamics import dynamics
 from .inertia import inertia
 from .kinematics import kinematics
+from .maniskill import maniskill
 from .structure import structure
 
 TIERS = {
@@ -25,6 +26,8 @@ TIERS = {
     "actuated_contact": actuated_contact,  # before actuated and dynamics, which turn contacts off
     "actuated": actuated,
     "dynamics": dynamics,
+    "maniskill": maniskill,  # opt-in (not a default tier): its own ManiSkill scene, no side effect on `result`
 }
 
-__all__ = ["TIERS", "actuated", "actuated_contact", "collision", "contact", "dynamics", "inertia", "kinematics", "structure"]
+__all__ = ["TIERS", "actuated", "actuated_contact", "collision", "contact", "dynamics", "inertia", "kinematics",
+           "maniskill", "structure"]

@@ -1,0 +1,89 @@
+"""Tier `maniskill` (opt-in: `--tiers maniskill`): the model as a ManiSkill robot (`loader.maniskill.register_agent`)
+in `Empty-v1` (physx_cpu, no rendering, state observations), driven under `mujoco_ctrl` through ManiSkill's own
+`env.step` with the `actuated` tier's ctrl sequence and judged as that tier judges, so that what holds for the loader
+is shown to hold inside ManiSkill. ManiSkill's action is float32: the ctrl it applies is MuJoCo's rounded to it.
+
+Skipped, with the reason: without mani_skill (the `maniskill` extra); when the model's timestep is not 1/n s for an
+integer n (ManiSkill sets the simulation frequency); when the model is not one kinematic tree (ManiSkill's loader
+builds one robot); and wherever `actuated` skips."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import warnings
+
+import mujoco
+import numpy as np
+
+from loader.build.physx_settings import matched_config
+
+from ..report import TierReport, skipped
+from ..tolerances import Tolerances
+from .actuated import actuated
+
+TIER = "maniskill"
+
+
+class _Scene:
+    """The sub-scene, whose `step()` is one ManiSkill `env.step` (one physics step) under the recorded ctrl."""
+
+    def __init__(self, sub_scene, env, driven):
+        self.sub_scene, self.env, self.driven = sub_scene, env, driven
+
+    def step(self) -> None:
+        self.env.step(np.asarray(self.driven.pending, np.float32))
+
+    def __getattr__(self, name):
+        return getattr(self.sub_scene, name)
+
+
+class ThroughEnv:
+    """The agent's `LoadResult`, stepped by ManiSkill: an advancing `set_ctrl` only records the ctrl, which the next
+    `scene.step()` hands to `env.step` as the action (`mujoco_ctrl` applies it before the physics step); everything
+    else is the result's."""
+
+    def __init__(self, result, env):
+        self.result = result
+        self.pending = np.zeros(result.model.nu)
+        self.scene = _Scene(result.scene, env, self)
+
+    def set_ctrl(self, ctrl, qfrc_applied=None, advance: bool = True) -> None:
+        if advance and qfrc_applied is None:
+            self.pending = np.zeros(self.result.model.nu) if ctrl is None else np.array(ctrl, dtype=np.float64)
+            return
+        self.result.set_ctrl(ctrl, qfrc_applied, advance)
+
+    def __getattr__(self, name):
+        return getattr(self.result, name)
+
+
+def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    try:
+        import gymnasium as gym
+        import mani_skill.envs  # noqa: F401  registers Empty-v1
+
+        from loader.maniskill import register_agent
+    except ImportError as exc:
+        return skipped(TIER, f"mani_skill is not installed (the maniskill extra): {exc}")
+    sim_freq = round(1.0 / model.opt.timestep)
+    if np.float32(1.0 / sim_freq) != np.float32(model.opt.timestep):
+        return skipped(TIER, f"the timestep {model.opt.timestep:g} s is not 1/n s: ManiSkill sets a frequency")
+    if len(result.articulations) != 1:
+        return skipped(TIER, f"{len(result.articulations)} kinematic trees: ManiSkill's loader builds one robot")
+    uid = "conformance-" + hashlib.sha256(str(result.path).encode()).hexdigest()[:12]
+    scene_config = {"enable_tgs": False, "gravity": np.asarray(matched_config(model).gravity).tolist()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the loader's notes were counted by the session's load
+        register_agent(result.path, uid, override=True)
+        env = gym.make("Empty-v1", robot_uids=uid, sim_backend="physx_cpu", render_backend="none", obs_mode="state",
+                       control_mode="mujoco_ctrl", sim_config={"sim_freq": sim_freq, "control_freq": sim_freq,
+                                                               "scene_config": scene_config})
+    try:
+        env.reset(seed=seed)
+        (agent_result,) = env.unwrapped.agent.results
+        report = actuated(ThroughEnv(agent_result, env), model, seed, tolerances)
+    finally:
+        env.close()
+    notes = [*report.notes, f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl, {sim_freq} Hz)"]
+    return dataclasses.replace(report, tier=TIER, notes=notes)
