@@ -47,6 +47,8 @@ _warned = False
 
 
 def scene_renders(scene: sapien.Scene) -> bool:
+    """The scene has a render system (a scene of sub-scenes, ManiSkill's: its first sub-scene has one)."""
+    scene = getattr(scene, "sub_scenes", [scene])[0]
     try:
         scene.get_system("render")
     except RuntimeError:

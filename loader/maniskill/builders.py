@@ -20,6 +20,12 @@ class SceneActorBuilder(ShapesFromPlans, ActorBuilder):
         self.shape_plans = []
         self.mesh_visuals = []
 
+    def build_entity(self):
+        entity = super().build_entity()  # ManiSkill's renders only visual records and procedural shapes
+        if self.scene.can_render() and self.mesh_visuals and not (self.visual_records or self._procedural_shapes):
+            entity.add_component(self.build_render_component())
+        return entity
+
 
 class SceneArticulationBuilder(ArticulationBuilder):
     """One kinematic tree. `build()` makes it in each sub-scene, sets the loader's PhysX settings on each copy and
@@ -43,6 +49,9 @@ class SceneArticulationBuilder(ArticulationBuilder):
     def _build_entities(self, fix_root_link=None, name_prefix="", initial_pose=None):
         entities = super()._build_entities(fix_root_link=fix_root_link, name_prefix=name_prefix,
                                            initial_pose=sapien.Pose() if initial_pose is None else initial_pose)
+        for builder, entity in zip(self.link_builders, entities):  # ManiSkill's renders only visual records
+            if self.scene.can_render() and builder.mesh_visuals and not builder.visual_records:
+                entity.add_component(builder.build_render_component())
         root = entities[0].find_component_by_type(sapien.physx.PhysxArticulationLinkComponent)
         self.built.append(root.articulation)
         return entities
