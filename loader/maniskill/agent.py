@@ -68,7 +68,8 @@ class MJCFAgent(BaseAgent):
                 config.joint_names, config.force_limit = list(driven), list(driven.values())
         if velocities:
             configs["pd_joint_vel"] = {"balance_passive_force": False, **{s.actuator: PDJointVelControllerConfig(
-                s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=False) for s in velocities}}
+                s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=s.lower is not None)
+                for s in velocities}}
         if not self.scene.gpu_sim_enabled:
             configs["mujoco_ctrl"] = {"balance_passive_force": False, "ctrl": MujocoCtrlConfig(
                 joints, list(self.ctrl_low), list(self.ctrl_high), self.results)}

@@ -19,6 +19,7 @@ class SceneActorBuilder(ShapesFromPlans, ActorBuilder):
         super().__init__()
         self.shape_plans = []
         self.mesh_visuals = []
+        self.initial_pose = sapien.Pose()  # the world body's frame
 
     def build_entity(self):
         entity = super().build_entity()  # ManiSkill's renders only visual records and procedural shapes

@@ -114,8 +114,13 @@ def derive(result) -> list[Servo]:
         limit = max(abs(x) for x in act.forcerange) if act.forcerange is not None else None
         ends = sorted(((act.gain * c + b0) / (gain_of * g) - offset_sum) / scale for c in act.ctrlrange) \
             if act.ctrlrange is not None else [None, None]
-        ordered = sorted(terms, key=lambda t: t[0] != control)
+        ordered = sorted(terms, key=lambda t: t[0] != control)  # the driven joint first
         dof_damping = [float(model.dof_damping[model.jnt_dofadr[j]]) for j, _, _ in ordered]
+        if kind == "velocity":  # one joint: the drive's damping holds the joint's too, so its target is scaled
+            actuator_damping = per_joint[0] * -b2
+            if act.ctrlrange is None:
+                dof_damping = [0.0]  # unscalable without normalized actions: the joint's damping is not carried
+            ends = [None if e is None else e * actuator_damping / (actuator_damping + dof_damping[0]) for e in ends]
         servos.append(Servo(
             actuator=act.name, kind=kind, joints=[names[j] for j, _, _ in ordered],
             stiffness=[k * -b1 for k in _in_order(per_joint, terms, ordered)] if kind == "position" else
