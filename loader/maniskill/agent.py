@@ -70,7 +70,7 @@ class MJCFAgent(BaseAgent):
             configs["pd_joint_vel"] = {"balance_passive_force": False, **{s.actuator: PDJointVelControllerConfig(
                 s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=s.lower is not None)
                 for s in velocities}}
-        if not self.scene.gpu_sim_enabled:
+        if not self.scene.gpu_sim_enabled and self.ctrl_low:  # a model with actuators, on the CPU
             configs["mujoco_ctrl"] = {"balance_passive_force": False, "ctrl": MujocoCtrlConfig(
                 joints, list(self.ctrl_low), list(self.ctrl_high), self.results)}
         return configs
