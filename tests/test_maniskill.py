@@ -250,3 +250,17 @@ def test_a_velocity_servo_drives_pd_joint_vel_as_in_mujoco(tmp_path):
     finally:
         env.close()
     assert worst < VELOCITY_TOLERANCE
+
+
+def test_disable_self_collisions_filters_every_pair_of_the_robot_as_maniskill_means_it():
+    """ManiSkill's option: no link of the robot touches another. With it, the only differences from MuJoCo's
+    collision filter are pairs MuJoCo lets touch and PhysX now does not."""
+    path = _path("panda")
+    loader = MJCFLoader()
+    loader.set_scene(_cpu_scene(0.002))
+    loader.disable_self_collisions = True
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loader.load(str(path), name="panda_alone")
+    mismatches = collision_filter_mismatches(loader.results[0])
+    assert mismatches and all(physx is False for _, _, physx in mismatches)
