@@ -45,8 +45,11 @@ class MJCFAgent(BaseAgent):
         loader.fix_root_link = self.fix_root_link
         loader.disable_self_collisions = self.disable_self_collisions
         builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
-        root = Pose.create(builder.initial_pose)
-        builder.initial_pose = root if initial_pose is None else Pose.create(initial_pose) * root
+        if initial_pose is None:
+            builder.initial_pose = Pose.create(builder.initial_pose)
+        else:  # on the device of the env's pose (a batched pose may live on the GPU)
+            placed = Pose.create(initial_pose)
+            builder.initial_pose = placed * Pose.create(builder.initial_pose, device=placed.device)
         self.robot = builder.build()
         self.robot_link_names = [link.name for link in self.robot.get_links()]
         self.results = loader.results
