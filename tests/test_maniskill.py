@@ -199,8 +199,9 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
         assert "mujoco_ctrl" not in env.unwrapped.agent.supported_control_modes
         assert sum("CPU-only" in str(w.message) for w in caught) == 1
         for sub_scene in env.unwrapped.scene.sub_scenes:
-            (articulation,) = {c.articulation for entity in sub_scene.entities for c in entity.components
-                               if isinstance(c, sapien.physx.PhysxArticulationLinkComponent)}
+            links = [c for entity in sub_scene.entities for c in entity.components
+                     if isinstance(c, sapien.physx.PhysxArticulationLinkComponent)]
+            articulation = links[0].articulation  # Empty-v1's only articulation: the robot
             armature = [joint.armature[0] for joint in articulation.active_joints]
             np.testing.assert_allclose(armature, model.dof_armature, rtol=1e-6)
     finally:
