@@ -254,3 +254,34 @@ def test_a_robot_started_deep_in_the_floor_stays_calm(deep_rule, monkeypatch):
                             lambda step, data: rng.uniform(-1.0, 1.0, model.nu))
     calm = paired.sapien_speed.max() <= paired.mujoco_speed.max()
     assert calm == deep_rule, (paired.sapien_speed.max(), paired.mujoco_speed.max())
+
+
+JAMMED_SPEED_FLOOR = 100.0  # rad/s: tolerances.toml's divergence floor. Measured (mujoco 3.17.0, sapien 3.0.3):
+# 3.5 with the rule, 5.9e5 with the rows balanced against the jammed contact (MuJoCo 0.18)
+
+
+@pytest.mark.parametrize("jam_rule", [True, False], ids=["loader", "mistake_rows_balance_a_jam"])
+def test_a_gripper_with_a_part_jammed_inside_another_stays_calm(jam_rule, monkeypatch):
+    """Menagerie's Robotiq 2F-85 with one driver link's collision mesh moved to its body's origin (a
+    robustness-session find): it sits 1.2 cm inside the next link for good. MuJoCo holds the jam softly, PhysX
+    pushes at its depenetration cap every step, so limit and coupling rows MuJoCo solves with that contact would
+    balance a force SAPIEN never applies: a contact deeper than PhysX resolves in a step leaves the rows to a
+    contact-free solve. With the rows balanced against it (the mistake) the fingers fly."""
+    from support.corpus import menagerie_root
+    from support.lockstep import paired_rollout
+
+    root = menagerie_root()
+    if root is None or not (root / "robotiq_2f85_v4" / "2f85.xml").is_file():
+        pytest.skip("the Menagerie slice is not installed (the `menagerie` extra)")
+    spec = mujoco.MjSpec.from_file(str(root / "robotiq_2f85_v4" / "2f85.xml"))
+    driver = next(g for g in spec.geoms if g.meshname == "driver" and g.classname.name == "collision")
+    driver.pos = [0.0, 0.0, 0.0]
+    result = MJCFLoader().load(spec)
+    if not jam_rule:
+        monkeypatch.setattr(rows, "deep_contact", lambda data, timestep, cap: False)
+    model = result.model
+    rng = np.random.default_rng(5157)
+    low, high = model.actuator_ctrlrange.T
+    paired = paired_rollout(result, model, mujoco.MjData(model), 50, lambda step, data: rng.uniform(low, high))
+    assert (paired.sapien_speed.max() < JAMMED_SPEED_FLOOR) == jam_rule, (paired.sapien_speed.max(),
+                                                                         paired.mujoco_speed.max())

@@ -163,10 +163,13 @@ class RowTerm:
 
 
 def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
-    """A contact so deep that MuJoCo's soft push would change its speed within one step by more than PhysX's
-    depenetration cap (`cap`, m/s) lets PhysX push: dt K I depth, from MuJoCo's own stiffness K and impedance I of
-    the row. The joint rows MuJoCo solves with it balance a contact force PhysX will not apply, so `RowTerm` solves
-    them without contacts that step (tests/test_loader_limit.py::test_a_robot_started_deep_in_the_floor_stays_calm)."""
+    """A contact where PhysX and MuJoCo push differently: one so deep that MuJoCo's soft push would change its speed
+    within one step by more than PhysX's depenetration cap (`cap`, m/s) lets PhysX push (dt K I depth, from MuJoCo's
+    own stiffness K and impedance I of the row), or one penetrating further than PhysX resolves in a step at its cap
+    (cap dt: a jammed part PhysX keeps pushing at the cap while MuJoCo holds it softly). The joint rows MuJoCo solves
+    with it balance a contact force PhysX will not apply, so `RowTerm` solves them without contacts that step
+    (tests/test_loader_limit.py::test_a_robot_started_deep_in_the_floor_stays_calm,
+    tests/test_loader_limit.py::test_a_gripper_with_a_part_jammed_inside_another_stays_calm)."""
     if not data.ncon:
         return False
     rows = data.efc_type[:data.nefc] >= int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
@@ -174,7 +177,9 @@ def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
         return False
     kbip = data.efc_KBIP[:data.nefc][rows]
     depth = np.maximum(data.efc_margin[:data.nefc][rows] - data.efc_pos[:data.nefc][rows], 0.0)
-    return bool((timestep * kbip[:, 0] * kbip[:, 2] * depth > cap).any())
+    if (timestep * kbip[:, 0] * kbip[:, 2] * depth > cap).any():
+        return True
+    return bool((data.contact.dist[:data.ncon] < -cap * timestep).any())
 
 
 def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
