@@ -29,6 +29,17 @@ def _tiers(text: str) -> tuple[str, ...]:
     return tiers
 
 
+def _seeds(text: str) -> tuple[int, ...]:
+    first, sep, last = text.partition("..")
+    try:
+        low, high = int(first), int(last)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give an inclusive range A..B of integers, e.g. 0..3") from None
+    if not sep or high < low:
+        raise argparse.ArgumentTypeError(f"{text!r}: give an inclusive range A..B with A <= B, e.g. 0..3")
+    return tuple(range(low, high + 1))
+
+
 class _Defaults(argparse.HelpFormatter):
     """Help that shows every option's default, where it has one (not None, False or an empty list)."""
 
@@ -58,6 +69,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
     run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)")
     run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
+    run.add_argument("--seeds", type=_seeds, default=(), metavar="A..B", help="a sweep instead of --seed: every "
+                     "model once per seed from A to B (inclusive), its id suffixed @seed<N>")
     run.add_argument("--out", default="reports", help="folder that receives one <run>/ folder per run (summary.md, "
                      "summary.json, recordings) and the link latest")
     run.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
@@ -125,7 +138,10 @@ def cmd_run(args) -> int:
     from .runner import RunOptions, run
 
     entries = _entries(args)
-    options = RunOptions(out=Path(args.out), seed=args.seed, jobs=args.jobs, tiers=args.tiers,
+    if args.seeds and args.seed:
+        raise ValueError(f"--seed {args.seed} and --seeds {args.seeds[0]}..{args.seeds[-1]}: give one or the other")
+    options = RunOptions(out=Path(args.out), seed=args.seed, seeds=args.seeds,
+                         jobs=args.jobs, tiers=args.tiers,
                          tolerance_file=args.tolerances, timeout_scale=args.timeout_scale,
                          progress=not args.quiet, record=not args.no_record,
                          visual_meshes=args.visual_meshes,

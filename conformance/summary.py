@@ -156,12 +156,17 @@ def atomic_write_text(path: Path, text: str) -> None:
     """Write via a temporary file in the same folder and rename: readers see the old or the new file. The file gets
     the mode `open()` would give it (0644 under the usual umask), not mkstemp's private 0600: a report is for
     sharing (tests/test_conformance_runner.py::test_summary_files_are_readable_by_everyone)."""
+    atomic_write_bytes(path, text.encode())
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """`atomic_write_text` for bytes (a recording a cluster's worker sent back)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -209,8 +214,10 @@ def _cell(v: Verdict) -> str:
             f"margin {_fmt(worst['margin'])})")
 
 
-def build(run: dict, entries: list[ModelEntry], results: dict[str, ModelResult]) -> dict:
-    """The summary document: run metadata, per-model results and verdicts, and the overall judgement."""
+def build(run: dict, entries: list[ModelEntry], results: dict[str, ModelResult],
+          seeds: dict[str, int] | None = None) -> dict:
+    """The summary document: run metadata, per-model results and verdicts, and the overall judgement. A seed sweep
+    gives each entry's seed (`seeds`, by id), recorded beside its id."""
     models, worse, better = [], [], []
     for entry in entries:
         result = results.get(entry.id) or ModelResult(entry.id, "pending", reason="not finished")
@@ -220,7 +227,7 @@ def build(run: dict, entries: list[ModelEntry], results: dict[str, ModelResult])
         better += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts
                    if OUTCOME_RANK[v.raw] < OUTCOME_RANK[v.expected]]
         models.append({
-            "id": entry.id, "source": entry.source, "status": result.status, "reason": result.reason,
+            "id": entry.id, **({"seed": seeds[entry.id]} if seeds else {}), "source": entry.source, "status": result.status, "reason": result.reason,
             "recording": result.recording, "seconds": result.seconds, "settings": result.settings,
             "load": result.load, "warnings": result.warnings,
             "verdicts": {v.tier: {"outcome": v.outcome, "raw": v.raw, "expected": v.expected,
@@ -319,10 +326,15 @@ def _isolation_lines(summary: dict) -> list[str]:
     return lines
 
 
+def _seed_text(summary: dict) -> str:
+    seeds = summary.get("seeds")
+    return f"seeds {seeds[0]}..{seeds[-1]}" if seeds else f"seed {summary['seed']}"
+
+
 def markdown(summary: dict, tiers: list[str]) -> str:
     """summary.md: a model x tier table (worst metric max/tolerance per cell), then the failures."""
     lines = [f"# Conformance run {summary['run']}", "",
-             f"seed {summary['seed']}; " + ", ".join(f"{k} {v}" for k, v in summary["versions"].items()), ""]
+             f"{_seed_text(summary)}; " + ", ".join(f"{k} {v}" for k, v in summary["versions"].items()), ""]
     if summary.get("interrupted"):
         lines += ["**Interrupted: results below are partial.**", ""]
     lines += ["| model | " + " | ".join(tiers) + " |", "|---" * (len(tiers) + 1) + "|"]

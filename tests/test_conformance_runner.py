@@ -137,6 +137,9 @@ USAGE_ERRORS = {
     "a missing manifest": (["--manifest", "{tmp}/none.toml"], "none.toml"),
     "a manifest that is not TOML": (["--manifest", "{tmp}/broken.toml"], "Expected"),
     "paths and --model together": (["{tmp}/empty", "--model", "cartpole"], "give one or the other"),
+    "a seed range backwards": (["--seeds", "3..1"], "'3..1': give an inclusive range A..B with A <= B"),
+    "a seed range that is not one": (["--seeds", "0-3"], "'0-3': give an inclusive range A..B of integers"),
+    "--seed and --seeds together": (["--seed", "2", "--seeds", "0..1"], "give one or the other"),
 }
 
 
@@ -245,3 +248,28 @@ def test_the_terminal_gets_one_line_per_model_and_the_file_the_table(tmp_path):
     detailed = run_cli(*args, "--out", str(tmp_path / "b"), "-v").stdout.splitlines()
     notes = [line for line in detailed if line.startswith("    approximated geom ")]
     assert len(notes) == 3 and all("cylinder" in line for line in notes)
+
+
+def _kinematics(model: dict) -> dict:
+    """A model's kinematics metrics by name (their max): what a seed changes (the sampled configurations)."""
+    return {m["name"]: m["max"] for m in model["verdicts"]["kinematics"]["metrics"]}
+
+
+def test_a_seed_sweep_runs_each_model_once_per_seed(tmp_path):
+    args = ("--manifest", str(SELFTEST), "--model", "pendulum", "--quiet", "--tiers", "structure,kinematics")
+    swept = run_cli(*args, "--seeds", "1..2", "--out", str(tmp_path / "sweep"), "--jobs", "2")
+    single = run_cli(*args, "--seed", "2", "--out", str(tmp_path / "single"), "--no-record")
+    assert (swept.returncode, single.returncode) == (0, 0), swept.stderr + single.stderr
+    run = (tmp_path / "sweep" / "latest").resolve()
+    summary = json.loads((run / "summary.json").read_text())
+    assert (summary["seed"], summary["seeds"]) == (1, [1, 2])
+    assert [(m["id"], m["seed"]) for m in summary["models"]] == [("pendulum@seed1", 1), ("pendulum@seed2", 2)]
+    for model_id, seed in (("pendulum@seed1", 1), ("pendulum@seed2", 2)):
+        assert json.loads((run / "models" / f"{model_id}.json").read_text())["seed"] == seed
+        assert (run / f"{model_id}.rrd").stat().st_size > 0
+    assert "seeds 1..2;" in (run / "summary.md").read_text()
+    (alone,) = json.loads((tmp_path / "single" / "latest" / "summary.json").read_text())["models"]
+    assert "seed" not in alone and alone["id"] == "pendulum"  # one seed: the output as without a sweep
+    seed1, seed2 = summary["models"]
+    assert _kinematics(seed2) == _kinematics(alone)  # the sweep's seed 2 is the run at --seed 2
+    assert _kinematics(seed1) != _kinematics(seed2)
