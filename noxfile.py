@@ -28,7 +28,7 @@ def install(session: nox.Session, *extras: str) -> None:
 @nox.session
 def tests(session: nox.Session) -> None:
     """The project's test suite (what CI runs)."""
-    install(session, "harness", "menagerie", "robots", "test")
+    install(session, "harness", "menagerie", "robots", "ray", "test")
     session.run("python", "-m", "pytest", *session.posargs)
 
 

@@ -40,6 +40,16 @@ def _seeds(text: str) -> tuple[int, ...]:
     return tuple(range(low, high + 1))
 
 
+def _executor(text: str) -> str:
+    from .executors import make
+
+    try:
+        make(text)  # an unknown executor, or Ray not installed: a usage error before anything runs
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 class _Defaults(argparse.HelpFormatter):
     """Help that shows every option's default, where it has one (not None, False or an empty list)."""
 
@@ -74,6 +84,9 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="reports", help="folder that receives one <run>/ folder per run (summary.md, "
                      "summary.json, recordings) and the link latest")
     run.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
+    run.add_argument("--executor", type=_executor, default="local", help="where the jobs run: local (worker "
+                     "processes), ray (a new local Ray instance), ray://HOST:PORT (a Ray cluster through Ray Client) or "
+                     "ray:auto (the Ray cluster this machine is part of); Ray needs the ray extra")
     run.add_argument("--timeout-scale", type=float, default=1.0, help="multiply every model's timeout")
     run.add_argument("--tolerances", default=None, help="tolerance file (default: the packaged one)")
     run.add_argument("--no-record", action="store_true", help="skip the .rrd recordings")
@@ -140,7 +153,7 @@ def cmd_run(args) -> int:
     entries = _entries(args)
     if args.seeds and args.seed:
         raise ValueError(f"--seed {args.seed} and --seeds {args.seeds[0]}..{args.seeds[-1]}: give one or the other")
-    options = RunOptions(out=Path(args.out), seed=args.seed, seeds=args.seeds,
+    options = RunOptions(out=Path(args.out), seed=args.seed, seeds=args.seeds, executor=args.executor,
                          jobs=args.jobs, tiers=args.tiers,
                          tolerance_file=args.tolerances, timeout_scale=args.timeout_scale,
                          progress=not args.quiet, record=not args.no_record,

@@ -140,6 +140,7 @@ USAGE_ERRORS = {
     "a seed range backwards": (["--seeds", "3..1"], "'3..1': give an inclusive range A..B with A <= B"),
     "a seed range that is not one": (["--seeds", "0-3"], "'0-3': give an inclusive range A..B of integers"),
     "--seed and --seeds together": (["--seed", "2", "--seeds", "0..1"], "give one or the other"),
+    "an unknown executor": (["--executor", "spark"], "unknown executor 'spark'"),
 }
 
 
