@@ -82,10 +82,10 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
 
 
 UNHOLDABLE = ('<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
-              '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
+              '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="-3 3"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
               '</mujoco>')
 HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravcomp": "0", "timestep": "0.002",
-            "tolerance": "1e-8"}
+            "tolerance": "1e-8", "margin": "0"}
 
 
 @pytest.mark.parametrize("field, value, element, message", [
@@ -99,6 +99,7 @@ HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravco
     ("timestep", "-1", "option 'timestep'", r"is not within \(0, 1\] s"),  # MuJoCo steps backwards
     ("timestep", "1e30", "option 'timestep'", r"is not within \(0, 1\] s"),  # float32 states overflow
     ("tolerance", "inf", "option 'tolerance'", "opt.tolerance .* is non-finite"),  # MuJoCo's solver stops at once
+    ("margin", "1e30", "joint 'hinge'", "jnt_margin .* is beyond"),  # MuJoCo's own run reached 4e11 rad/s
 ])
 def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(field, value, element, message,
                                                                                 monkeypatch):
