@@ -106,13 +106,13 @@ class MJCFLinkBuilder(ShapesFromPlans, LinkBuilder):
         self.plan: LinkPlan | None = None
 
 
-class MJCFArticulationBuilder(ArticulationBuilder):
-    """One kinematic tree. `build()` also sets armature, damping, springs and the PhysX overrides."""
+class TreeOfPlannedLinks:
+    """What an articulation builder of the loader adds to SAPIEN's or ManiSkill's: links that carry their plans,
+    and the settings `build()` applies (mixed in before either builder class)."""
 
     def __init__(self):
         super().__init__()
         self.floating = False
-        self.name = ""
         self.timestep = 0.002  # the scene's, set by the loader: drives compensate MuJoCo's explicit terms
         self.solver_iterations: tuple[int, int] | None = None  # (position, velocity); None keeps PhysX's
 
@@ -122,6 +122,14 @@ class MJCFArticulationBuilder(ArticulationBuilder):
         builder = MJCFLinkBuilder(len(self.link_builders), parent)
         self.link_builders.append(builder)
         return builder
+
+
+class MJCFArticulationBuilder(TreeOfPlannedLinks, ArticulationBuilder):
+    """One kinematic tree. `build()` also sets armature, damping, springs and the PhysX overrides."""
+
+    def __init__(self):
+        super().__init__()
+        self.name = ""
 
     def build_entities(self, fix_root_link=None):
         entities = super().build_entities(fix_root_link=fix_root_link)

@@ -9,7 +9,7 @@ from mani_skill.utils.building.actor_builder import ActorBuilder
 from mani_skill.utils.building.articulation_builder import ArticulationBuilder
 
 from ..build import physx_settings
-from ..build.builders import MJCFLinkBuilder, ShapesFromPlans
+from ..build.builders import ShapesFromPlans, TreeOfPlannedLinks
 
 
 class SceneActorBuilder(ShapesFromPlans, ActorBuilder):
@@ -28,24 +28,14 @@ class SceneActorBuilder(ShapesFromPlans, ActorBuilder):
         return entity
 
 
-class SceneArticulationBuilder(ArticulationBuilder):
+class SceneArticulationBuilder(TreeOfPlannedLinks, ArticulationBuilder):
     """One kinematic tree. `build()` makes it in each sub-scene, sets the loader's PhysX settings on each copy and
     then calls `on_built(builder, articulation)` (the loader plans each sub-scene's per-step terms there)."""
 
     def __init__(self):
         super().__init__()
-        self.floating = False
-        self.timestep = 0.002  # the scene's, set by the loader
-        self.solver_iterations: tuple[int, int] | None = None
         self.built: list[tuple[sapien.Scene, sapien.physx.PhysxArticulation]] = []  # of the last build
         self.on_built = None
-
-    def create_link_builder(self, parent: MJCFLinkBuilder | None = None) -> MJCFLinkBuilder:
-        if self.link_builders:
-            assert parent is not None and parent in self.link_builders
-        builder = MJCFLinkBuilder(len(self.link_builders), parent)
-        self.link_builders.append(builder)
-        return builder
 
     def _build_entities(self, fix_root_link=None, name_prefix="", initial_pose=None):
         entities = super()._build_entities(fix_root_link=fix_root_link, name_prefix=name_prefix,
