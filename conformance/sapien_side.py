@@ -115,12 +115,12 @@ def shape_world_pose(component, shape) -> sapien.Pose:
 
 def set_state(result, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None) -> None:
     """A MuJoCo state (qpos, qvel, act; act None: zeros, as in a fresh `MjData`) into SAPIEN."""
-    result.mapping.set_state(result.articulations, np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float))
+    result.set_state(np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float))
     result.set_act(act)
 
 
 def get_state(result) -> tuple[np.ndarray, np.ndarray]:
-    qpos, qvel = result.mapping.get_state(result.articulations)
+    qpos, qvel = result.get_state()
     return np.asarray(qpos, dtype=float), np.asarray(qvel, dtype=float)
 
 

@@ -14,10 +14,11 @@ from .errors import command_vector
 
 
 class MuJoCoState:
-    """State access for `LoadResult` (which holds `path`, `model`, `mapping` and `articulations`)."""
+    """State access for `LoadResult` (which holds `path`, `model`, `mapping`, `articulations` and `controller`)."""
 
     def get_state(self) -> tuple[np.ndarray, np.ndarray]:
         """The live SAPIEN state as MuJoCo's (qpos of size nq, qvel of size nv)."""
+        self.controller.settle()
         return self.mapping.get_state(self.articulations)
 
     def set_state(self, qpos, qvel=None) -> None:
@@ -27,6 +28,9 @@ class MuJoCoState:
         qpos = command_vector(self.path, "qpos", qpos, self.model.nq, "qpos entries (nq)")
         qvel = command_vector(self.path, "qvel", qvel, self.model.nv, "DoFs (nv)")
         self.mapping.set_state(self.articulations, qpos, qvel)
+        momentum = self.controller.term("momentum")
+        if momentum is not None:
+            momentum.forget()  # no physics step ends at this state
 
     def keyframe_state(self, key: int | str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """MuJoCo (qpos, qvel) of keyframe `key` (index or name), or of qpos0 at rest when `key` is None."""

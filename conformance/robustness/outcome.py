@@ -90,7 +90,7 @@ def _steps(result, model, seed: int, tolerances) -> Outcome:
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data)
         result.step(ctrl)
-        q, v = result.mapping.get_state(result.articulations)
+        q, v = result.get_state()
         qpos.append(q), qvel.append(v), reference.append(data.qvel.copy())
     warned = {w: data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{w.upper()}")].number > 0
               for w in ("badqacc", "inertia")}  # MuJoCo's own verdict on its run: it blew up, or M is singular

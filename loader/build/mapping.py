@@ -120,7 +120,7 @@ class Mapping:
             a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
             jtype = int(self.jnt_type[j])
             if jtype == FREE:
-                self._set_root(articulations[a], int(self.jnt_bodyid[j]), qpos[adr : adr + 7], qvel[dof : dof + 6])
+                self.set_root(articulations[a], int(self.jnt_bodyid[j]), qpos[adr : adr + 7], qvel[dof : dof + 6])
             elif jtype == BALL:
                 angles = euler_xyz_from_quat(qpos[adr : adr + 4])
                 q[a][list(target.dofs)] = angles
@@ -133,7 +133,8 @@ class Mapping:
             art.set_qpos(qa.astype(np.float32))
             art.set_qvel(va.astype(np.float32))
 
-    def _set_root(self, art, body: int, qpos7, qvel6) -> None:
+    def set_root(self, art, body: int, qpos7, qvel6) -> None:
+        """A floating root's MuJoCo free-joint qpos (7) and qvel (6) into PhysX's root pose and velocities."""
         rotation = quat_to_mat(qpos7[3:])
         omega_world = rotation @ qvel6[3:]
         v_com = qvel6[:3] + np.cross(omega_world, rotation @ self.body_ipos[body])

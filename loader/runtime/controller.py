@@ -1,6 +1,7 @@
 """The per-step controller: `set_ctrl` runs named terms in MuJoCo's stage order over one `Step` record.
 
-state (joint positions and velocities, link velocities) -> ctrl clamp and activation -> passive forces (`tendons`)
+state (`momentum`: a floating root's velocity after the last step in MuJoCo's convention; joint positions and
+velocities, link velocities) -> ctrl clamp and activation -> passive forces (`tendons`)
 -> `actuators` -> PhysX correction of explicit stiffness (`stiffness`) -> MuJoCo's limit and friction rows (`rows`)
 -> PhysX correction of turning slides (`slides`) -> write drives and qf (`drives`) -> link forces (`fluid`,
 `gravcomp`) -> equality rows (`equalities`). `without(name)` switches a term off (the public switch tests and the
@@ -25,13 +26,14 @@ from .drive_writer import DriveWriter, dof_inertia
 from .equalities import EqualityTerm
 from .fluid import plan_fluid
 from .gravcomp import map_gravcomp
+from .momentum import plan_momentum
 from .rows import plan_rows
 from .slides import SlideTerm, map_slides
 from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
 from .tendons import IMPLICIT, TendonTerm, map_tendons
 
-STAGES = ("tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp", "equalities")
+STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp", "equalities")
 
 
 class Controller:
@@ -68,6 +70,7 @@ class Controller:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
         None: zeros). `advance`: the first call of this physics step (activations, link forces)."""
         model, articulations = self.model, self.articulations
+        self.settle()
         ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
         if not mj.disabled(model, "clampctrl") and model.nu:
             limited = model.actuator_ctrllimited.astype(bool)
@@ -89,6 +92,12 @@ class Controller:
                     qfrc_applied, "actuators" not in self.off, self.timestep, int(model.opt.integrator) not in IMPLICIT, advance)
         for term in self.terms:
             term.contribute(step)
+
+    def settle(self) -> None:
+        """After a physics step: floating roots' velocities as MuJoCo's step leaves them (`runtime/momentum.py`)."""
+        momentum = self.term("momentum", on=True)
+        if momentum is not None:
+            momentum.settle(self.articulations, [w for t in self.terms for w in getattr(t, "applied", ())])
 
     def contacts(self, enabled: bool) -> None:
         """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
@@ -170,4 +179,6 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
     terms += [SlideTerm(slides)] if slides else []
     terms += [term for term in (fluid, gravcomp) if term is not None]
     terms += [EqualityTerm(connects)] if connects else []
+    momentum = plan_momentum(model, mapping, articulations, timestep)
+    terms += [momentum] if momentum is not None else []
     return Controller(model, mapping, articulations, passive, terms, activation, timestep), maps, equalities

@@ -5,7 +5,7 @@ the step, added once per step. Derivation: docs/mapping.md#fluid.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -28,6 +28,7 @@ class Fluid:
     viscosity: float
     wind: np.ndarray
     bodies: tuple[FluidBody, ...]
+    applied: list = field(default_factory=list)  # this step's (articulation, centre of mass, force, torque), world
 
     def wrench(self, box, angular: np.ndarray, linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """MuJoCo's fluid (torque, force) on a body, all in its inertial frame, from its velocity there."""
@@ -54,6 +55,7 @@ class Fluid:
 
     def apply(self, articulations) -> None:
         """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
+        self.applied.clear()
         for body in self.bodies:
             link = articulations[body.articulation].links[body.link]
             frame = (link.entity_pose * link.cmass_local_pose).to_transformation_matrix()[:3, :3]
@@ -61,6 +63,8 @@ class Fluid:
             linear = frame.T @ (np.asarray(link.linear_velocity, np.float64) - self.wind)
             torque, force = self.wrench(body.box, angular, linear)
             link.add_force_torque(frame @ force, frame @ torque)
+            centre = (link.entity_pose * link.cmass_local_pose).p
+            self.applied.append((body.articulation, np.asarray(centre, np.float64), frame @ force, frame @ torque))
 
 
 def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:
