@@ -141,6 +141,45 @@ def redundant_dofs(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
     return bool(model.nv and np.linalg.matrix_rank(stacked, tol=SINGULAR_TOLERANCE) < model.nv)
 
 
+# Explicit integration of a damper v' = -c v is stable while dt c stays inside the integrator's region on the
+# negative real axis: 2 for Euler, 2.785 for RK4 (implicitfast and implicit treat actuator damping implicitly).
+EXPLICIT_DAMPING_REGION = {int(mujoco.mjtIntegrator.mjINT_EULER): 2.0, int(mujoco.mjtIntegrator.mjINT_RK4): 2.785}
+
+
+def explicit_damping_unstable(model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
+    """An actuator velocity gain MuJoCo integrates explicitly that is past its integrator's stability region on
+    the joint it drives: dt kv gear^2 / M (M: the joint's effective inertia, 1 / (M^-1)_dd at the start). MuJoCo
+    then grows the joint's speed by that factor minus one every step, and warns only at 1e10."""
+    region = EXPLICIT_DAMPING_REGION.get(int(model.opt.integrator))
+    if region is None or not model.nu:
+        return None
+    inverse = np.zeros((model.nv, model.nv))
+    mujoco.mj_solveM(model, data, inverse, np.eye(model.nv))
+    for a in range(model.nu):
+        joint = int(model.actuator_trnid[a, 0])
+        if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT) or \
+                int(model.actuator_biastype[a]) != int(mujoco.mjtBias.mjBIAS_AFFINE) or \
+                int(model.jnt_type[joint]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            continue
+        dof = int(model.jnt_dofadr[joint])
+        damping = -float(model.actuator_biasprm[a, 2]) * float(model.actuator_gear[a, 0]) ** 2
+        factor = model.opt.timestep * damping * inverse[dof, dof]
+        if factor > region:
+            return (f"MuJoCo itself is unstable on the model: actuator {a}'s explicit velocity gain takes dt kv/M = "
+                    f"{factor:.3g} on its joint, past the integrator's {region:g}")
+    return None
+
+
+def actuated_ill_posed(model: mujoco.MjModel) -> str | None:
+    """Why MuJoCo's run with its actuators on is no reference though its passive run is (None when it is)."""
+    from ..reference import matched
+
+    ref, _ = matched(model, contact=False, actuation=True)
+    data = mujoco.MjData(ref)
+    mujoco.mj_forward(ref, data)
+    return explicit_damping_unstable(ref, data)
+
+
 def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
     """Why MuJoCo's own dynamics are no reference (None when they are): a singular joint-space inertia (two
     hinges on one axis: only their sum is determined), or a blow-up (bad qacc) within the horizon."""
@@ -236,6 +275,9 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
             skipped.append(f"dynamics and actuated: {ill}")
         else:
             names += [tier for tier in DYNAMIC_TIERS if tier in TIERS]
+            if "actuated" in names and (unstable := actuated_ill_posed(model)):
+                names.remove("actuated")
+                skipped.append(f"actuated: {unstable}")
     for name in names:
         try:
             report = TIERS[name](result, model, seed, tol)
