@@ -35,6 +35,7 @@ from ..divergence import Divergence, SpeedBound, first_divergence, first_of
 from ..report import ActuatorTrace, Metric, TierReport, Trace, metric, skipped, verdict
 from ..tolerances import Tolerances
 from .rollouts import (
+    carried,
     compare_settled,
     disable_contacts,
     is_floating,
@@ -251,6 +252,8 @@ def reference_run(result, model: mujoco.MjModel, seed: int, tolerances: Toleranc
         return skip
     if contact and reference.contacts_disabled(model):
         return skipped(tier, "the model disables contact (contact or constraint flag)")
+    if contact and not carried(result, model):
+        return skipped(tier, "no MuJoCo body is carried by an articulation link")
     if contact and not sapien_side.contacts_enabled(result):
         return skipped(tier, "the SAPIEN scene has its contacts turned off (run before dynamics)")
     ref, matched, removal = reference_model(result, model, contact=contact)

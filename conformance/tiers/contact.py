@@ -14,7 +14,7 @@ from .. import chaos, reference, sapien_side
 from ..divergence import SpeedBound, first_divergence
 from ..report import TierReport, metric, skipped, verdict
 from ..tolerances import Tolerances
-from .rollouts import compare_settled, sapien_rollout, settle_trace
+from .rollouts import carried, compare_settled, sapien_rollout, settle_trace
 
 
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -22,6 +22,8 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
         return skipped("contact", "the model has no degrees of freedom")
     if reference.contacts_disabled(model):
         return skipped("contact", "the model disables contact (contact or constraint flag)")
+    if not carried(result, model):
+        return skipped("contact", "no MuJoCo body is carried by an articulation link")
     ref, matched = reference.matched(model, contact=True)
     dt = ref.opt.timestep
     steps = tolerances.horizon_steps("contact", dt)

@@ -20,6 +20,11 @@ def floating_roots(model: mujoco.MjModel) -> list[int]:
     return [int(model.jnt_bodyid[j]) for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
 
 
+def carried(result, model: mujoco.MjModel) -> list[int]:
+    """The MuJoCo bodies an articulation link carries (what a settled pose is compared over)."""
+    return [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
+
+
 def disable_contacts(result) -> None:
     """Contacts off for the contact-free tiers; they stay off (later tiers run contact-free or are ordered before)."""
     result.set_contacts(False)
@@ -85,7 +90,7 @@ def compare_settled(result, model: mujoco.MjModel, mujoco_poses: np.ndarray, per
     """MuJoCo's body poses (T, nbody, 7), those of MuJoCo's perturbed run, and SAPIEN's run, compared over the
     bodies SAPIEN carries on a link."""
     poses = sapien_side.bodies_from_links(run.link_pose, sapien_side.body_link_rows(result, model.nbody))
-    bodies = [b for b in range(1, model.nbody) if sapien_side.body_link(result, b) is not None]
+    bodies = carried(result, model)
     mj_final, sp_final, own = settled(mujoco_poses), settled(poses), settled(perturbed_poses)
     roots = floating_roots(model)
     return Settled(band=np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1),
