@@ -199,16 +199,21 @@ def divergence_text(divergence: dict | None) -> str:
     return Divergence(**divergence).text() if divergence else ""
 
 
+def worst_metric(metrics: list[dict]) -> dict | None:
+    """The metric closest to (or furthest past) its tolerance: the largest max / tolerance, a non-finite max (None)
+    first; None without metrics."""
+    return max(metrics, key=lambda m: (m["max"] / m["tolerance"]) if m["max"] is not None and m["tolerance"]
+               else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0), default=None)
+
+
 def _cell(v: Verdict) -> str:
     if v.raw == "error":
         return f"error: {' '.join(v.detail.get('notes') or [])}".replace("|", "\\|")
     if v.detail.get("divergence"):
         return f"{v.outcome}: {divergence_text(v.detail['divergence'])}"
-    metrics = v.detail.get("metrics") or []
-    if not metrics:
+    worst = worst_metric(v.detail.get("metrics") or [])
+    if worst is None:
         return v.outcome
-    worst = max(metrics, key=lambda m: (m["max"] / m["tolerance"]) if m["max"] is not None and m["tolerance"]
-                else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0))
     raw = f"raw {_fmt(worst['raw_max'])}, " if worst.get("raw_max") is not None else ""
     return (f"{v.outcome}: {worst['name']} {_fmt(worst['max'])} ({raw}tol {_fmt(worst['tolerance'])}, "
             f"margin {_fmt(worst['margin'])})")
