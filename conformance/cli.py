@@ -40,6 +40,14 @@ def _seeds(text: str) -> tuple[int, ...]:
     return tuple(range(low, high + 1))
 
 
+def _loader(text: str) -> str:
+    from .loaders import LOADERS
+
+    if text not in LOADERS:
+        raise argparse.ArgumentTypeError(f"unknown loader {text!r}; choose from {', '.join(LOADERS)}")
+    return text
+
+
 def _executor(text: str) -> str:
     from .executors import make
 
@@ -78,6 +86,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
     run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
     run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)")
+    run.add_argument("--loader", type=_loader, default=None, help="the loader judged: ours (this project's, the "
+                     "default) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)")
     run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
     run.add_argument("--seeds", type=_seeds, default=(), metavar="A..B", help="a sweep instead of --seed: every "
                      "model once per seed from A to B (inclusive), its id suffixed @seed<N>")
@@ -146,10 +156,23 @@ def _entries(args) -> list:
     return manifest_mod.load(args.manifest).select(args.model)
 
 
+def _chosen_loaders(args) -> tuple[str, ...]:
+    """The loaders the run judges (one, or those of --compare); a usage error when one cannot run here."""
+    from .loaders import DEFAULT, missing
+
+    names = (args.loader or DEFAULT,)
+    for name in names:
+        why = missing(name)
+        if why:
+            raise ValueError(why)
+    return names
+
+
 def cmd_run(args) -> int:
     from . import summary
     from .runner import RunOptions, run
 
+    loaders = _chosen_loaders(args)
     entries = _entries(args)
     if args.seeds and args.seed:
         raise ValueError(f"--seed {args.seed} and --seeds {args.seeds[0]}..{args.seeds[-1]}: give one or the other")
@@ -157,7 +180,7 @@ def cmd_run(args) -> int:
                          jobs=args.jobs, tiers=args.tiers,
                          tolerance_file=args.tolerances, timeout_scale=args.timeout_scale,
                          progress=not args.quiet, record=not args.no_record,
-                         visual_meshes=args.visual_meshes,
+                         visual_meshes=args.visual_meshes, loader=loaders[0],
                          extra={"manifest": args.manifest if not args.paths else None})
     try:
         run_dir, doc = run(entries, options)

@@ -11,7 +11,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from . import corpus, executors, summary
-from .manifest import TIER_NAMES, ModelEntry
+from .loaders import DEFAULT as DEFAULT_LOADER
+from .loaders import SKIPS
+from .manifest import TIER_NAMES, Expectation, ModelEntry
 from .results import ModelResult
 from .versions import versions
 from .worker import Job
@@ -31,6 +33,7 @@ class RunOptions:
     record: bool = True
     visual_meshes: bool = False  # recordings also draw MuJoCo's visual-only geoms
     run_name: str | None = None
+    loader: str = "ours"  # the loader plug-in judged (conformance/loaders.py)
     extra: dict = field(default_factory=dict)
 
 
@@ -52,6 +55,18 @@ def sweep(entries: list[ModelEntry], seeds: tuple[int, ...]) -> list[tuple[Model
     return [(replace(e, id=f"{e.id}@seed{s}"), s) for e in entries for s in seeds]
 
 
+def foreign(entries: list[ModelEntry], loader: str) -> list[ModelEntry]:
+    """The entries as another loader than this project's is judged: the manifest's expected failures describe this
+    project's loader, so they are dropped (those tiers are expected to pass); what the model itself decides stays
+    (a tier skipped for the model's reason, a load error MuJoCo gives), and the tiers the loader cannot take part
+    in are expected skipped (`loaders.SKIPS`)."""
+    if loader == DEFAULT_LOADER:
+        return entries
+    cannot = {t: Expectation(t, "skipped", why) for t, why in SKIPS.get(loader, {}).items()}
+    return [replace(e, expect={**{t: x for t, x in e.expect.items() if x.outcome in ("skipped", "error")},
+                               **cannot}) for e in entries]
+
+
 def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
     """Run every entry (once per seed of a sweep) through the options' executor; return the run folder and the
     summary document. Writes are atomic throughout."""
@@ -66,7 +81,9 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
     seeds = tuple(options.seeds) or (options.seed,)
     meta = {"run": run_dir.name, "seed": seeds[0], **({"seeds": list(seeds)} if len(seeds) > 1 else {}),
             "versions": versions(), "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-            **({"executor": options.executor} if options.executor != executors.LOCAL else {}), **options.extra}
+            **({"executor": options.executor} if options.executor != executors.LOCAL else {}),
+            **({"loader": options.loader} if options.loader != DEFAULT_LOADER else {}), **options.extra}
+    entries = foreign(entries, options.loader)
     if options.tiers:
         entries = [replace(e, tiers=tuple(options.tiers)) for e in entries]
     tier_names = [t for t in TIER_NAMES if any(t in e.tiers for e in entries)]
@@ -81,7 +98,7 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
             results[entry.id] = ModelResult(entry.id, "skipped", reason=resolved.skip_reason)
             continue
         jobs.append(Job(entry, str(resolved.path), str(run_dir), seed, entry.tiers, options.tolerance_file,
-                        options.record, options.visual_meshes))
+                        options.record, options.visual_meshes, options.loader))
 
     def write_summary(interrupted: bool = False) -> dict:
         doc = summary.build({**meta, "interrupted": interrupted, "tiers": tier_names}, entries, results, seed_of)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 
@@ -19,10 +19,14 @@ class Session:
     load_seconds: float
     compile_seconds: float
     fix_root_link: bool
+    loader: str = "ours"  # the harness's loader plug-in that made `result` (conformance/loaders.py)
+    skips: dict[str, str] = field(default_factory=dict)  # tiers the loader cannot take part in, and why
+    isolates: bool = True  # whether the loader loads an edited MjSpec (conformance/isolation.py)
 
     def load_info(self) -> dict:
         res = self.result
         return {
+            **({"loader": self.loader} if self.loader != "ours" else {}),
             "load_seconds": round(self.load_seconds, 4),
             "mujoco_compile_seconds": round(self.compile_seconds, 4),
             "fix_root_link": self.fix_root_link,

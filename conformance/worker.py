@@ -13,7 +13,7 @@ from . import tolerances as tolerances_mod
 from .isolation import ISOLATED_TIERS, isolate
 from .manifest import TIER_NAMES, ModelEntry
 from .noise import Tally
-from .report import TierReport
+from .report import TierReport, skipped
 from .results import ModelResult
 from .summary import atomic_write_json, judge
 from .versions import versions
@@ -33,6 +33,7 @@ class Job:
     tolerance_file: str | None = None
     record: bool = True
     visual_meshes: bool = False  # the recording also draws MuJoCo's visual-only geoms
+    loader: str = "ours"  # the loader plug-in judged (conformance/loaders.py)
 
 
 def result_path(run_dir: str | Path, model_id: str) -> Path:
@@ -86,9 +87,9 @@ def evaluate(job: Job) -> ModelResult:
     tol = tolerances_mod.load(job.tolerance_file).with_overrides(entry.tolerances, entry.settings,
                                                                  why=entry.override_reason)
     try:
-        from .session import open_session
+        from .loaders import open_with
 
-        session = open_session(job.path)
+        session = open_with(job.loader, job.path)
     except Exception as exc:  # noqa: BLE001 - the loader's failure on this model is this model's failure
         result.status, result.reason = "error", f"load failed: {type(exc).__name__}: {exc}"
         result.traceback, result.seconds = traceback.format_exc(), round(time.perf_counter() - started, 3)
@@ -100,7 +101,10 @@ def evaluate(job: Job) -> ModelResult:
     for tier in sorted(job.tiers, key=TIER_NAMES.index):  # contact before dynamics, which disables it
         t0 = time.perf_counter()
         try:
-            report = TIERS[tier](session.result, session.model, job.seed, tol)
+            if tier in session.skips:  # a tier the loader cannot take part in
+                report = skipped(tier, session.skips[tier])
+            else:
+                report = TIERS[tier](session.result, session.model, job.seed, tol)
         except Exception as exc:  # noqa: BLE001 - a tier that raises fails, the others still run
             log.warning("model %s tier %s raised %s", entry.id, tier, exc)
             report = TierReport(tier, "fail", notes=[f"tier raised {type(exc).__name__}: {exc}",
@@ -108,7 +112,7 @@ def evaluate(job: Job) -> ModelResult:
         report.settings = {**report.settings, "seconds": round(time.perf_counter() - t0, 3)}
         reports[tier] = report
         result.tiers[tier] = report.to_dict()
-        if report.status in ("fail", "diverged") and tier in ISOLATED_TIERS:
+        if report.status in ("fail", "diverged") and tier in ISOLATED_TIERS and session.isolates:
             expectation = entry.expect.get(tier)
             claimed = (expectation.passes_without,) if expectation and expectation.passes_without else ()
             t0 = time.perf_counter()

@@ -1,0 +1,57 @@
+"""The loaders the harness judges (`run --loader NAME`), one function per name: each opens a `Session` on an MJCF
+file (MuJoCo's model beside what the loader built, presented as `loader.LoadResult` presents it) and names the
+tiers the loader cannot take part in, with why; the worker reports those as skipped with that reason."""
+
+from __future__ import annotations
+
+from .session import Session
+
+DEFAULT = "ours"
+# per loader, the tiers it cannot take part in on any model, and why (expected: skipped)
+SKIPS = {
+    "maniskill": {
+        "collision": "ManiSkill's loader names no collision shape, so no geom can be matched to one by its MuJoCo "
+                     "name",
+        "actuated_contact": "ManiSkill's loader maps no actuators",
+        "actuated": "ManiSkill's loader maps no actuators",
+        "maniskill": "the maniskill tier runs this project's loader inside ManiSkill, not ManiSkill's own",
+    },
+}
+
+
+def ours(path: str) -> Session:
+    """This project's loader (`loader.MJCFLoader`), as every run has judged it."""
+    from .session import open_session
+
+    return open_session(path)
+
+
+def maniskill(path: str) -> Session:
+    """ManiSkill's own MJCF loader, built as ManiSkill builds it (conformance/maniskill_loader.py); it needs the
+    maniskill extra."""
+    from . import maniskill_loader
+
+    result, model, compile_seconds, load_seconds = maniskill_loader.load(path)
+    return Session(str(path), result, model, load_seconds, compile_seconds, fix_root_link=True,
+                   loader=maniskill_loader.NAME, skips=dict(SKIPS["maniskill"]), isolates=False)
+
+
+LOADERS = {"ours": ours, "maniskill": maniskill}
+EXTRAS = {"maniskill": ("mani_skill", "the maniskill extra")}  # what a loader needs beyond the harness
+
+
+def missing(name: str) -> str | None:
+    """Why loader `name` cannot run here (its extra is not installed), or None."""
+    import importlib.util
+
+    module, extra = EXTRAS.get(name, (None, None))
+    if module is not None and importlib.util.find_spec(module) is None:
+        return f"--loader {name} needs {module} ({extra}: pip install .[{name}])"
+    return None
+
+
+def open_with(name: str, path: str) -> Session:
+    """The session of loader `name` on `path`; ValueError naming the known loaders for another name."""
+    if name not in LOADERS:
+        raise ValueError(f"no loader {name!r}; choose from {', '.join(LOADERS)}")
+    return LOADERS[name](path)
