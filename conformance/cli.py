@@ -48,6 +48,13 @@ def _loader(text: str) -> str:
     return text
 
 
+def _loaders(text: str) -> tuple[str, ...]:
+    names = tuple(_loader(t.strip()) for t in text.split(",") if t.strip())
+    if len(set(names)) < 2 or len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"{text!r}: name two or more different loaders, e.g. ours,maniskill")
+    return names
+
+
 def _executor(text: str) -> str:
     from .executors import make
 
@@ -88,6 +95,9 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)")
     run.add_argument("--loader", type=_loader, default=None, help="the loader judged: ours (this project's, the "
                      "default) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)")
+    run.add_argument("--compare", type=_loaders, default=None, metavar="A,B", help="run each loader and write "
+                     "compare.md and compare.json (per model and tier, every loader's outcome and main metric) "
+                     "beside each loader's own run folder")
     run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
     run.add_argument("--seeds", type=_seeds, default=(), metavar="A..B", help="a sweep instead of --seed: every "
                      "model once per seed from A to B (inclusive), its id suffixed @seed<N>")
@@ -160,7 +170,9 @@ def _chosen_loaders(args) -> tuple[str, ...]:
     """The loaders the run judges (one, or those of --compare); a usage error when one cannot run here."""
     from .loaders import DEFAULT, missing
 
-    names = (args.loader or DEFAULT,)
+    if args.compare and args.loader:
+        raise ValueError(f"--loader {args.loader} and --compare {','.join(args.compare)}: give one or the other")
+    names = args.compare or (args.loader or DEFAULT,)
     for name in names:
         why = missing(name)
         if why:
@@ -182,6 +194,8 @@ def cmd_run(args) -> int:
                          progress=not args.quiet, record=not args.no_record,
                          visual_meshes=args.visual_meshes, loader=loaders[0],
                          extra={"manifest": args.manifest if not args.paths else None})
+    if args.compare:
+        return _cmd_compare(entries, options, loaders)
     try:
         run_dir, doc = run(entries, options)
     except KeyboardInterrupt:
@@ -190,6 +204,28 @@ def cmd_run(args) -> int:
     print(summary.terminal(doc, run_dir, verbose=args.verbose))
     if not doc["ok"]:
         print(f"{len(doc['worse_than_expected'])} outcome(s) worse than the manifest expects", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _cmd_compare(entries, options, loaders: tuple[str, ...]) -> int:
+    """Exit status: the first loader's run judged against the manifest (0 or 1), 130 when interrupted."""
+    from .compare import compare
+
+    try:
+        folder, doc, docs = compare(entries, options, list(loaders))
+    except KeyboardInterrupt:
+        print("interrupted: the runs finished so far are written", file=sys.stderr)
+        return 130
+    for loader in loaders:
+        counts = ", ".join(f"{k} {v}" for k, v in sorted(doc["tally"][loader].items()))
+        print(f"{loader}: {doc['models_passing'][loader]} of {len(doc['models'])} models pass every tier that ran; "
+              f"model x tier: {counts}; {folder / loader / 'summary.md'}")
+    print(f"report: {folder / 'compare.md'}")
+    first = docs[loaders[0]]
+    if not first["ok"]:
+        print(f"{loaders[0]}: {len(first['worse_than_expected'])} outcome(s) worse than the manifest expects",
+              file=sys.stderr)
         return 1
     return 0
 
