@@ -6,6 +6,7 @@ MuJoCo stepped with the same ctrl at the scene's timestep. MuJoCo is the oracle.
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -269,3 +270,107 @@ def test_disable_self_collisions_filters_every_pair_of_the_robot_as_maniskill_me
         loader.load(str(path), name="panda_alone")
     mismatches = collision_filter_mismatches(loader.results[0])
     assert mismatches and all(physx is False for _, _, physx in mismatches)
+
+
+# ManiSkill's own loader judged by the harness (`run --loader maniskill`, conformance/maniskill_loader.py)
+
+TILTED = """<mujoco model="tilted"><option timestep="0.002"/>
+  <worldbody><body name="arm" pos="0 0 1" {orientation}><joint name="swing" axis="0 0 1"/>
+    <geom type="box" size="0.1 0.05 0.02"/>
+    <body name="hand" pos="0.2 0 0"><joint name="wrist" axis="1 0 0"/><geom type="sphere" size="0.03"/></body>
+  </body></worldbody></mujoco>"""
+PITCH = 30.0  # degrees about y, written as `euler` or as the same rotation's quaternion
+ROBOT = """<mujoco><worldbody><body name="upper" pos="0 0 0.5"><joint name="shoulder" axis="0 1 0"/>
+  <geom type="capsule" size="0.02 0.1"/></body></worldbody></mujoco>"""
+SCENE = """<mujoco model="scene">{robot}<worldbody><geom name="floor" type="plane" size="1 1 0.1"/></worldbody>
+  </mujoco>"""
+
+
+def _tier(tmp_path, path, tier, loader="maniskill"):
+    from conformance.manifest import ModelEntry
+    from conformance.worker import Job, evaluate
+
+    entry = ModelEntry(id=Path(path).stem, source=str(path), tiers=(tier,))
+    result = evaluate(Job(entry, str(path), str(tmp_path), 0, (tier,), record=False, loader=loader))
+    assert result.status == "ok", result.reason
+    return result.tiers[tier]
+
+
+def _max(report, name):
+    return next(m["max"] for m in report["metrics"] if m["name"] == name)
+
+
+def test_maniskills_loader_turns_an_euler_pitch_the_other_way(tmp_path):
+    """ManiSkill's `_parse_orientation` negates the second Euler angle: a body pitched by `euler` sits pitched the
+    other way, 2 x PITCH from MuJoCo's, while the same rotation written as a quaternion is where MuJoCo has it."""
+    from mani_skill.utils.building import _mjcf_loader
+
+    half = np.radians(PITCH) / 2
+    for name, orientation in (("euler", f'euler="0 {PITCH} 0"'),
+                              ("quat", f'quat="{np.cos(half)} 0 {np.sin(half)} 0"')):
+        (tmp_path / f"{name}.xml").write_text(TILTED.format(orientation=orientation))
+    euler = _tier(tmp_path, tmp_path / "euler.xml", "kinematics")
+    assert euler["status"] == "fail"
+    assert _max(euler, "orientation") == pytest.approx(np.radians(2 * PITCH), abs=1e-4)
+    assert _tier(tmp_path, tmp_path / "quat.xml", "kinematics")["status"] == "pass"
+    assert _tier(tmp_path, tmp_path / "euler.xml", "kinematics", loader="ours")["status"] == "pass"
+    assert _mjcf_loader.RenderMaterial is sapien.render.RenderMaterial, "the render stand-in is put back"
+
+
+def test_maniskills_loader_loses_the_bodies_of_an_included_file(tmp_path):
+    """ManiSkill's loader appends an included file's elements after the including file's own `<worldbody>` and reads
+    only the first: the included robot is not built. Inline it is."""
+    (tmp_path / "robot.xml").write_text(ROBOT)
+    (tmp_path / "scene.xml").write_text(SCENE.format(robot='<include file="robot.xml"/>'))
+    inline = ROBOT.removeprefix("<mujoco>").removesuffix("</mujoco>")
+    (tmp_path / "inline.xml").write_text(SCENE.format(robot=inline))
+    included = _tier(tmp_path, tmp_path / "scene.xml", "structure")
+    assert included["status"] == "fail"
+    assert _max(included, "mismatches") >= 2  # the body and its joint
+    assert any("'upper'" in note for note in included["notes"])
+    assert _tier(tmp_path, tmp_path / "inline.xml", "structure")["status"] == "pass"
+
+
+def _run(tmp_path, *args):
+    from conformance.cli import main
+
+    code = main(["run", *args, "--out", str(tmp_path / "out"), "--quiet", "--no-record", "--jobs", "1"])
+    return code, tmp_path / "out" / "latest"
+
+
+def test_the_loader_maniskill_runs_corpus_models_and_fails_where_maniskill_is_wrong(tmp_path):
+    """The manipulator's thumb is pitched by `euler="0 -90 0"`: ManiSkill's loader turns it +90, half a turn from
+    MuJoCo's. The pendulum's actuator is skipped with why; nothing raises."""
+    import json
+
+    code, run = _run(tmp_path, "--loader", "maniskill", "--model", "manipulator", "--model", "pendulum",
+                     "--tiers", "kinematics,actuated")
+    assert code in (0, 1)  # judged, not a usage error
+    doc = json.loads((run / "summary.json").read_text())
+    models = {m["id"]: m for m in doc["models"]}
+    assert doc["loader"] == "maniskill" and {m["status"] for m in models.values()} == {"ok"}
+    kinematics = models["manipulator"]["verdicts"]["kinematics"]
+    assert kinematics["raw"] == "fail"
+    assert _max(kinematics, "orientation") == pytest.approx(np.pi, abs=1e-3)
+    actuated = models["pendulum"]["verdicts"]["actuated"]
+    assert actuated["raw"] == "skipped" and "actuator" in actuated["notes"][0]
+    assert not actuated["worse_than_expected"]
+    assert not any("raised" in note for m in models.values() for v in m["verdicts"].values() for note in v["notes"])
+
+
+def test_a_comparison_puts_both_loaders_side_by_side(tmp_path):
+    import json
+
+    code, folder = _run(tmp_path, "--compare", "ours,maniskill", "--model", "pendulum",
+                        "--tiers", "structure,inertia,actuated")
+    assert code == 0  # ours is judged against the manifest: the pendulum passes these
+    doc = json.loads((folder / "compare.json").read_text())
+    assert doc["loaders"] == ["ours", "maniskill"]
+    (pendulum,) = doc["models"]
+    cells = pendulum["tiers"]
+    assert cells["actuated"]["ours"]["outcome"] == "pass" and cells["actuated"]["maniskill"]["outcome"] == "skipped"
+    ms_inertia = cells["inertia"]["maniskill"]
+    assert ms_inertia["outcome"] == "fail" and ms_inertia["max"] > ms_inertia["tolerance"]
+    assert (folder / "ours" / "summary.md").is_file() and (folder / "maniskill" / "summary.md").is_file()
+    row = next(line for line in (folder / "compare.md").read_text().splitlines() if line.startswith("| pendulum"))
+    assert row.count(" / ") == 3  # one per tier: both loaders in every cell
