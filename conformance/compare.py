@@ -53,7 +53,7 @@ def build(docs: dict[str, dict], name: str) -> dict:
         models.append({"id": mid, "status": {loader: by_id[loader][mid]["status"] for loader in loaders},
                        "tiers": cells})
     passing = {loader: sum(1 for m in models if _passes(m, loader)) for loader in loaders}
-    return {"run": name, "loaders": loaders, "tiers": tiers, "versions": docs[loaders[0]]["versions"],
+    return {"run": name, "loaders": loaders, "tiers": tiers, "versions": {k: v for d in docs.values() for k, v in d["versions"].items()},
             "seed": docs[loaders[0]]["seed"], "models": models, "tally": tally, "models_passing": passing}
 
 

@@ -38,6 +38,7 @@ def maniskill(path: str) -> Session:
 
 LOADERS = {"ours": ours, "maniskill": maniskill}
 EXTRAS = {"maniskill": ("mani_skill", "the maniskill extra")}  # what a loader needs beyond the harness
+DISTRIBUTIONS = {"maniskill": ("mani-skill",)}  # whose versions its reports record
 
 
 def missing(name: str) -> str | None:

@@ -12,7 +12,7 @@ from tqdm import tqdm
 
 from . import corpus, executors, summary
 from .loaders import DEFAULT as DEFAULT_LOADER
-from .loaders import SKIPS
+from .loaders import DISTRIBUTIONS, SKIPS
 from .manifest import TIER_NAMES, Expectation, ModelEntry
 from .results import ModelResult
 from .versions import versions
@@ -80,7 +80,7 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
     run_dir = new_run_dir(out, options.run_name)
     seeds = tuple(options.seeds) or (options.seed,)
     meta = {"run": run_dir.name, "seed": seeds[0], **({"seeds": list(seeds)} if len(seeds) > 1 else {}),
-            "versions": versions(), "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "versions": versions(DISTRIBUTIONS.get(options.loader, ())), "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             **({"executor": options.executor} if options.executor != executors.LOCAL else {}),
             **({"loader": options.loader} if options.loader != DEFAULT_LOADER else {}), **options.extra}
     entries = foreign(entries, options.loader)

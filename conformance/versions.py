@@ -8,9 +8,10 @@ import platform
 _DISTRIBUTIONS = ("mujoco", "sapien", "rerun-sdk", "dm-control", "numpy")
 
 
-def versions() -> dict[str, str]:
+def versions(extra: tuple[str, ...] = ()) -> dict[str, str]:
+    """The distributions' versions (and `extra`'s: what another loader than this project's brings)."""
     out = {}
-    for dist in _DISTRIBUTIONS:
+    for dist in _DISTRIBUTIONS + tuple(extra):
         try:
             out[dist] = importlib.metadata.version(dist)
         except importlib.metadata.PackageNotFoundError:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from . import tolerances as tolerances_mod
 from .isolation import ISOLATED_TIERS, isolate
+from .loaders import DISTRIBUTIONS
 from .manifest import TIER_NAMES, ModelEntry
 from .noise import Tally
 from .report import TierReport, skipped
@@ -82,7 +83,8 @@ def evaluate(job: Job) -> ModelResult:
 
     entry = job.entry
     started = time.perf_counter()
-    result = ModelResult(entry.id, "ok", source=entry.source, path=job.path, versions=versions(), seed=job.seed)
+    result = ModelResult(entry.id, "ok", source=entry.source, path=job.path,
+                         versions=versions(DISTRIBUTIONS.get(job.loader, ())), seed=job.seed)
     _inject_fault(entry.fault)
     tol = tolerances_mod.load(job.tolerance_file).with_overrides(entry.tolerances, entry.settings,
                                                                  why=entry.override_reason)
