@@ -280,6 +280,13 @@ class ManiSkillResult:
         self.actuators, self.unsupported, self.approximations, self.equalities = [], [], [], []
         self._saved_groups = None
 
+    def get_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The live state in MuJoCo's layout, as far as the name mapping carries it."""
+        return self.mapping.get_state(self.articulations)
+
+    def set_state(self, qpos, qvel=None) -> None:
+        self.mapping.set_state(self.articulations, qpos, qvel)
+
     def set_act(self, act) -> None:
         """No activation: ManiSkill's loader maps no actuators."""
 
