@@ -48,11 +48,12 @@ def new_run_dir(out: Path, name: str | None = None) -> Path:
 
 def sweep(entries: list[ModelEntry], seeds: tuple[int, ...]) -> list[tuple[ModelEntry, int]]:
     """Each entry with the seed it runs at: one seed keeps the entries as they are; a sweep repeats each entry once
-    per seed, its id suffixed `@seed<N>` (so its recording and result file are its own)
+    per seed, its id suffixed `@seed<N>` (so its recording and result file are its own); each holds the expectations of
+    its seed
     (tests/test_conformance_runner.py::test_a_seed_sweep_runs_each_model_once_per_seed)."""
     if len(seeds) == 1:
-        return [(e, seeds[0]) for e in entries]
-    return [(replace(e, id=f"{e.id}@seed{s}"), s) for e in entries for s in seeds]
+        return [(e.at_seed(seeds[0]), seeds[0]) for e in entries]
+    return [(replace(e.at_seed(s), id=f"{e.id}@seed{s}"), s) for e in entries for s in seeds]
 
 
 def foreign(entries: list[ModelEntry], loader: str) -> list[ModelEntry]:

@@ -32,12 +32,12 @@ def _left_band(expectation: Expectation, detail: dict) -> str | None:
     lo, hi = expectation.band
     value = next((m["max"] for m in detail.get("metrics", []) if m["name"] == expectation.metric), None)
     if value is None:
-        return (f"changed: the manifest's reason describes {expectation.metric} (seen {expectation.seen:.3g}); "
+        return (f"changed: the manifest's reason describes {expectation.metric} (seen {expectation.seen_text}); "
                 "the tier reported no finite value of it")
     if lo <= value <= hi:
         return None
     return (f"changed: {expectation.metric} {value:.3g} left the band [{lo:.3g}, {hi:.3g}] around the "
-            f"{expectation.seen:.3g} the manifest's reason was measured at: re-measure the reason")
+            f"{expectation.seen_text} the manifest's reason was measured at: re-measure the reason")
 
 
 def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:

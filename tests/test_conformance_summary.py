@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 
@@ -172,3 +173,38 @@ def test_the_headline_is_the_worst_outcome():
         "error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1 "
         "(expected fail)")  # judged against the model's worst expectation
     assert summary.headline("crashed", summary.judge(entry, ModelResult("m", "crashed"))) == "crashed"
+
+
+def _swept_manifest(tmp_path, seeds_line: str, seen: str):
+    from conformance import manifest
+
+    path = tmp_path / "m.toml"
+    path.write_text(f'[[model]]\nid = "m"\nsource = "fixture:fixtures/pendulum.xml"\n[[model.expect]]\ntier = "dynamics"\n'
+                    f'outcome = "fail"\nmetric = "rollout_zero_qpos"\nseen = {seen}\n{seeds_line}'
+                    'reason = "measured over seeds"\n')
+    return dataclasses.replace(manifest.load(path).models[0], tiers=("dynamics",))
+
+
+def test_an_expectation_scoped_to_seeds_holds_only_there(tmp_path):
+    """A failure measured at seeds 1 and 2 only: expected there, and at seed 0 the tier is expected to pass."""
+    entry = _swept_manifest(tmp_path, "seeds = [1, 2]\n", "0.2")
+    failing = _result("ok", SEEN, dynamics="fail")
+    assert [v.outcome for v in summary.judge(entry.at_seed(2), failing)] == ["expected-fail"]
+    (v,) = summary.judge(entry.at_seed(0), failing)
+    assert v.worse and v.expected == "pass"
+
+
+def test_a_range_seen_over_seeds_bands_from_its_low_to_its_high(tmp_path):
+    """seen = [0.01, 0.5]: the band runs from 0.001 to 5; a single seen of 0.01 would call 0.3 changed."""
+    ranged = _swept_manifest(tmp_path, "", "[0.01, 0.5]")
+    (v,) = summary.judge(ranged, _result("ok", SEEN, dynamics="fail"))
+    assert v.outcome == "expected-fail"
+    single = _swept_manifest(tmp_path, "", "0.01")
+    (v,) = summary.judge(single, _result("ok", SEEN, dynamics="fail"))
+    assert v.raw == "changed" and v.worse
+
+
+@pytest.mark.parametrize("seen, seeds", [("[0.5, 0.01]", ""), ("[0.1]", ""), ("0.1", 'seeds = ["one"]\n')])
+def test_a_bad_range_or_seed_list_is_rejected(tmp_path, seen, seeds):
+    with pytest.raises(ValueError, match="m.toml"):
+        _swept_manifest(tmp_path, seeds, seen)
