@@ -105,7 +105,10 @@ def test_interrupted_run_keeps_a_valid_summary_and_earlier_runs(selftest_run, tm
         runs = {p for p in out.iterdir() if p.is_dir() and not p.is_symlink() and p != earlier
                 and (p / "summary.json").exists()}
         time.sleep(0.2)
-    assert runs, "the run never wrote its first summary"
+    if not runs:
+        proc.kill()
+        out_text, err_text = proc.communicate(timeout=60)
+        raise AssertionError(f"the run never wrote its first summary (exit {proc.returncode}): {out_text} {err_text}")
     time.sleep(3)  # the worker is now hanging
     proc.send_signal(signal.SIGINT)
     proc.communicate(timeout=60)
