@@ -42,6 +42,7 @@ class ControlError(ValueError):
 def command_vector(path: str, name: str, value, size: int, what: str):
     """`value` as a float64 vector of `size` finite numbers (None stays None), else ControlError naming the model
     file, the argument and the fix."""
+    import mujoco
     import numpy as np
 
     if value is None:
@@ -50,11 +51,11 @@ def command_vector(path: str, name: str, value, size: int, what: str):
     if vector.shape != (size,):
         raise ControlError(f"{path}: {name} has shape {vector.shape}; the model has {size} {what}: pass a vector "
                            f"of {size} numbers (or None for zeros)")
+    if np.count_nonzero(np.abs(vector) <= mujoco.mjMAXVAL) == size:  # finite and within MuJoCo's bound
+        return vector
     bad = np.flatnonzero(~np.isfinite(vector))
     if bad.size:
         raise ControlError(f"{path}: {name}[{int(bad[0])}] is {vector[bad[0]]}: every entry must be finite")
-    import mujoco
-
     huge = np.flatnonzero(np.abs(vector) > mujoco.mjMAXVAL)  # MuJoCo zeroes such a command and warns
     if huge.size:
         raise ControlError(f"{path}: {name}[{int(huge[0])}] is {vector[huge[0]]:g}: MuJoCo refuses commands beyond "

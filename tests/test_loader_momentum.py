@@ -58,7 +58,9 @@ def test_gravity_turning_a_partly_compensated_robot_is_carried(tmp_path):
 
 
 class _Dropped(list):
-    def append(self, item) -> None:  # the deliberate mistake: the fluid's wrenches never reach the momentum term
+    """The deliberate mistake: the fluid's wrenches never reach the momentum term."""
+
+    def extend(self, items) -> None:
         pass
 
 

@@ -151,10 +151,12 @@ class Mapping:
         v = v if v is not None else [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         if getattr(self, "_scalars", None) is None:
             self._scalars = scalar_joints(self)
+            self._rotating = [j for j in range(len(self.joints)) if int(self.jnt_type[j]) in (FREE, BALL)]
         for a, qadr, dadr, dofs in self._scalars:
             qpos[qadr] = q[a][dofs]
             qvel[dadr] = v[a][dofs]
-        for j, target in enumerate(self.joints):
+        for j in self._rotating:
+            target = self.joints[j]
             a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
             jtype = int(self.jnt_type[j])
             if jtype == FREE:

@@ -4,29 +4,34 @@ force clamps and its implicit/explicit split of kv decide what stays in the driv
 MuJoCo evaluates each actuator's force at the start of the step, clamps it to its `forcerange`, clamps the joint's
 sum to the joint's `actuatorfrcrange`, and treats kv implicitly (implicitfast, implicit) only for the actuators its
 forcerange did not clamp. On a step where a clamp binds, the clamped sum becomes a generalized force and the drive
-keeps the joint's passive terms and the kv still implicit. Derivation: docs/mapping.md#actuators.
+keeps the joint's passive terms and the kv still implicit. Every law acts on arrays planned at load
+(`compile`). Derivation: docs/mapping.md#actuators.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import mujoco
+import numpy as np
 
 from .. import mj
 from ..build.actuators import ActuatorMap, map_actuator
 from ..build.mapping import Mapping
 from ..drive import DofDrive
 from ..errors import Notes
-from .dof_step import DofKey, Step
-from .tendons import tendon_state
+from .actuator_laws import ActuatorLaws
+from .clamps import ForceClamps
+from .dof_step import DofKey, DofLayout, Step
+from .tendon_actuators import TendonActuators
 
 
 @dataclass
 class ActuatorTerm:
     """The mapped actuators' per-step law. `laws`: the drive law of each DoF with joint actuators (its passive
-    spring-damper plus their gear^2 kp and kv), what the drive carries while no clamp binds."""
+    spring-damper plus their gear^2 kp and kv), what the drive carries while no clamp binds. `compile` turns the
+    plan into arrays; edits to the plan take effect at the next `compile` (the controller's, after it hands out a
+    term or the laws)."""
 
     actuators: list[ActuatorMap]
     passive: dict[DofKey, DofDrive]
@@ -36,85 +41,65 @@ class ActuatorTerm:
     joint_range: dict[DofKey, tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
     name: str = "actuators"
 
-    def contribute(self, step: Step) -> None:
+    def compile(self, layout: DofLayout, passive: np.ndarray) -> None:
+        """The arrays every step reads: the drive laws (rows stiffness, damping, constant, force limit), the joint
+        actuators (`joint`, with their drive DoF `drive` and joint position `flat`), the clamps, the tendon
+        actuators."""
+        self.base = passive.copy()
         for key, law in self.laws.items():
-            step.dofs[key].law, step.dofs[key].constant = law, law.constant
-        clamped: set[int] = set()  # joint actuators applied explicitly this step
-        for key, members in self.limited.items():
-            found = self.clamped_step(key, members, step)
-            if found is not None:
-                record = step.dofs[key]
-                record.law, record.constant, force, record.via_damping = found
-                step.add(key, force)
-                clamped.update(members)
-        inputs = step.inputs
-        for a, actuator in enumerate(self.actuators):
-            if not actuator.mapped or a in clamped:
-                continue
-            if actuator.joint is not None:
-                step.dofs[(actuator.articulation, actuator.dofs[0])].constant += actuator.gear * (
-                    actuator.gain * inputs[a] + actuator.bias[0])
-                continue
-            self.tendon_actuator(a, actuator, step)
-        self.explicit_kv(clamped, step)
+            self.base[:, layout.index[key]] = (law.stiffness, law.damping, law.constant, law.force_limit)
+        self.passive_law = passive
+        indices = [a for a, x in enumerate(self.actuators) if x.mapped and x.joint is not None]
+        self.joint = ActuatorLaws(self.actuators, indices)
+        keys = [(self.actuators[a].articulation, self.actuators[a].dofs[0]) for a in indices]
+        self.drive, self.flat = layout.drive_of(keys), layout.flat_of(keys)
+        self.clamps = ForceClamps(self.limited, self.joint_range, indices, layout, passive) if self.limited else None
+        mapped = {a: terms for a, terms in self.tendon_terms.items() if self.actuators[a].mapped}
+        self.tendons = TendonActuators(self.actuators, mapped, layout) if mapped else None
+        self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
+        self.kv_dofs = np.flatnonzero(self.kv)
 
-    def tendon_actuator(self, a: int, actuator: ActuatorMap, step: Step) -> None:
-        """J^T f of a fixed tendon's actuator, its bias from the state now. MuJoCo's implicit step holds only the
-        diagonal of kv J^T J (none once its forcerange clamps it): that joins the drives, and the explicit force
-        gets it back at the current rate."""
-        terms = self.tendon_terms[a]
-        length, speed = (actuator.gear * x for x in tendon_state(terms, step.q, step.v))
-        force = actuator.force(step.inputs[a], length, speed)
-        saturated = force != actuator.unclamped(step.inputs[a], length, speed)
-        implicit = 0.0 if step.explicit_kv else self.implicit_tendon_kv(actuator, saturated)
-        for art, dof, c in terms:
-            step.forces[art][dof] += actuator.gear * c * force + implicit * c * c * step.v[art][dof]
-            step.dofs[(art, dof)].implicit_extra += implicit * c * c
+    def contribute(self, step: Step) -> None:
+        law = step.law
+        law[:4] = self.base
+        joint = self.joint
+        found = self.clamped_step(step)
+        free = None if found is None else ~self.clamps.apply(found, step)  # joint actuators not clamped
+        if len(joint):
+            inputs = step.inputs[joint.indices]
+            constant = joint.gear * (joint.gain * inputs + joint.bias[0])
+            if free is None:
+                np.add.at(law[2], self.drive, constant)
+            else:
+                np.add.at(law[2], self.drive[free], constant[free])
+        if self.tendons is not None:
+            self.tendons.contribute(step, self.implicit_tendon_kv)
+        if step.explicit_kv:
+            self.explicit_kv(free, step)
 
-    def explicit_kv(self, clamped: set[int], step: Step) -> None:
+    def clamped_step(self, step: Step):
+        """MuJoCo's clamps at this state (`clamps.py`), or None when none binds."""
+        return self.clamps.binding(step, self.joint) if self.clamps is not None else None
+
+    def explicit_kv(self, free, step: Step) -> None:
         """Under Euler (and RK4) joint actuators' kv leaves the drive as the explicit force -kv qdot; the drive keeps
         the passive damping itself (not a difference, whose rounding would move the kp dt boundary of
         `stiffness.py`)."""
-        kv: dict[DofKey, float] = {}
-        for a, actuator in enumerate(self.actuators):
-            if actuator.mapped and actuator.joint is not None and a not in clamped:
-                key = (actuator.articulation, actuator.dofs[0])
-                kv[key] = kv.get(key, 0.0) + (actuator.damping if step.explicit_kv else 0.0)
-        for key, damping in kv.items():
-            if damping:
-                record = step.dofs[key]
-                record.law = dataclasses.replace(record.law, damping=self.passive[key].damping)
-                step.add(key, -damping * step.v[key[0]][key[1]])
-
-    def clamped_step(self, key: DofKey, members: list[int], step: Step):
-        """MuJoCo's actuator force on one DoF when a clamp binds at this state: (drive, constant, clamped actuator
-        force, kv qdot of the actuators MuJoCo still treats implicitly), or None when nothing clamps."""
-        q, v = step.q[key[0]][key[1]], step.v[key[0]][key[1]]
-        total, binding, implicit_kv = 0.0, False, 0.0
-        for a in members:
-            actuator = self.actuators[a]
-            gear = actuator.gear
-            force = actuator.force(step.inputs[a], gear * q, gear * v)
-            if force != actuator.unclamped(step.inputs[a], gear * q, gear * v):
-                binding = True
-            elif not step.explicit_kv:
-                implicit_kv += actuator.damping
-            total += gear * force
-        if key in self.joint_range:
-            low, high = self.joint_range[key]
-            binding = binding or not low <= total <= high
-            total = min(max(total, low), high)
-        if not binding:
-            return None
-        passive = self.passive[key]
-        drive_now = DofDrive(passive.stiffness, passive.damping + implicit_kv, passive.constant)
-        return drive_now, passive.constant, total, implicit_kv * v
+        if free is None:
+            kv, dofs = self.kv, self.kv_dofs
+        else:
+            kv = np.bincount(self.drive[free], self.joint.damping[free], minlength=self.kv.size)
+            dofs = np.flatnonzero(kv)
+        if dofs.size:
+            step.law[1, dofs] = self.passive_law[1, dofs]
+            flat = step.layout.flat[dofs]
+            step.force[flat] += -kv[dofs] * step.v[flat]
 
     @staticmethod
-    def implicit_tendon_kv(actuator: ActuatorMap, saturated: bool) -> float:
-        """A tendon actuator's joint-space kv (gear^2 kv) that MuJoCo's implicit step treats implicitly: none once
-        its forcerange clamps it (as for joint actuators)."""
-        return 0.0 if saturated else actuator.damping
+    def implicit_tendon_kv(damping: np.ndarray, saturated: np.ndarray):
+        """Tendon actuators' joint-space kv (gear^2 kv) that MuJoCo's implicit step treats implicitly: none once
+        a forcerange clamps it (as for joint actuators)."""
+        return np.where(saturated, 0.0, damping)
 
     def tendon_kv_diagonal(self) -> dict[DofKey, float]:
         """The diagonal of tendon actuators' kv J^T J per DoF (what joins the drives under implicit integrators)."""

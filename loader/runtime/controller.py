@@ -21,7 +21,8 @@ from ..drive import DofDrive
 from .activation import MAPPED as MAPPED_DYNAMICS
 from .activation import Activation
 from .actuators import plan as plan_actuators
-from .dof_step import DofKey, DofStep, Step, passive_laws
+from .command import Command
+from .dof_step import DofKey, DofLayout, Step, law_arrays, passive_laws
 from .drive_writer import DriveWriter, dof_inertia
 from .equalities import EqualityTerm
 from .fluid import plan_fluid
@@ -37,7 +38,9 @@ STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "dr
 
 
 class Controller:
-    """The loaded model's per-step terms, in stage order (a term absent from a model is simply not there)."""
+    """The loaded model's per-step terms, in stage order (a term absent from a model is simply not there). The terms'
+    arrays are compiled from their plans before the first `set_ctrl`, and again after `laws()` or `term()` handed
+    out something a caller may edit, or a term was switched."""
 
     def __init__(self, model: mujoco.MjModel, mapping, articulations: list, passive: dict[DofKey, DofDrive],
                  terms: list, activation: Activation | None = None, timestep: float | None = None):
@@ -47,9 +50,13 @@ class Controller:
         self.articulations = articulations
         self.joints = [art.active_joints for art in articulations]  # the property builds a new list per call
         self.passive = passive
+        self.layout = DofLayout(articulations, list(passive))
         self.activation = activation
         self.terms = sorted(terms, key=lambda term: STAGES.index(term.name))
         self.off: dict[str, object] = {}  # terms switched off, by name
+        self.command = Command(model, activation)
+        self.stale = True  # the terms' arrays need compiling (`compile`)
+        self.base: np.ndarray | None = None
         self._readers: list | None = None
 
     @property
@@ -58,38 +65,38 @@ class Controller:
 
     def term(self, name: str, on: bool = False):
         """The named term, switched on or off (`on`: only while on), or None where the model has none."""
+        self.stale = True  # the caller may edit it
         found = next((t for t in self.terms if t.name == name), None)
         return found if found is not None or on else self.off.get(name)
 
     def laws(self) -> dict[DofKey, DofDrive]:
-        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps)."""
+        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps);
+        an edit to one takes effect at the next `set_ctrl`."""
         actuators = self.term("actuators")
         return {**self.passive, **(actuators.laws if actuators is not None else {})}
+
+    def compile(self) -> None:
+        """Every term's arrays from its plan (`compile_terms`)."""
+        self.base = compile_terms(self.layout, self.passive, [*self.terms, *self.off.values()])
+        self.stale = False
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
         None: zeros). `advance`: the first call of this physics step (activations, link forces)."""
-        model, articulations = self.model, self.articulations
         self.settle()
-        ctrl = np.zeros(model.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64).copy()
-        if not mj.disabled(model, "clampctrl") and model.nu:
-            limited = model.actuator_ctrllimited.astype(bool)
-            ctrl[limited] = np.clip(ctrl[limited], *model.actuator_ctrlrange[limited].T)
-        inputs, act = ctrl, None
-        if self.activation is not None and "actuators" not in self.off:
-            act = self.activation.act.copy()
-            inputs = self.activation.inputs(ctrl)  # what each gain multiplies: ctrl or act
-            if advance:
-                self.activation.advance(ctrl)
-        forces = [np.zeros(art.dof) for art in articulations]
+        if self.stale:
+            self.compile()
+        model, articulations, layout = self.model, self.articulations, self.layout
+        actuated = "actuators" not in self.off
+        ctrl, inputs, act = self.command(ctrl, actuated, advance)
+        force = np.zeros(layout.size)
         if qfrc_applied is not None:
             applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
-            forces = [f + np.asarray(a, np.float64) for f, a in zip(forces, applied)]
+            force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         refresh_link_velocities(self.velocity_readers())
-        step = Step(articulations, self.joints, [np.asarray(art.get_qpos(), np.float64) for art in articulations],
-                    [np.asarray(art.get_qvel(), np.float64) for art in articulations], forces,
-                    {key: DofStep(law, law.constant) for key, law in self.passive.items()}, inputs, ctrl, act,
-                    qfrc_applied, "actuators" not in self.off, self.timestep, int(model.opt.integrator) not in IMPLICIT, advance)
+        q, v = layout.read(articulations)
+        step = Step(articulations, self.joints, layout, q, v, force, self.base.copy(), inputs, ctrl, act,
+                    qfrc_applied, actuated, self.timestep, int(model.opt.integrator) not in IMPLICIT, advance)
         for term in self.terms:
             term.contribute(step)
 
@@ -138,6 +145,7 @@ class Controller:
         unknown = [n for n in names if n not in STAGES]
         if unknown:
             raise ValueError(f"no per-step term {unknown}: the terms are {', '.join(STAGES)}")
+        self.stale = True
         for term in [t for t in self.terms if t.name in names]:
             self.terms.remove(term)
             self.off[term.name] = term
@@ -148,11 +156,26 @@ class Controller:
 
     def restore(self, *names: str) -> None:
         """Switch the named terms (all, without names) back on; the next `set_ctrl` applies them."""
+        self.stale = True
         for name in names or list(self.off):
             if name in self.off:
                 self.terms.append(self.off.pop(name))
         self.terms.sort(key=lambda term: STAGES.index(term.name))
         self._readers = None
+
+
+def compile_terms(layout: DofLayout, passive: dict[DofKey, DofDrive], terms: list) -> np.ndarray:
+    """Every term's arrays from its plan; returns the step's starting law (`Step.law`): the passive laws, no
+    via-damping force, implicit extra or offset."""
+    laws = law_arrays([passive[key] for key in layout.keys])
+    for term in terms:
+        if term.name == "actuators":
+            term.compile(layout, laws)
+        elif term.name == "drives":
+            term.compile(layout, offsets=any(t.name == "slides" for t in terms))
+        elif hasattr(term, "compile"):
+            term.compile(layout)
+    return np.concatenate([laws, np.zeros((3, laws.shape[1]))])
 
 
 def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,

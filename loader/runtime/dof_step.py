@@ -1,10 +1,9 @@
-"""One step's working record: per hinge/slide DoF the force law its PhysX drive will carry (`DofStep`), and per
-articulation the generalized forces gathered for `set_qf` (`Step`). Every per-step term reads and adds to these, in
-the controller's stage order (`controller.py`); the drive writer turns them into PhysX settings at the end."""
+"""One step's working record as arrays: the joint state and the generalized forces over every articulation's DoFs
+end to end (`flat`), and per hinge/slide DoF (a drive DoF) the force law its PhysX drive will carry. Every per-step
+term reads and adds to these, in the controller's stage order (`controller.py`); the drive writer turns them into
+PhysX settings at the end. `DofLayout` is what the arrays index, planned once at load."""
 
 from __future__ import annotations
-
-from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -16,40 +15,76 @@ from ..drive import DofDrive
 DofKey = tuple[int, int]  # (articulation, SAPIEN dof)
 
 
-@dataclass
-class DofStep:
-    """What one DoF's drive carries this step: its law, the law's state-independent part, a constant force the
-    velocity target carries (`drive.apply`'s `via_damping`), and implicit damping that joins the drive's damping
-    (the implicit diagonal of tendon dampers and tendon actuators' kv)."""
+class DofLayout:
+    """Where each drive DoF sits: `keys[i]` its (articulation, dof), `flat[i]` its place in the articulations'
+    DoFs end to end (`starts[a]` is articulation a's first), `joints[i]` its PhysX joint."""
 
-    law: DofDrive
-    constant: float
-    via_damping: float = 0.0
-    implicit_extra: float = 0.0
+    def __init__(self, articulations: list, keys: list[DofKey]):
+        sizes = [int(art.dof) for art in articulations]
+        self.starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+        self.size = int(self.starts[-1])
+        self.keys = list(keys)
+        self.index = {key: i for i, key in enumerate(self.keys)}
+        self.flat = np.array([self.starts[a] + d for a, d in self.keys], dtype=int)
+        joints = [art.active_joints for art in articulations]
+        self.joints = [joints[a][d] for a, d in self.keys]
+
+    def flat_of(self, keys) -> np.ndarray:
+        return np.array([self.starts[a] + d for a, d in keys], dtype=int)
+
+    def drive_of(self, keys) -> np.ndarray:
+        return np.array([self.index[key] for key in keys], dtype=int)
+
+    def read(self, articulations) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions and velocities, end to end (float64)."""
+        if not articulations:
+            return np.zeros(0), np.zeros(0)
+        if len(articulations) == 1:
+            art = articulations[0]
+            return np.asarray(art.get_qpos(), np.float64), np.asarray(art.get_qvel(), np.float64)
+        q = np.concatenate([art.get_qpos() for art in articulations]).astype(np.float64)
+        return q, np.concatenate([art.get_qvel() for art in articulations]).astype(np.float64)
+
+    def split(self, flat: np.ndarray) -> list[np.ndarray]:
+        """Per articulation, its part of an end-to-end array (views)."""
+        starts = self.starts
+        return [flat[starts[a]:starts[a + 1]] for a in range(len(starts) - 1)]
 
 
-@dataclass
+def law_arrays(laws: list[DofDrive]) -> np.ndarray:
+    """Rows stiffness, damping, constant, force limit of these laws, one column per drive DoF."""
+    return np.array([[law.stiffness, law.damping, law.constant, law.force_limit] for law in laws],
+                    dtype=np.float64).reshape(-1, 4).T.copy()
+
+
 class Step:
-    """The state the terms read and the forces they gather, for one `set_ctrl`."""
+    """The state the terms read and the forces they gather, for one `set_ctrl`. Per drive DoF (columns of
+    `layout.keys`): `stiffness`, `damping`, `constant` (the law's state-independent part), `force_limit`,
+    `via_damping` (a constant force the velocity target carries, `drive.apply`), `implicit_extra` (implicit damping
+    that joins the drive's: the implicit diagonal of tendon dampers and tendon actuators' kv) and `offset` (the
+    velocity the drive's measure is short of, `slides.py`)."""
 
-    articulations: list
-    joints: list[list]  # per articulation, its active joints
-    q: list[np.ndarray]
-    v: list[np.ndarray]
-    forces: list[np.ndarray]  # per articulation, the generalized force `set_qf` gets
-    dofs: dict[DofKey, DofStep]
-    inputs: np.ndarray  # what each actuator's gain multiplies: clamped ctrl, or the activation
-    ctrl: np.ndarray  # MuJoCo's ctrl, clamped to ctrlrange
-    act: np.ndarray | None  # MuJoCo's act at the start of the step (None: no activation dynamics)
-    qfrc_applied: np.ndarray | None  # the caller's generalized force, MuJoCo's layout
-    actuated: bool  # the actuators term is on (off: MuJoCo's actuation disabled, as `disable_actuators` means)
-    timestep: float
-    explicit_kv: bool  # Euler or RK4: actuator kv is explicit
-    advance: bool  # the first `set_ctrl` of this physics step (activations and link forces advance once)
-    offsets: dict[DofKey, float] = field(default_factory=dict)  # drive velocity offsets (`slides.py`)
+    def __init__(self, articulations, joints: list[list], layout: DofLayout, q, v, force, law: np.ndarray, inputs,
+                 ctrl, act, qfrc_applied, actuated: bool, timestep: float, explicit_kv: bool, advance: bool):
+        self.articulations, self.joints, self.layout = articulations, joints, layout  # joints: per articulation
+        self.q, self.v, self.force = q, v, force  # end to end over the articulations' DoFs
+        self.law = law  # rows: stiffness, damping, constant, force limit, via_damping, implicit_extra, offset
+        self.inputs = inputs  # what each actuator's gain multiplies: clamped ctrl, or the activation
+        self.ctrl = ctrl  # MuJoCo's ctrl, clamped to ctrlrange
+        self.act = act  # MuJoCo's act at the start of the step (None: no activation dynamics)
+        self.qfrc_applied = qfrc_applied  # the caller's generalized force, MuJoCo's layout
+        self.actuated = actuated  # the actuators term is on (off: MuJoCo's actuation disabled)
+        self.timestep = timestep
+        self.explicit_kv = explicit_kv  # Euler or RK4: actuator kv is explicit
+        self.advance = advance  # the first `set_ctrl` of this physics step (activations, link forces)
 
-    def add(self, key: DofKey, force: float) -> None:
-        self.forces[key[0]][key[1]] += force
+    stiffness = property(lambda self: self.law[0])
+    damping = property(lambda self: self.law[1])
+    constant = property(lambda self: self.law[2])
+    force_limit = property(lambda self: self.law[3])
+    via_damping = property(lambda self: self.law[4])
+    implicit_extra = property(lambda self: self.law[5])
+    offset = property(lambda self: self.law[6])
 
 
 def passive_laws(model: mujoco.MjModel, mapping: Mapping) -> dict[DofKey, DofDrive]:

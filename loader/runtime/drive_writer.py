@@ -9,40 +9,74 @@ it). Tested by tests/test_loader_limit.py::test_a_limit_force_on_a_light_damped_
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from .. import drive
 from ..drive import DofDrive
-from .dof_step import DofKey, Step
+from .dof_step import DofKey, DofLayout, Step
 
 
-@dataclass
 class DriveWriter:
-    """Writes drives and `qf`; remembers, per joint, the drive settings last written (`drive.apply`)."""
+    """Writes drives and `qf`: each drive DoF's law (`drive.apply`, as arrays), the PhysX calls only for the joints
+    whose settings changed since the last write (`written`: stiffness, damping, force limit, target and velocity
+    target as last written; NaN: unknown, written next step)."""
 
-    passive: dict[DofKey, DofDrive]
-    inertia: dict[DofKey, float] = field(default_factory=dict)  # M_ii at qpos0 (`dof_inertia`); absent: qf only
-    written: dict = field(default_factory=dict)
-    name: str = "drives"
+    name = "drives"
+
+    def __init__(self, passive: dict[DofKey, DofDrive], inertia: dict[DofKey, float] | None = None):
+        self.passive = passive
+        self.inertia = {} if inertia is None else inertia  # M_ii at qpos0 (`dof_inertia`); absent: qf only
+
+    def compile(self, layout: DofLayout, offsets: bool = True) -> None:
+        """`offsets`: whether any drive carries a velocity offset (`slides.py`); without, adding it is skipped."""
+        self.layout, self.offsets = layout, offsets
+        self.mass = np.array([self.inertia.get(key, np.inf) for key in layout.keys], dtype=np.float64)
+        self.zeros = np.zeros(len(layout.keys))
+        self.written = np.full((5, len(layout.keys)), np.nan)
 
     def contribute(self, step: Step) -> None:
-        for (art, dof), record in step.dofs.items():
-            law = record.law
-            if record.implicit_extra:
-                law = dataclasses.replace(law, damping=law.damping + record.implicit_extra)
-            via_damping = record.via_damping
-            if (art, dof) in self.inertia and law.force_limit == np.inf and (
-                    step.timestep * law.physx_damping(step.timestep) > self.inertia[(art, dof)]):
-                via_damping, step.forces[art][dof] = via_damping + step.forces[art][dof], 0.0
-            step.forces[art][dof] += drive.apply(step.joints[art][dof], law, record.constant, step.timestep,
-                                                 via_damping, self.written, (art, dof),
-                                                 step.offsets.get((art, dof), 0.0))
-        for articulation, qf in zip(step.articulations, step.forces):
+        """`drive.apply` on every drive DoF at once: the position target carries the constant where the drive has
+        stiffness, the velocity target what is left where it has damping, `qf` the rest."""
+        law, force, timestep, flat = step.law, step.force, step.timestep, self.layout.flat
+        stiffness, constant, via_damping, offset = law[0], law[2], law[4], law[6]
+        damping = law[1] + law[5]
+        damping -= stiffness * timestep
+        np.maximum(damping, 0.0, out=damping)  # `DofDrive.physx_damping`
+        heavy = ((timestep * damping > self.mass) & (law[3] == np.inf)).nonzero()[0]
+        if heavy.size:
+            via_damping[heavy] += force[flat[heavy]]
+            force[flat[heavy]] = 0.0
+        stiff = stiffness > 0
+        target = np.divide(constant, stiffness, out=self.zeros.copy(), where=stiff)
+        if self.offsets:
+            np.add(target, offset * timestep, out=target, where=stiff)
+        constant[stiff] = 0.0
+        constant += via_damping  # what is left after the position target
+        damped = damping > 0
+        velocity_target = np.divide(constant, damping, out=self.zeros.copy(), where=damped)
+        if self.offsets:
+            np.add(velocity_target, offset, out=velocity_target, where=damped)
+        constant[damped] = 0.0
+        force[flat] += constant
+        self.write(np.array([stiffness, damping, law[3], target, velocity_target]))
+        for articulation, qf in zip(step.articulations, step.layout.split(force)):
             if articulation.dof:
                 articulation.set_qf(qf.astype(np.float32))
+
+    def write(self, settings: np.ndarray) -> None:
+        """The PhysX calls for the settings (rows as `written`) that differ from the last ones written."""
+        changed = settings != self.written
+        self.written = settings
+        if not np.count_nonzero(changed):
+            return
+        joints = self.layout.joints
+        for i in (changed[0] | changed[1] | changed[2]).nonzero()[0].tolist():
+            joints[i].set_drive_properties(float(settings[0, i]), float(settings[1, i]), float(settings[2, i]),
+                                           "force")
+        for i in changed[3].nonzero()[0].tolist():
+            joints[i].set_drive_target(float(settings[3, i]))
+        for i in changed[4].nonzero()[0].tolist():
+            joints[i].set_drive_velocity_target(float(settings[4, i]))
 
     def release(self, joints, articulations, timestep: float) -> None:
         """Every DoF's passive spring-damper in its drive, `qf` cleared."""
@@ -51,7 +85,8 @@ class DriveWriter:
         for articulation in articulations:
             if articulation.dof:
                 articulation.set_qf(np.zeros(articulation.dof, np.float32))
-        self.written.clear()
+        if hasattr(self, "written"):
+            self.written[:] = np.nan
 
 
 def dof_inertia(model, mapping) -> dict[DofKey, float]:

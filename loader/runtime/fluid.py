@@ -22,28 +22,39 @@ class FluidBody:
     box: tuple[float, float, float]  # sides of the equivalent inertia box
 
 
-@dataclass(frozen=True)
+@dataclass
 class Fluid:
     density: float
     viscosity: float
     wind: np.ndarray
     bodies: tuple[FluidBody, ...]
     applied: list = field(default_factory=list)  # this step's (articulation, centre of mass, force, torque), world
+    factors: np.ndarray | None = field(default=None, repr=False)  # `coefficients`, planned by `compile`
 
-    def wrench(self, box, angular: np.ndarray, linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """MuJoCo's fluid (torque, force) on a body, all in its inertial frame, from its velocity there."""
-        b = np.asarray(box)
-        diameter = b.mean()
-        torque = -np.pi * diameter**3 * self.viscosity * angular
-        force = -3.0 * np.pi * diameter * self.viscosity * linear
+    def coefficients(self) -> np.ndarray:
+        """Per body (rows), the state-independent factors of `wrench`'s four terms: viscous torque, viscous force,
+        quadratic force (per axis), quadratic torque (per axis), as columns of width 1, 1, 3, 3."""
+        b = np.array([body.box for body in self.bodies], dtype=np.float64).reshape(-1, 3)
+        diameter = b.mean(axis=1)[:, None]
+        area = np.stack([b[:, 1] * b[:, 2], b[:, 0] * b[:, 2], b[:, 0] * b[:, 1]], axis=1)
+        lever = np.stack([b[:, 0] * (b[:, 1]**4 + b[:, 2]**4), b[:, 1] * (b[:, 0]**4 + b[:, 2]**4),
+                          b[:, 2] * (b[:, 0]**4 + b[:, 1]**4)], axis=1)
+        return np.concatenate([-np.pi * diameter**3 * self.viscosity, -3.0 * np.pi * diameter * self.viscosity,
+                               0.5 * self.density * area, self.density * lever], axis=1)
+
+    def wrench(self, coefficients: np.ndarray, angular: np.ndarray, linear: np.ndarray):
+        """MuJoCo's fluid (torque, force) on each body (rows), all in its inertial frame, from its velocity there."""
+        torque = coefficients[:, 0:1] * angular
+        force = coefficients[:, 1:2] * linear
         if self.density > 0:
-            area = np.array([b[1] * b[2], b[0] * b[2], b[0] * b[1]])
-            force = force - 0.5 * self.density * area * np.abs(linear) * linear
-            lever = np.array([b[0] * (b[1]**4 + b[2]**4), b[1] * (b[0]**4 + b[2]**4), b[2] * (b[0]**4 + b[1]**4)])
-            torque = torque - self.density * lever * np.abs(angular) * angular / 64.0
+            force = force - coefficients[:, 2:5] * np.abs(linear) * linear
+            torque = torque - coefficients[:, 5:8] * np.abs(angular) * angular / 64.0
         return torque, force
 
     name = "fluid"
+
+    def compile(self, layout) -> None:
+        self.factors = self.coefficients()
 
     def contribute(self, step) -> None:
         """Link forces accumulate in PhysX until the step: added once per physics step."""
@@ -55,16 +66,21 @@ class Fluid:
 
     def apply(self, articulations) -> None:
         """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
+        links = [articulations[body.articulation].links[body.link] for body in self.bodies]
+        frames = np.array([(link.entity_pose * link.cmass_local_pose).to_transformation_matrix()[:3, :3]
+                           for link in links], dtype=np.float64)
+        angular = np.array([link.angular_velocity for link in links], dtype=np.float64)
+        linear = np.array([link.linear_velocity for link in links], dtype=np.float64) - self.wind
+        to_body = frames.transpose(0, 2, 1)
+        factors = self.coefficients() if self.factors is None else self.factors
+        torque, force = self.wrench(factors,
+                                    (to_body @ angular[:, :, None])[:, :, 0], (to_body @ linear[:, :, None])[:, :, 0])
+        torque, force = (frames @ torque[:, :, None])[:, :, 0], (frames @ force[:, :, None])[:, :, 0]
+        for link, f, t in zip(links, force, torque):
+            link.add_force_torque(f, t)
+        centres = [np.asarray((link.entity_pose * link.cmass_local_pose).p, np.float64) for link in links]
         self.applied.clear()
-        for body in self.bodies:
-            link = articulations[body.articulation].links[body.link]
-            frame = (link.entity_pose * link.cmass_local_pose).to_transformation_matrix()[:3, :3]
-            angular = frame.T @ np.asarray(link.angular_velocity, np.float64)
-            linear = frame.T @ (np.asarray(link.linear_velocity, np.float64) - self.wind)
-            torque, force = self.wrench(body.box, angular, linear)
-            link.add_force_torque(frame @ force, frame @ torque)
-            centre = (link.entity_pose * link.cmass_local_pose).p
-            self.applied.append((body.articulation, np.asarray(centre, np.float64), frame @ force, frame @ torque))
+        self.applied.extend(zip([body.articulation for body in self.bodies], centres, force, torque))
 
 
 def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:

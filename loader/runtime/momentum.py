@@ -73,7 +73,7 @@ class Momentum:
 
     def contribute(self, step) -> None:
         """Remember the state this physics step starts from (`set_ctrl` settles the last step before)."""
-        q, v = step.q, step.v
+        q, v = step.layout.split(step.q), step.layout.split(step.v)
         qpos, qvel = self.mapping.get_state(step.articulations, q, v)
         poses = [pose7(step.articulations[a]) for a, *_ in self.roots]
         self.start = (qpos, qvel, [q[a].copy() for a, *_ in self.roots], poses)

@@ -69,14 +69,17 @@ class RowTerm:
         self.mapping = mapping
         self.set_limits(limits)
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
-        # per articulation: its hinge/slide SAPIEN dofs and their MuJoCo dofs, to add the rows' force at once
-        self.targets = [(a, np.array([t.dofs[0] for _, t in joints if t.articulation == a], dtype=int),
-                         np.array([int(mirror.jnt_dofadr[j]) for j, t in joints if t.articulation == a], dtype=int))
-                        for a in sorted({t.articulation for _, t in joints})]
+        self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]  # the hinge/slide DoFs the rows' force reaches
+        self.mujoco_dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
         self.soft = False
         self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
+
+    def compile(self, layout) -> None:
+        """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
+        self.flat = layout.flat_of(self.keys)
+        self.limit_flat = layout.flat_of(self.limit_keys)
 
     def set_limits(self, limits: list[HardLimit]) -> None:
         """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
@@ -96,9 +99,7 @@ class RowTerm:
             self.mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
             mujoco.mj_forward(self.mirror, self.data)
             self.mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        force = self.joint_rows()
-        for art, dofs, mujoco_dofs in self.targets:
-            step.forces[art][dofs] += force[mujoco_dofs]
+        step.force[self.flat] += self.joint_rows()[self.mujoco_dofs]
 
     def joint_rows(self) -> np.ndarray:
         """The generalized force of the joint limit and friction rows alone (contact rows, solved with them when
@@ -119,7 +120,9 @@ class RowTerm:
         actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         flags = (self.flags | actuation) if not step.actuated else self.flags
         mirror.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations, step.q, step.v)
+        layout = step.layout
+        data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations, layout.split(step.q),
+                                                            layout.split(step.v))
         data.ctrl[:] = step.ctrl
         if step.act is not None:
             data.act[:] = step.act
@@ -134,8 +137,10 @@ class RowTerm:
         rows run (vectorised: most joints are far from it)."""
         if not self.limits:
             return
-        q = np.array([step.q[art][dof] for art, dof in self.limit_keys])
+        q = step.q[self.limit_flat]
         near = (q < self.physx[:, 0] + 0.5 * self.margins) | (q > self.physx[:, 1] - 0.5 * self.margins)
+        if not near.any():
+            return
         for i in np.flatnonzero(near):
             art, dof = self.limits[i].key
             self.physx[i] = self.limits[i].widened(float(q[i]))

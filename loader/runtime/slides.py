@@ -25,16 +25,25 @@ class SlideDrive:
 
     def centripetal(self) -> float:
         """k = (w x (w x d)) . a = (w.d)(w.a) - (w.w)(d.a) at the links' current state (m/s^2), all in the parent's
-        frame (plain floats: numpy's per-call cost would dominate three-vectors)."""
-        to_parent = self.parent.entity_pose.inv()
+        frame."""
+        return self.centripetal_from(*parent_motion(self.parent))
+
+    def centripetal_from(self, to_parent: sapien.Pose, w) -> float:
+        """`centripetal` with the parent's inverse pose and its angular velocity in its frame already read (plain
+        floats: numpy's per-call cost would dominate three-vectors)."""
         d = (to_parent * self.child.entity_pose * self.child_com).p
-        w = (sapien.Pose(q=to_parent.q) * sapien.Pose(self.parent.angular_velocity)).p
         a, c = self.axis_in_parent, self.parent_com
         dx, dy, dz = d[0] - c[0], d[1] - c[1], d[2] - c[2]
         wd = w[0] * dx + w[1] * dy + w[2] * dz
         wa = w[0] * a[0] + w[1] * a[1] + w[2] * a[2]
         ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
         return float(wd * wa - ww * (dx * a[0] + dy * a[1] + dz * a[2]))
+
+
+def parent_motion(parent) -> tuple[sapien.Pose, object]:
+    """A parent link's inverse pose and its angular velocity in its own frame."""
+    to_parent = parent.entity_pose.inv()
+    return to_parent, (sapien.Pose(q=to_parent.q) * sapien.Pose(parent.angular_velocity)).p
 
 
 def can_turn(link, articulation) -> bool:
@@ -61,20 +70,31 @@ def map_slides(articulations) -> list[SlideDrive]:
     return slides
 
 
-def drive_offsets(slides: list[SlideDrive], timestep: float) -> dict[tuple[int, int], float]:
-    """(articulation, dof) -> dt k, the velocity the DoF's drive is short of this step."""
-    return {(s.articulation, s.dof): timestep * s.centripetal() for s in slides}
+def drive_offsets(slides: list[SlideDrive], timestep: float) -> list[float]:
+    """Per slide, dt k: the velocity its drive is short of this step (each parent read once)."""
+    parents: dict[int, tuple] = {}
+    out = []
+    for s in slides:
+        motion = parents.get(id(s.parent))
+        if motion is None:
+            motion = parents[id(s.parent)] = parent_motion(s.parent)
+        out.append(timestep * s.centripetal_from(*motion))
+    return out
 
 
-@dataclass
 class SlideTerm:
     """Every step, the velocity each turning slide's drive is short of joins its drive's targets."""
 
-    slides: list[SlideDrive]
-    name: str = "slides"
+    name = "slides"
+
+    def __init__(self, slides: list[SlideDrive]):
+        self.slides = slides
+
+    def compile(self, layout) -> None:
+        self.drive = layout.drive_of([(s.articulation, s.dof) for s in self.slides])
 
     def contribute(self, step) -> None:
-        step.offsets = drive_offsets(self.slides, step.timestep)
+        step.law[6, self.drive] = drive_offsets(self.slides, step.timestep)
 
     def velocity_links(self, articulations) -> list:
         return [s.parent for s in self.slides]

@@ -6,21 +6,17 @@ drive as the explicit force constant - K q, which is what MuJoCo does. Derivatio
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass
-
 from .dof_step import Step
 
 
-@dataclass
 class StiffnessTerm:
-    name: str = "stiffness"
+    name = "stiffness"
 
     def contribute(self, step: Step) -> None:
-        for (art, dof), record in step.dofs.items():
-            law = record.law
-            if law.damping + record.implicit_extra - law.stiffness * step.timestep >= 0.0:
-                continue
-            step.forces[art][dof] += record.constant - law.stiffness * step.q[art][dof]
-            record.constant = 0.0
-            record.law = dataclasses.replace(law, stiffness=0.0)
+        law = step.law
+        explicit = (~(law[1] + law[5] - law[0] * step.timestep >= 0.0)).nonzero()[0]
+        if explicit.size:
+            flat = step.layout.flat[explicit]
+            step.force[flat] += law[2, explicit] - law[0, explicit] * step.q[flat]
+            law[2, explicit] = 0.0
+            law[0, explicit] = 0.0

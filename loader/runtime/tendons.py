@@ -76,20 +76,36 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     return out
 
 
-@dataclass
 class TendonTerm:
-    """The passive fixed tendons' forces every step; under implicit integrators their dampers' diagonal joins the
-    drives (`DofStep.implicit_extra`)."""
+    """The passive fixed tendons' forces every step, as arrays over their terms (per term its tendon `owner`,
+    joint position `flat`, drive column and coefficient); under implicit integrators their dampers' diagonal joins
+    the drives (`Step.implicit_extra`)."""
 
-    tendons: list[PassiveTendon]
-    name: str = "tendons"
+    name = "tendons"
+
+    def __init__(self, tendons: list[PassiveTendon]):
+        self.tendons = tendons
+
+    def compile(self, layout) -> None:
+        rows = [(k, (art, dof), c) for k, t in enumerate(self.tendons) for art, dof, c in t.terms]
+        self.owner = np.array([k for k, _, _ in rows], dtype=int)
+        self.flat = layout.flat_of([key for _, key, _ in rows])
+        self.drive = layout.drive_of([key for _, key, _ in rows])
+        self.coefficient = np.array([c for _, _, c in rows], dtype=np.float64)
+        columns = np.array([(t.stiffness, t.damping, t.low, t.high) for t in self.tendons], np.float64).reshape(-1, 4)
+        self.stiffness, self.damping, self.low, self.high = columns.T.copy()
 
     def contribute(self, step) -> None:
-        for tendon in self.tendons:
-            for art, dof, force, diagonal in tendon.forces(step.q, step.v, not step.explicit_kv):
-                step.forces[art][dof] += force
-                if diagonal:
-                    step.dofs[(art, dof)].implicit_extra += diagonal
+        """`PassiveTendon.forces` for every tendon at once."""
+        owner, c, count = self.owner, self.coefficient, len(self.tendons)
+        v = step.v[self.flat]
+        length = np.bincount(owner, c * step.q[self.flat], minlength=count)
+        rate = np.bincount(owner, c * v, minlength=count)
+        stretch = np.where(length < self.low, length - self.low, np.where(length > self.high, length - self.high, 0.0))
+        pull = -self.stiffness * stretch - self.damping * rate
+        diagonal = self.damping[owner] * c * c if not step.explicit_kv else np.zeros(owner.size)
+        np.add.at(step.force, self.flat, c * pull[owner] + diagonal * v)
+        np.add.at(step.law[5], self.drive, diagonal)
 
     def implicit_diagonal(self) -> dict[tuple[int, int], float]:
         """The dampers' diagonal D c^2 per DoF (what joins the drives under implicit integrators)."""
