@@ -53,7 +53,8 @@ class ActuatorTerm:
         self.joint = ActuatorLaws(self.actuators, indices)
         keys = [(self.actuators[a].articulation, self.actuators[a].dofs[0]) for a in indices]
         self.drive, self.flat = layout.drive_of(keys), layout.flat_of(keys)
-        self.clamps = ForceClamps(self.limited, self.joint_range, indices, layout, passive) if self.limited else None
+        self.clamps = ForceClamps(self.limited, self.joint_range, self.joint, layout, passive) if self.limited else None
+        self.unique = len(set(self.drive.tolist())) == self.drive.size  # one joint actuator per DoF
         mapped = {a: terms for a, terms in self.tendon_terms.items() if self.actuators[a].mapped}
         self.tendons = TendonActuators(self.actuators, mapped, layout) if mapped else None
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
@@ -62,24 +63,27 @@ class ActuatorTerm:
     def contribute(self, step: Step) -> None:
         law = step.law
         law[:4] = self.base
-        joint = self.joint
-        found = self.clamped_step(step)
-        free = None if found is None else ~self.clamps.apply(found, step)  # joint actuators not clamped
+        joint, free = self.joint, None
         if len(joint):
-            inputs = step.inputs[joint.indices]
-            constant = joint.gear * (joint.gain * inputs + joint.bias[0])
-            if free is None:
-                np.add.at(law[2], self.drive, constant)
+            affine = joint.gain * step.inputs[joint.indices] + joint.bias[0]
+            found = self.clamped_step(step, affine)
+            drive, constant = self.drive, joint.gear * affine
+            if found is not None:
+                free = ~self.clamps.apply(found, step)  # joint actuators not clamped
+                drive, constant = drive[free], constant[free]
+            if self.unique:
+                law[2, drive] += constant
             else:
-                np.add.at(law[2], self.drive[free], constant[free])
+                np.add.at(law[2], drive, constant)
         if self.tendons is not None:
             self.tendons.contribute(step, self.implicit_tendon_kv)
         if step.explicit_kv:
             self.explicit_kv(free, step)
 
-    def clamped_step(self, step: Step):
-        """MuJoCo's clamps at this state (`clamps.py`), or None when none binds."""
-        return self.clamps.binding(step, self.joint) if self.clamps is not None else None
+    def clamped_step(self, step: Step, affine: np.ndarray):
+        """MuJoCo's clamps at this state (`clamps.py`), or None when none binds. `affine`: gain x input + bias0 of
+        every joint actuator."""
+        return self.clamps.binding(step, affine) if self.clamps is not None else None
 
     def explicit_kv(self, free, step: Step) -> None:
         """Under Euler (and RK4) joint actuators' kv leaves the drive as the explicit force -kv qdot; the drive keeps

@@ -77,6 +77,8 @@ class Step:
         self.timestep = timestep
         self.explicit_kv = explicit_kv  # Euler or RK4: actuator kv is explicit
         self.advance = advance  # the first `set_ctrl` of this physics step (activations, link forces)
+        self.regular = True  # no clamp bound, no tendon actuator saturated: stiffness, damping, force limit and
+        # implicit extra are every such step's (with the same explicit_kv), what is derived from them is reused
 
     stiffness = property(lambda self: self.law[0])
     damping = property(lambda self: self.law[1])

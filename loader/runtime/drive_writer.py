@@ -16,6 +16,56 @@ from ..drive import DofDrive
 from .dof_step import DofKey, DofLayout, Step
 
 
+class DriveRegime:
+    """What the drive writer derives from a step's stiffness, damping, force limit and implicit extra: PhysX's
+    damping (`DofDrive.physx_damping`), which DoFs have stiffness (`stiff`) or damping (`damped`), and the heavy
+    ones whose force rides on the velocity target. Every regular step (`Step.regular`) has the same."""
+
+    def __init__(self, law: np.ndarray, timestep: float, mass: np.ndarray, flat: np.ndarray):
+        self.stiffness, self.force_limit = law[0].copy(), law[3].copy()
+        damping = law[1] + law[5]
+        damping -= self.stiffness * timestep
+        self.damping = np.maximum(damping, 0.0)
+        self.heavy = ((timestep * self.damping > mass) & (self.force_limit == np.inf)).nonzero()[0]
+        self.heavy_flat = flat[self.heavy]
+        self.stiff, self.damped = self.stiffness > 0, self.damping > 0
+        self.all_stiff, self.any_stiff = bool(self.stiff.all()), bool(self.stiff.any())
+        self.all_damped, self.any_damped = bool(self.damped.all()), bool(self.damped.any())
+
+    def position_target(self, constant: np.ndarray, offset: np.ndarray | None, timestep: float) -> np.ndarray:
+        """constant / stiffness (+ offset dt) where the drive has stiffness, else 0; takes the constant out of
+        `constant` there."""
+        if not self.any_stiff:
+            return np.zeros(constant.size)
+        if self.all_stiff:
+            target = constant / self.stiffness
+            if offset is not None:
+                target += offset * timestep
+            constant[:] = 0.0
+            return target
+        target = np.divide(constant, self.stiffness, out=np.zeros(constant.size), where=self.stiff)
+        if offset is not None:
+            np.add(target, offset * timestep, out=target, where=self.stiff)
+        constant[self.stiff] = 0.0
+        return target
+
+    def velocity_target(self, left: np.ndarray, offset: np.ndarray | None) -> np.ndarray:
+        """left / damping (+ offset) where the drive has damping, else 0; takes it out of `left` there."""
+        if not self.any_damped:
+            return np.zeros(left.size)
+        if self.all_damped:
+            target = left / self.damping
+            if offset is not None:
+                target += offset
+            left[:] = 0.0
+            return target
+        target = np.divide(left, self.damping, out=np.zeros(left.size), where=self.damped)
+        if offset is not None:
+            np.add(target, offset, out=target, where=self.damped)
+        left[self.damped] = 0.0
+        return target
+
+
 class DriveWriter:
     """Writes drives and `qf`: each drive DoF's law (`drive.apply`, as arrays), the PhysX calls only for the joints
     whose settings changed since the last write (`written`: stiffness, damping, force limit, target and velocity
@@ -31,34 +81,29 @@ class DriveWriter:
         """`offsets`: whether any drive carries a velocity offset (`slides.py`); without, adding it is skipped."""
         self.layout, self.offsets = layout, offsets
         self.mass = np.array([self.inertia.get(key, np.inf) for key in layout.keys], dtype=np.float64)
-        self.zeros = np.zeros(len(layout.keys))
         self.written = np.full((5, len(layout.keys)), np.nan)
+        self.regimes: dict[bool, DriveRegime] = {}  # a regular step's, by Step.explicit_kv
 
     def contribute(self, step: Step) -> None:
         """`drive.apply` on every drive DoF at once: the position target carries the constant where the drive has
         stiffness, the velocity target what is left where it has damping, `qf` the rest."""
-        law, force, timestep, flat = step.law, step.force, step.timestep, self.layout.flat
-        stiffness, constant, via_damping, offset = law[0], law[2], law[4], law[6]
-        damping = law[1] + law[5]
-        damping -= stiffness * timestep
-        np.maximum(damping, 0.0, out=damping)  # `DofDrive.physx_damping`
-        heavy = ((timestep * damping > self.mass) & (law[3] == np.inf)).nonzero()[0]
-        if heavy.size:
-            via_damping[heavy] += force[flat[heavy]]
-            force[flat[heavy]] = 0.0
-        stiff = stiffness > 0
-        target = np.divide(constant, stiffness, out=self.zeros.copy(), where=stiff)
-        if self.offsets:
-            np.add(target, offset * timestep, out=target, where=stiff)
-        constant[stiff] = 0.0
+        law, force, timestep = step.law, step.force, step.timestep
+        key = step.explicit_kv if step.regular else None
+        regime = self.regimes.get(key)
+        if regime is None:
+            regime = DriveRegime(law, timestep, self.mass, self.layout.flat)
+            if key is not None:
+                self.regimes[key] = regime
+        constant, via_damping = law[2], law[4]
+        if regime.heavy.size:
+            via_damping[regime.heavy] += force[regime.heavy_flat]
+            force[regime.heavy_flat] = 0.0
+        offset = law[6] if self.offsets else None
+        target = regime.position_target(constant, offset, timestep)
         constant += via_damping  # what is left after the position target
-        damped = damping > 0
-        velocity_target = np.divide(constant, damping, out=self.zeros.copy(), where=damped)
-        if self.offsets:
-            np.add(velocity_target, offset, out=velocity_target, where=damped)
-        constant[damped] = 0.0
-        force[flat] += constant
-        self.write(np.array([stiffness, damping, law[3], target, velocity_target]))
+        velocity_target = regime.velocity_target(constant, offset)
+        force[self.layout.flat] += constant
+        self.write(np.array([regime.stiffness, regime.damping, regime.force_limit, target, velocity_target]))
         for articulation, qf in zip(step.articulations, step.layout.split(force)):
             if articulation.dof:
                 articulation.set_qf(qf.astype(np.float32))

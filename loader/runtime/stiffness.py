@@ -10,11 +10,20 @@ from .dof_step import Step
 
 
 class StiffnessTerm:
+    """`known`: per explicit_kv, the DoFs whose stiffness leaves the drive on a regular step (`Step.regular`)."""
+
     name = "stiffness"
+
+    def compile(self, layout) -> None:
+        self.known: dict[bool, object] = {}
 
     def contribute(self, step: Step) -> None:
         law = step.law
-        explicit = (~(law[1] + law[5] - law[0] * step.timestep >= 0.0)).nonzero()[0]
+        explicit = self.known.get(step.explicit_kv) if step.regular else None
+        if explicit is None:
+            explicit = (~(law[1] + law[5] - law[0] * step.timestep >= 0.0)).nonzero()[0]
+            if step.regular:
+                self.known[step.explicit_kv] = explicit
         if explicit.size:
             flat = step.layout.flat[explicit]
             step.force[flat] += law[2, explicit] - law[0, explicit] * step.q[flat]

@@ -25,6 +25,7 @@ class TendonActuators:
         self.flat = layout.flat_of([key for _, key, _ in rows])
         self.drive = layout.drive_of([key for _, key, _ in rows])
         self.coefficient = np.array([c for _, _, c in rows], dtype=np.float64)
+        self.geared = self.laws.gear[self.owner] * self.coefficient  # gear c per term
 
     def contribute(self, step: Step, implicit_kv) -> None:
         """`implicit_kv(damping, saturated)`: the kv MuJoCo's implicit step keeps, per actuator."""
@@ -35,8 +36,11 @@ class TendonActuators:
         unclamped = laws.unclamped(step.inputs[laws.indices], length, speed)
         force = laws.clamped(unclamped)
         implicit = np.zeros(count)
+        saturated = force != unclamped
+        if np.count_nonzero(saturated):
+            step.regular = False
         if not step.explicit_kv:
-            implicit = implicit + implicit_kv(laws.damping, force != unclamped)
+            implicit = implicit + implicit_kv(laws.damping, saturated)
         implicit = implicit[owner]
-        np.add.at(step.force, self.flat, laws.gear[owner] * c * force[owner] + implicit * c * c * v)
+        np.add.at(step.force, self.flat, self.geared * force[owner] + implicit * c * c * v)
         np.add.at(step.law[5], self.drive, implicit * c * c)
