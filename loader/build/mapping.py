@@ -53,8 +53,8 @@ def root_state(art, ipos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rotation = quat_to_mat(root.q)
     omega = np.asarray(art.get_root_angular_velocity(), np.float64)
     v_com = np.asarray(art.get_root_linear_velocity(), np.float64)
-    r = rotation @ ipos
-    origin = v_com - (omega[1] * r[2] - omega[2] * r[1], omega[2] * r[0] - omega[0] * r[2], omega[0] * r[1] - omega[1] * r[0])
+    (rx, ry, rz), (wx, wy, wz) = (rotation @ ipos).tolist(), omega.tolist()  # floats: numpy scalars are slow
+    origin = v_com - (wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx)
     return np.concatenate([root.p, root.q]), np.concatenate([origin, rotation.T @ omega])
 
 

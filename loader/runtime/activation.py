@@ -38,6 +38,7 @@ class Activation:
         self.tau = np.maximum(tau, MJMINVAL)
         self.exact = (m.actuator_dyntype[a] == int(DYN.mjDYN_FILTEREXACT)) & (tau >= MJMINVAL)
         self.early = m.actuator_actearly[a].astype(bool)
+        self.any_early = bool(self.early.any())
         self.limited = m.actuator_actlimited[a].astype(bool)
         self.low = np.where(self.limited, m.actuator_actrange[a, 0], -np.inf)
         self.high = np.where(self.limited, m.actuator_actrange[a, 1], np.inf)
@@ -58,7 +59,8 @@ class Activation:
         """What each actuator's gain multiplies this step: ctrl, or the activation (the next one with actearly)."""
         out = np.asarray(ctrl, dtype=np.float64).copy()
         if self.actuators.size:
-            out[self.actuators] = np.where(self.early, self._next(ctrl), self.act[self.adr])
+            act = self.act[self.adr]
+            out[self.actuators] = np.where(self.early, self._next(ctrl), act) if self.any_early else act
         return out
 
     def advance(self, ctrl: np.ndarray) -> None:

@@ -56,7 +56,7 @@ class ActuatorTerm:
         self.clamps = ForceClamps(self.limited, self.joint_range, self.joint, layout, passive) if self.limited else None
         self.unique = len(set(self.drive.tolist())) == self.drive.size  # one joint actuator per DoF
         mapped = {a: terms for a, terms in self.tendon_terms.items() if self.actuators[a].mapped}
-        self.tendons = TendonActuators(self.actuators, mapped, layout) if mapped else None
+        self.tendons = TendonActuators(self.actuators, mapped, layout, self.implicit_tendon_kv) if mapped else None
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
         self.kv_dofs = np.flatnonzero(self.kv)
 
@@ -76,7 +76,7 @@ class ActuatorTerm:
             else:
                 np.add.at(law[2], drive, constant)
         if self.tendons is not None:
-            self.tendons.contribute(step, self.implicit_tendon_kv)
+            self.tendons.contribute(step)
         if step.explicit_kv:
             self.explicit_kv(free, step)
 

@@ -17,7 +17,8 @@ DofKey = tuple[int, int]  # (articulation, SAPIEN dof)
 
 class DofLayout:
     """Where each drive DoF sits: `keys[i]` its (articulation, dof), `flat[i]` its place in the articulations'
-    DoFs end to end (`starts[a]` is articulation a's first), `joints[i]` its PhysX joint."""
+    DoFs end to end (`starts[a]` is articulation a's first), `joints[i]` its PhysX joint; `links[a]` articulation
+    a's links."""
 
     def __init__(self, articulations: list, keys: list[DofKey]):
         sizes = [int(art.dof) for art in articulations]
@@ -28,6 +29,7 @@ class DofLayout:
         self.flat = np.array([self.starts[a] + d for a, d in self.keys], dtype=int)
         joints = [art.active_joints for art in articulations]
         self.joints = [joints[a][d] for a, d in self.keys]
+        self.links = [art.links for art in articulations]  # per articulation (the property builds a new list)
 
     def flat_of(self, keys) -> np.ndarray:
         return np.array([self.starts[a] + d for a, d in keys], dtype=int)

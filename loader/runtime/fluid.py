@@ -30,6 +30,7 @@ class Fluid:
     bodies: tuple[FluidBody, ...]
     applied: list = field(default_factory=list)  # this step's (articulation, centre of mass, force, torque), world
     factors: np.ndarray | None = field(default=None, repr=False)  # `coefficients`, planned by `compile`
+    links: list | None = field(default=None, repr=False)  # each body's link and its centre of mass (`compile`)
 
     def coefficients(self) -> np.ndarray:
         """Per body (rows), the state-independent factors of `wrench`'s four terms: viscous torque, viscous force,
@@ -55,6 +56,8 @@ class Fluid:
 
     def compile(self, layout) -> None:
         self.factors = self.coefficients()
+        links = [layout.links[body.articulation][body.link] for body in self.bodies]
+        self.links = [(link, link.cmass_local_pose) for link in links]
 
     def contribute(self, step) -> None:
         """Link forces accumulate in PhysX until the step: added once per physics step."""
@@ -66,9 +69,11 @@ class Fluid:
 
     def apply(self, articulations) -> None:
         """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
-        links = [articulations[body.articulation].links[body.link] for body in self.bodies]
-        frames = np.array([(link.entity_pose * link.cmass_local_pose).to_transformation_matrix()[:3, :3]
-                           for link in links], dtype=np.float64)
+        pairs = self.links or [(link, link.cmass_local_pose) for link in
+                               (articulations[body.articulation].links[body.link] for body in self.bodies)]
+        links = [link for link, _ in pairs]
+        frames = np.array([(link.entity_pose * com).to_transformation_matrix()[:3, :3] for link, com in pairs],
+                          dtype=np.float64)
         angular = np.array([link.angular_velocity for link in links], dtype=np.float64)
         linear = np.array([link.linear_velocity for link in links], dtype=np.float64) - self.wind
         to_body = frames.transpose(0, 2, 1)

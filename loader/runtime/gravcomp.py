@@ -4,7 +4,7 @@ value adds -gravcomp m g at the centre of mass once per step. Derivation: docs/m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -14,11 +14,12 @@ from ..build.mapping import Mapping
 from ..errors import Notes
 
 
-@dataclass(frozen=True)
+@dataclass
 class GravityCompensation:
     """Per-step forces on links whose bodies compensate gravity partly (or more than fully)."""
 
     forces: tuple[tuple[int, int, np.ndarray], ...]  # (articulation, link, world force)
+    links: list | None = field(default=None, repr=False)  # each force's link (`compile`)
 
     name = "gravcomp"
 
@@ -27,9 +28,14 @@ class GravityCompensation:
         if step.advance:
             self.apply(step.articulations)
 
+    def compile(self, layout) -> None:
+        self.links = [layout.links[art][link] for art, link, _ in self.forces]
+
     def apply(self, articulations) -> None:
-        for art, link, force in self.forces:
-            articulations[art].links[link].add_force_torque(force, np.zeros(3))
+        links = self.links or [articulations[art].links[link] for art, link, _ in self.forces]
+        zero = np.zeros(3)
+        for link, (_, _, force) in zip(links, self.forces):
+            link.add_force_torque(force, zero)
 
 
 def map_gravcomp(model: mujoco.MjModel, mapping: Mapping, articulations, notes: Notes) -> GravityCompensation | None:

@@ -14,10 +14,11 @@ from .dof_step import DofLayout, Step
 
 class TendonActuators:
     """The mapped tendon actuators (`laws`) and their tendons' terms: per term its actuator (`owner`), joint
-    position (`flat`), drive column and coefficient."""
+    position (`flat`), drive column and coefficient, and the implicit diagonal kv c^2 while no forcerange
+    clamps (`diagonal`)."""
 
     def __init__(self, actuators: list[ActuatorMap], terms: dict[int, list[tuple[int, int, float]]],
-                 layout: DofLayout):
+                 layout: DofLayout, implicit_kv):
         order = list(terms)
         self.laws = ActuatorLaws(actuators, order)
         rows = [(k, (art, dof), c) for k, a in enumerate(order) for art, dof, c in terms[a]]
@@ -26,21 +27,36 @@ class TendonActuators:
         self.drive = layout.drive_of([key for _, key, _ in rows])
         self.coefficient = np.array([c for _, _, c in rows], dtype=np.float64)
         self.geared = self.laws.gear[self.owner] * self.coefficient  # gear c per term
+        self.implicit_kv = implicit_kv  # (damping, saturated) -> the kv MuJoCo's implicit step keeps
+        c, count = self.coefficient, len(self.laws)
+        self.diagonal = (np.zeros(count) + implicit_kv(self.laws.damping, np.zeros(count, bool)))[self.owner] * c * c
+        self.unique = len(set(self.flat.tolist())) == self.flat.size  # no DoF in two terms: no sums
 
-    def contribute(self, step: Step, implicit_kv) -> None:
-        """`implicit_kv(damping, saturated)`: the kv MuJoCo's implicit step keeps, per actuator."""
+    def contribute(self, step: Step) -> None:
         laws, owner, c, count = self.laws, self.owner, self.coefficient, len(self.laws)
         q, v = step.q[self.flat], step.v[self.flat]
         length = laws.gear * np.bincount(owner, c * q, minlength=count)
         speed = laws.gear * np.bincount(owner, c * v, minlength=count)
         unclamped = laws.unclamped(step.inputs[laws.indices], length, speed)
         force = laws.clamped(unclamped)
-        implicit = np.zeros(count)
         saturated = force != unclamped
-        if np.count_nonzero(saturated):
+        clamped = bool(np.count_nonzero(saturated))
+        if clamped:
             step.regular = False
-        if not step.explicit_kv:
-            implicit = implicit + implicit_kv(laws.damping, saturated)
-        implicit = implicit[owner]
-        np.add.at(step.force, self.flat, self.geared * force[owner] + implicit * c * c * v)
-        np.add.at(step.law[5], self.drive, implicit * c * c)
+        if step.explicit_kv:
+            diagonal = None  # kv explicit: nothing joins the drives
+        elif clamped:
+            diagonal = (np.zeros(count) + self.implicit_kv(laws.damping, saturated))[owner] * c * c
+        else:
+            diagonal = self.diagonal
+        term_force = self.geared * force[owner]
+        if diagonal is not None:
+            term_force += diagonal * v
+        if self.unique:
+            step.force[self.flat] += term_force
+            if diagonal is not None:
+                step.law[5, self.drive] += diagonal
+        else:
+            np.add.at(step.force, self.flat, term_force)
+            if diagonal is not None:
+                np.add.at(step.law[5], self.drive, diagonal)

@@ -94,6 +94,9 @@ class TendonTerm:
         self.coefficient = np.array([c for _, _, c in rows], dtype=np.float64)
         columns = np.array([(t.stiffness, t.damping, t.low, t.high) for t in self.tendons], np.float64).reshape(-1, 4)
         self.stiffness, self.damping, self.low, self.high = columns.T.copy()
+        self.pulling = -self.stiffness
+        self.diagonal = self.damping[self.owner] * self.coefficient * self.coefficient  # D c^2 per term
+        self.unique = len(set(self.flat.tolist())) == self.flat.size  # no DoF in two terms: no sums
 
     def contribute(self, step) -> None:
         """`PassiveTendon.forces` for every tendon at once."""
@@ -102,10 +105,17 @@ class TendonTerm:
         length = np.bincount(owner, c * step.q[self.flat], minlength=count)
         rate = np.bincount(owner, c * v, minlength=count)
         stretch = np.where(length < self.low, length - self.low, np.where(length > self.high, length - self.high, 0.0))
-        pull = -self.stiffness * stretch - self.damping * rate
-        diagonal = self.damping[owner] * c * c if not step.explicit_kv else np.zeros(owner.size)
-        np.add.at(step.force, self.flat, c * pull[owner] + diagonal * v)
-        np.add.at(step.law[5], self.drive, diagonal)
+        pull = self.pulling * stretch - self.damping * rate
+        implicit = not step.explicit_kv  # the dampers' diagonal joins the drives
+        force = c * pull[owner] + self.diagonal * v if implicit else c * pull[owner]
+        if self.unique:
+            step.force[self.flat] += force
+            if implicit:
+                step.law[5, self.drive] += self.diagonal
+        else:
+            np.add.at(step.force, self.flat, force)
+            if implicit:
+                np.add.at(step.law[5], self.drive, self.diagonal)
 
     def implicit_diagonal(self) -> dict[tuple[int, int], float]:
         """The dampers' diagonal D c^2 per DoF (what joins the drives under implicit integrators)."""
