@@ -80,6 +80,7 @@ class RowTerm:
         """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
         self.flat = layout.flat_of(self.keys)
         self.limit_flat = layout.flat_of(self.limit_keys)
+        self.scalar = scalar_state(self.mirror, self.mapping, layout)
 
     def set_limits(self, limits: list[HardLimit]) -> None:
         """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
@@ -88,6 +89,7 @@ class RowTerm:
         self.limit_keys = [limit.key for limit in limits]
         self.margins = np.array([limit.margin for limit in limits])
         self.physx = np.array([limit.widened() for limit in limits]).reshape(-1, 2)  # PhysX's limits while soft
+        self.near: tuple | None = None  # half a margin within them (`clear_of`); None: to compute
 
     def contribute(self, step: Step) -> None:
         if not self.soft:
@@ -120,9 +122,11 @@ class RowTerm:
         actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         flags = (self.flags | actuation) if not step.actuated else self.flags
         mirror.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        layout = step.layout
-        data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations, layout.split(step.q),
-                                                            layout.split(step.v))
+        if self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
+            data.qpos[:], data.qvel[:] = step.q[self.scalar], step.v[self.scalar]
+        else:
+            data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations, step.layout.split(step.q),
+                                                                step.layout.split(step.v))
         data.ctrl[:] = step.ctrl
         if step.act is not None:
             data.act[:] = step.act
@@ -138,13 +142,14 @@ class RowTerm:
         if not self.limits:
             return
         q = step.q[self.limit_flat]
-        near = (q < self.physx[:, 0] + 0.5 * self.margins) | (q > self.physx[:, 1] - 0.5 * self.margins)
-        if not near.any():
-            return
-        for i in np.flatnonzero(near):
+        if self.near is None:
+            self.near = (self.physx[:, 0] + 0.5 * self.margins, self.physx[:, 1] - 0.5 * self.margins)
+        near = ((q < self.near[0]) | (q > self.near[1])).nonzero()[0]
+        for i in near.tolist():
             art, dof = self.limits[i].key
             self.physx[i] = self.limits[i].widened(float(q[i]))
             step.joints[art][dof].set_limit(np.array([self.physx[i]], np.float32))
+            self.near = None
 
     def hold(self, joints, soft: bool) -> None:
         """PhysX's hard limits: widened out of the rows' way (`soft`), or at MuJoCo's range (for callers that do not
@@ -152,6 +157,7 @@ class RowTerm:
         for i, limit in enumerate(self.limits):
             art, dof = limit.key
             self.physx[i] = limit.widened()
+            self.near = None
             low, high = self.physx[i] if soft else (limit.lower, limit.upper)
             joints[art][dof].set_limit(np.array([[low, high]], np.float32))
         for loop in self.standby:
@@ -165,6 +171,19 @@ class RowTerm:
         self.hold(joints, soft=False)
 
     removed = release
+
+
+def scalar_state(model: mujoco.MjModel, mapping: Mapping, layout) -> np.ndarray | None:
+    """Where each MuJoCo qpos (and qvel: the same addresses) sits among the joint positions end to end, for a model
+    whose every joint is a mapped hinge or slide (None otherwise: `Mapping.get_state` converts free and ball
+    joints)."""
+    if model.nq != model.nv or len(mapping.joints) != model.njnt or any(
+            t.kind not in MAPPED_JOINTS or not t.dofs for t in mapping.joints):
+        return None
+    source = np.full(model.nq, -1)
+    for j, target in enumerate(mapping.joints):
+        source[int(model.jnt_qposadr[j])] = layout.starts[target.articulation] + target.dofs[0]
+    return source if (source >= 0).all() and np.array_equal(model.jnt_qposadr, model.jnt_dofadr) else None
 
 
 def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
