@@ -72,7 +72,8 @@ class ActuatorTerm:
                 free = ~self.clamps.apply(found, step)  # joint actuators not clamped
                 drive, constant = drive[free], constant[free]
             if self.unique:
-                law[2, drive] += constant
+                constants = law[2]  # a row view: plain indexing is quicker than a 2-D one
+                constants[drive] += constant
             else:
                 np.add.at(law[2], drive, constant)
         if self.tendons is not None:
@@ -95,7 +96,8 @@ class ActuatorTerm:
             kv = np.bincount(self.drive[free], self.joint.damping[free], minlength=self.kv.size)
             dofs = np.flatnonzero(kv)
         if dofs.size:
-            step.law[1, dofs] = self.passive_law[1, dofs]
+            damping = step.law[1]
+            damping[dofs] = self.passive_law[1][dofs]
             flat = step.layout.flat[dofs]
             step.force[flat] += -kv[dofs] * step.v[flat]
 

@@ -94,7 +94,8 @@ class SlideTerm:
         self.drive = layout.drive_of([(s.articulation, s.dof) for s in self.slides])
 
     def contribute(self, step) -> None:
-        step.law[6, self.drive] = drive_offsets(self.slides, step.timestep)
+        offsets = step.law[6]
+        offsets[self.drive] = drive_offsets(self.slides, step.timestep)
 
     def velocity_links(self, articulations) -> list:
         return [s.parent for s in self.slides]

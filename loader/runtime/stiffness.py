@@ -26,6 +26,7 @@ class StiffnessTerm:
                 self.known[step.explicit_kv] = explicit
         if explicit.size:
             flat = step.layout.flat[explicit]
-            step.force[flat] += law[2, explicit] - law[0, explicit] * step.q[flat]
-            law[2, explicit] = 0.0
-            law[0, explicit] = 0.0
+            stiffness, constant = law[0], law[2]
+            step.force[flat] += constant[explicit] - stiffness[explicit] * step.q[flat]
+            constant[explicit] = 0.0
+            stiffness[explicit] = 0.0

@@ -55,7 +55,8 @@ class TendonActuators:
         if self.unique:
             step.force[self.flat] += term_force
             if diagonal is not None:
-                step.law[5, self.drive] += diagonal
+                extra = step.law[5]
+                extra[self.drive] += diagonal
         else:
             np.add.at(step.force, self.flat, term_force)
             if diagonal is not None:

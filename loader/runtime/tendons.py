@@ -111,7 +111,8 @@ class TendonTerm:
         if self.unique:
             step.force[self.flat] += force
             if implicit:
-                step.law[5, self.drive] += self.diagonal
+                extra = step.law[5]
+                extra[self.drive] += self.diagonal
         else:
             np.add.at(step.force, self.flat, force)
             if implicit:
