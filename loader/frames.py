@@ -45,7 +45,9 @@ def quat_conj(q) -> np.ndarray:
 
 
 def quat_to_mat(q) -> np.ndarray:
-    w, x, y, z = (np.asarray(q, dtype=np.float64) / np.linalg.norm(q)).tolist()  # floats: numpy scalars are slow
+    array = np.asarray(q)
+    norm = np.sqrt(array.dot(array)) if array.dtype.kind == "f" else np.linalg.norm(q)  # np.linalg.norm's own
+    w, x, y, z = (np.asarray(q, dtype=np.float64) / norm).tolist()  # floats: numpy scalars are slow
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
