@@ -69,7 +69,8 @@ class DriveRegime:
 class DriveWriter:
     """Writes drives and `qf`: each drive DoF's law (`drive.apply`, as arrays), the PhysX calls only for the joints
     whose settings changed since the last write (`written`: stiffness, damping, force limit, target and velocity
-    target as last written; NaN: unknown, written next step)."""
+    target as last written; NaN: unknown, written next step)
+    (tests/test_loader_drives.py::test_a_changed_target_or_gain_reaches_physx_after_a_cached_step)."""
 
     name = "drives"
 
