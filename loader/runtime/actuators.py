@@ -57,6 +57,7 @@ class ActuatorTerm:
         self.unique = len(set(self.drive.tolist())) == self.drive.size  # one joint actuator per DoF
         mapped = {a: terms for a, terms in self.tendon_terms.items() if self.actuators[a].mapped}
         self.tendons = TendonActuators(self.actuators, mapped, layout, self.implicit_tendon_kv) if mapped else None
+        self.idle = not len(self.joint) and self.tendons is None  # no mapped joint or tendon actuator
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
         self.kv_dofs = np.flatnonzero(self.kv)
 

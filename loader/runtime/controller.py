@@ -78,6 +78,7 @@ class Controller:
     def compile(self) -> None:
         """Every term's arrays from its plan (`compile_terms`)."""
         self.base = compile_terms(self.layout, self.passive, [*self.terms, *self.off.values()])
+        self.running = [term for term in self.terms if not getattr(term, "idle", False)]  # those with work
         self.stale = False
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
@@ -97,7 +98,7 @@ class Controller:
         q, v = layout.read(articulations)
         step = Step(articulations, self.joints, layout, q, v, force, self.base.copy(), inputs, ctrl, act,
                     qfrc_applied, actuated, self.timestep, int(model.opt.integrator) not in IMPLICIT, advance)
-        for term in self.terms:
+        for term in self.running:
             term.contribute(step)
 
     def settle(self) -> None:

@@ -84,6 +84,7 @@ class DriveWriter:
         self.mass = np.array([self.inertia.get(key, np.inf) for key in layout.keys], dtype=np.float64)
         self.written = np.full((5, len(layout.keys)), np.nan)
         self.regimes: dict[bool, DriveRegime] = {}  # a regular step's, by Step.explicit_kv
+        self.idle = layout.size == 0  # no joint to drive, no qf to write
 
     def contribute(self, step: Step) -> None:
         """`drive.apply` on every drive DoF at once: the position target carries the constant where the drive has

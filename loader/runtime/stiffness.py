@@ -16,6 +16,7 @@ class StiffnessTerm:
 
     def compile(self, layout) -> None:
         self.known: dict[bool, object] = {}
+        self.idle = not layout.keys  # no hinge or slide
 
     def contribute(self, step: Step) -> None:
         law = step.law
