@@ -58,6 +58,7 @@ class Controller:
         self.stale = True  # the terms' arrays need compiling (`compile`)
         self.base: np.ndarray | None = None
         self._readers: list | None = None
+        self.momentum = next((t for t in terms if t.name == "momentum"), None)  # floating roots (`settle`)
 
     @property
     def names(self) -> list[str]:
@@ -103,9 +104,8 @@ class Controller:
 
     def settle(self) -> None:
         """After a physics step: floating roots' velocities as MuJoCo's step leaves them (`runtime/momentum.py`)."""
-        momentum = self.term("momentum", on=True)
-        if momentum is not None:
-            momentum.settle(self.articulations, [w for t in self.terms for w in getattr(t, "applied", ())])
+        if self.momentum is not None and "momentum" not in self.off:
+            self.momentum.settle(self.articulations, [w for t in self.terms for w in getattr(t, "applied", ())])
 
     def contacts(self, enabled: bool) -> None:
         """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
@@ -115,10 +115,7 @@ class Controller:
 
     def velocity_readers(self) -> list:
         """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
-        if self._readers is None:
-            links = [link for t in self.terms if hasattr(t, "velocity_links") for link in t.velocity_links(
-                self.articulations)]
-            self._readers = [art for art in self.articulations if any(link in art.links for link in links)]
+        self._readers = link_readers(self.terms, self.articulations) if self._readers is None else self._readers
         return self._readers
 
     def release(self) -> None:
@@ -133,13 +130,6 @@ class Controller:
             elif hasattr(term, "release"):
                 term.release(self.joints)
 
-    @contextmanager
-    def _restoring(self, names: tuple[str, ...]):
-        try:
-            yield self
-        finally:
-            self.restore(*names)
-
     def without(self, *names: str):
         """Switch the named terms off (a term the model lacks is already off). As a context manager, they are
         switched back on at its end. A term switched off undoes what it holds in PhysX (`removed`)."""
@@ -153,7 +143,7 @@ class Controller:
             if hasattr(term, "removed"):
                 term.removed(self.joints)
         self._readers = None
-        return self._restoring(names)
+        return restoring(self, names)
 
     def restore(self, *names: str) -> None:
         """Switch the named terms (all, without names) back on; the next `set_ctrl` applies them."""
@@ -163,6 +153,21 @@ class Controller:
                 self.terms.append(self.off.pop(name))
         self.terms.sort(key=lambda term: STAGES.index(term.name))
         self._readers = None
+
+
+def link_readers(terms: list, articulations: list) -> list:
+    """The articulations carrying a link whose velocity one of `terms` reads."""
+    links = [link for t in terms if hasattr(t, "velocity_links") for link in t.velocity_links(articulations)]
+    return [art for art in articulations if any(link in art.links for link in links)]
+
+
+@contextmanager
+def restoring(controller: Controller, names: tuple[str, ...]):
+    """`without`'s context: the named terms come back on at its end."""
+    try:
+        yield controller
+    finally:
+        controller.restore(*names)
 
 
 def compile_terms(layout: DofLayout, passive: dict[DofKey, DofDrive], terms: list) -> np.ndarray:
