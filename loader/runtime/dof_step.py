@@ -81,6 +81,13 @@ class Step:
         self.advance = advance  # the first `set_ctrl` of this physics step (activations, link forces)
         self.regular = True  # no clamp bound, no tendon actuator saturated: stiffness, damping, force limit and
         # implicit extra are every such step's (with the same explicit_kv), what is derived from them is reused
+        self._state: tuple | None = None
+
+    def mujoco_state(self, mapping) -> tuple[np.ndarray, np.ndarray]:
+        """The step's start state in MuJoCo's layout (qpos, qvel), converted once for every term that reads it."""
+        if self._state is None:
+            self._state = mapping.get_state(self.articulations, self.layout.split(self.q), self.layout.split(self.v))
+        return self._state
 
     stiffness = property(lambda self: self.law[0])
     damping = property(lambda self: self.law[1])

@@ -26,7 +26,7 @@ from ..build.mapping import Mapping
 from ..frames import quat_to_mat
 
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
-DRIFT_STEP = 1e-6  # rad or m moved along v for the central difference of A
+DRIFT_STEP = 1e-6  # rad or m moved along v for the forward difference of A
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
 
 
@@ -36,6 +36,12 @@ def composite(data: mujoco.MjData, bodies: np.ndarray) -> tuple[float, np.ndarra
     total = data.cinert[bodies].sum(axis=0)
     xx, yy, zz, xy, xz, yz = total[:6]
     return float(total[9]), np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis (numpy's `cross` costs more than the arithmetic on 3-vectors)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def pose7(art) -> np.ndarray:
@@ -70,11 +76,15 @@ class Momentum:
         self.data = mujoco.MjData(model)
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
+        gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+        # per root: the weight gravity puts on each of its tree's bodies (none on compensated ones)
+        self.weights = [gravity * (model.body_mass[tree] * (1.0 - model.body_gravcomp[tree]))[:, None]
+                        for *_, tree in roots]
 
     def contribute(self, step) -> None:
         """Remember the state this physics step starts from (`set_ctrl` settles the last step before)."""
-        q, v = step.layout.split(step.q), step.layout.split(step.v)
-        qpos, qvel = self.mapping.get_state(step.articulations, q, v)
+        q = step.layout.split(step.q)
+        qpos, qvel = step.mujoco_state(self.mapping)
         poses = [pose7(step.articulations[a]) for a, *_ in self.roots]
         self.start = (qpos, qvel, [q[a].copy() for a, *_ in self.roots], poses)
 
@@ -91,76 +101,74 @@ class Momentum:
             return
         qpos0, qvel0, joints0, poses0 = self.start
         dt = self.timestep
+        q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
+        v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         stepped, still = [], True
         for (a, *_), q0, pose0 in zip(self.roots, joints0, poses0):
-            q1 = np.asarray(articulations[a].get_qpos(), np.float64)
-            v1 = np.asarray(articulations[a].get_qvel(), np.float64)
-            still = still and np.array_equal(q1, q0) and np.array_equal(pose7(articulations[a]), pose0)
-            if np.allclose(q1 - q0, dt * v1, rtol=0.0, atol=MOVED * (1.0 + np.abs(q1).max(initial=0.0))):
+            still = still and np.array_equal(q[a], q0) and np.array_equal(pose7(articulations[a]), pose0)
+            if np.abs(q[a] - q0 - dt * v[a]).max(initial=0.0) <= MOVED * (1.0 + np.abs(q[a]).max(initial=0.0)):
                 stepped.append(a)
         if still:
             return  # read before the physics step: it is still to come
         self.start = None
         if not stepped:
             return
-        qpos1, qvel1 = self.mapping.get_state(articulations)
+        qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
         kept = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
-        started = self._momenta(qpos0, qvel0)
-        drift = self._drift(qpos0, qvel0)
         joints_only = qvel1.copy()
         for _, _, _, dof, _ in self.roots:
             joints_only[dof:dof + 6] = 0.0
-        joints_part = self._momenta(qpos0, joints_only)  # the joints' share at the step's start (data stays at q0)
-        for (a, body, qadr, dof, tree), k, s0, d, j in zip(self.roots, kept, started, drift, joints_part):
+        ahead = self._ahead(qpos0, qvel0)
+        started, joints_part = self._momenta(qpos0, qvel0, joints_only)  # at the step's start (data stays there)
+        for (a, body, qadr, dof, tree), weights, k, s0, ah, j in zip(self.roots, self.weights, kept, started, ahead,
+                                                                      joints_part):
             if a not in stepped:
                 continue
-            carried = s0[3:] + dt * self._torque(a, body, tree, wrenches)
+            drift = (ah[0] - s0) / ah[1]  # (dA/dt) v0, a forward difference along v0
+            carried = s0[3:] + dt * self._torque(a, body, tree, weights, wrenches)
             k = np.concatenate([k[:3], angular(k[3:], carried)])
             mass, inertia = composite(self.data, tree)
             offset = self.data.subtree_com[body] - qpos0[qadr:qadr + 3]  # centre of mass from the root's origin
-            root = k - dt * d - j  # the root's own momentum at q0
+            root = k - dt * drift - j  # the root's own momentum at q0
             omega = np.linalg.solve(inertia, root[3:])
-            linear = root[:3] / mass - np.cross(omega, offset)
+            linear = root[:3] / mass - cross(omega, offset)
             qvel6 = np.concatenate([linear, quat_to_mat(qpos0[qadr + 3:qadr + 7]).T @ omega])
             self.mapping.set_root(articulations[a], body, advanced(qpos0[qadr:qadr + 7], qvel6, dt), qvel6)
             articulations[a].set_qvel(articulations[a].get_qvel())  # its links' velocities follow the root's
 
-    def _torque(self, art: int, body: int, tree: np.ndarray, wrenches) -> np.ndarray:
+    def _torque(self, art: int, body: int, tree: np.ndarray, weights: np.ndarray, wrenches) -> np.ndarray:
         """External torque about the tree's centre of mass at the step's start (`self.data` there): gravity on
-        the links it acts on (not on compensated bodies) and the loader's link forces."""
-        data, model = self.data, self.model
-        centre = data.subtree_com[body]
-        torque = np.zeros(3)
-        if not mj.disabled(model, "gravity"):
-            weights = model.body_mass[tree] * (1.0 - model.body_gravcomp[tree])
-            torque += np.cross(weights @ (data.xipos[tree] - centre), model.opt.gravity)
+        the links it acts on (`weights`) and the loader's link forces."""
+        centre = self.data.subtree_com[body]
+        torque = cross(self.data.xipos[tree] - centre, weights).sum(axis=0)
         for a, point, force, moment in wrenches:
             if a == art:
-                torque += moment + np.cross(point - centre, force)
+                torque += moment + cross(point - centre, force)
         return torque
 
-    def _drift(self, qpos: np.ndarray, qvel: np.ndarray) -> list[np.ndarray]:
-        """Per root: (dA/dt) v at (qpos, qvel), the momentum's rate of change along v at constant v (a central
-        difference of A(q + e v) v over the step e)."""
-        if not qvel.any():
-            return [np.zeros(6) for _ in self.roots]
-        eps = DRIFT_STEP / max(1.0, float(np.abs(qvel).max()))
-        ahead, behind = np.array(qpos), np.array(qpos)
+    def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> list[tuple[np.ndarray, float]]:
+        """Per root: the momentum A(q + e v) v a small step e along v, and e (for the forward difference)."""
+        eps = DRIFT_STEP / max(1.0, float(np.abs(qvel).max(initial=0.0)))
+        ahead = np.array(qpos)
         mujoco.mj_integratePos(self.model, ahead, qvel, eps)
-        mujoco.mj_integratePos(self.model, behind, qvel, -eps)
-        return [(a - b) / (2 * eps) for a, b in zip(self._momenta(ahead, qvel), self._momenta(behind, qvel))]
+        return [(m, eps) for m in self._momenta(ahead, qvel)]
 
-    def _momenta(self, qpos: np.ndarray, qvel: np.ndarray) -> list[np.ndarray]:
-        """Per root: the tree's linear momentum and angular momentum about its centre of mass at (qpos, qvel), as
-        one 6-vector; leaves `self.data` at that pose (its `cinert` and `subtree_com` serve the composite inertia)."""
+    def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray) -> list[list[np.ndarray]]:
+        """Per velocity, per root: the tree's linear momentum and angular momentum about its centre of mass at
+        qpos, as one 6-vector; leaves `self.data` at that pose (its `cinert` and `subtree_com` serve the composite
+        inertia)."""
         model, data = self.model, self.data
-        data.qpos[:], data.qvel[:] = qpos, qvel
+        data.qpos[:] = qpos
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        mujoco.mj_comVel(model, data)
-        mujoco.mj_subtreeVel(model, data)
-        return [np.concatenate([data.subtree_linvel[body] * model.body_subtreemass[body], data.subtree_angmom[body]])
-                for _, body, *_ in self.roots]
+        out = []
+        for qvel in velocities:
+            data.qvel[:] = qvel
+            mujoco.mj_comVel(model, data)
+            mujoco.mj_subtreeVel(model, data)
+            out.append([np.concatenate([data.subtree_linvel[body] * model.body_subtreemass[body],
+                                        data.subtree_angmom[body]]) for _, body, *_ in self.roots])
+        return out if len(velocities) > 1 else out[0]
 
 
 def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float) -> Momentum | None:

@@ -125,8 +125,7 @@ class RowTerm:
         if self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
             data.qpos[:], data.qvel[:] = step.q[self.scalar], step.v[self.scalar]
         else:
-            data.qpos[:], data.qvel[:] = self.mapping.get_state(step.articulations, step.layout.split(step.q),
-                                                                step.layout.split(step.v))
+            data.qpos[:], data.qvel[:] = step.mujoco_state(self.mapping)
         data.ctrl[:] = step.ctrl
         if step.act is not None:
             data.act[:] = step.act
