@@ -1,9 +1,16 @@
-"""`nox -s bench`: per model, the loader's time against MuJoCo's own compile of the same file, the harness's
-simulated steps per second (SAPIEN and MuJoCo rollouts with the harness's state read-back), and the cost of the
-loader's per-step `set_ctrl` against PhysX's own step."""
+"""`nox -s bench`: per model, the loader's time against MuJoCo's own compile of the same file, cold (each in a fresh
+process: first reads of the files, MuJoCo's mesh cache empty, first calls into PhysX) and warm (again in this
+process), each the median over repeats; the harness's simulated steps per second (SAPIEN and MuJoCo rollouts with
+the harness's state read-back); and the cost of the loader's per-step `set_ctrl` against PhysX's own step. The
+totals sum the models. Times are only compared as ratios within one run: other jobs share the machine."""
 
 from __future__ import annotations
 
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
 import warnings
 from datetime import datetime, timezone
@@ -17,44 +24,88 @@ from .manifest import ModelEntry
 from .summary import atomic_write_json
 from .versions import versions
 
-REPEATS = 3  # best of: the first compile of a file also pays for reading meshes from disk
+REPEATS = 5  # the median over this many loads and compiles, cold and warm
+TARGET = 1.2  # load over compile the loader aims at, cold and warm
+PROJECT = Path(__file__).resolve().parents[1]
+
+# One cold measurement: a fresh interpreter imports what it needs, then times only the load or the compile.
+_COLD = """
+import sys, time, warnings
+warnings.simplefilter("ignore")
+import mujoco
+from conformance.session import quiet_load
+import loader
+path, what = sys.argv[1], sys.argv[2]
+t0 = time.perf_counter()
+quiet_load(path) if what == "load" else mujoco.MjModel.from_xml_path(path)
+print("seconds", time.perf_counter() - t0)
+"""
 
 
-def _best(fn, repeats: int = REPEATS) -> tuple[float, object]:
-    best, value = float("inf"), None
+def _timed(fn) -> tuple[float, object]:
+    t0 = time.perf_counter()
+    value = fn()
+    return time.perf_counter() - t0, value
+
+
+def cold_seconds(path: str, what: str) -> float:
+    """Seconds of one `what` ("load" or "compile") of `path` in a fresh process (its MuJoCo log in a scratch
+    folder)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (str(PROJECT), os.environ.get("PYTHONPATH")) if p))
+    with tempfile.TemporaryDirectory() as scratch:
+        done = subprocess.run([sys.executable, "-c", _COLD, path, what], check=False, cwd=scratch, env=env, capture_output=True,
+                              text=True, timeout=600)
+    lines = [line.split()[1] for line in done.stdout.splitlines() if line.startswith("seconds ")]
+    if done.returncode or not lines:
+        raise RuntimeError(f"cold {what} failed: {(done.stderr or done.stdout).strip()[-500:]}")
+    return float(lines[-1])
+
+
+def _ratio(load_s: float, compile_s: float) -> float | None:
+    return load_s / compile_s if compile_s > 0 else None
+
+
+def load_timings(path: str, repeats: int = REPEATS) -> tuple[dict, object]:
+    """Cold and warm median compile and load seconds of `path`, compile and load alternating so that the machine's
+    other work weighs on both alike; and the last warm load's result."""
+    from .session import quiet_load
+
+    cold_compile, cold_load = [], []
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        value = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, value
-
-
-def bench_model(path: str, steps: int) -> dict:
-    from .session import open_session
-    from .tiers.rollouts import disable_contacts, sapien_rollout
-
-    compile_s, _ = _best(lambda: mujoco.MjModel.from_xml_path(path))
+        cold_compile.append(cold_seconds(path, "compile"))
+        cold_load.append(cold_seconds(path, "load"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sessions = [open_session(path) for _ in range(REPEATS)]
-    load_s = min(s.load_seconds for s in sessions)  # the loader's own time (its compile included)
-    session = sessions[-1]
-    model, result = session.model, session.result
+        mujoco.MjModel.from_xml_path(path)  # this process's first compile and load are cold: untimed
+        quiet_load(path)
+        warm_compile, warm_load, result = [], [], None
+        for _ in range(repeats):
+            warm_compile.append(_timed(lambda: mujoco.MjModel.from_xml_path(path))[0])
+            result = None  # the previous scene goes before the next is built
+            seconds, result = _timed(lambda: quiet_load(path))
+            warm_load.append(seconds)
+    row = {"mujoco_compile_s": statistics.median(warm_compile), "loader_load_s": statistics.median(warm_load),
+           "cold_mujoco_compile_s": statistics.median(cold_compile), "cold_loader_load_s": statistics.median(cold_load)}
+    row["load_over_compile"] = _ratio(row["loader_load_s"], row["mujoco_compile_s"])
+    row["cold_load_over_compile"] = _ratio(row["cold_loader_load_s"], row["cold_mujoco_compile_s"])
+    return row, result
+
+
+def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
+    from .tiers.rollouts import disable_contacts, sapien_rollout
+
+    row, result = load_timings(path, repeats)
+    model = result.model
+    result.disable_actuators()  # the reference runs with actuation disabled and commands generalized forces
     ref, _ = reference.matched(model, contact=False)
     disable_contacts(result)
     qpos0, qvel0, _ = reference.initial_state(model)
     command = np.zeros((steps, model.nv))
-    t0 = time.perf_counter()
-    reference.rollout(ref, qpos0, qvel0, steps, command)
-    mujoco_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    sapien_rollout(result, model, qpos0, qvel0, command)
-    sapien_s = time.perf_counter() - t0
+    mujoco_s, _ = _timed(lambda: reference.rollout(ref, qpos0, qvel0, steps, command))
+    sapien_s, _ = _timed(lambda: sapien_rollout(result, model, qpos0, qvel0, command))
     set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
     return {
-        "mujoco_compile_s": compile_s,
-        "loader_load_s": load_s,
-        "load_over_compile": load_s / compile_s if compile_s > 0 else None,
+        **row,
         "steps": steps,
         "harness_mujoco_steps_per_s": steps / mujoco_s,
         "harness_sapien_steps_per_s": steps / sapien_s,
@@ -81,8 +132,31 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
     return set_ctrl_s, step_s
 
 
-def bench(entries: list[ModelEntry], out: Path, steps: int = 200) -> dict:
-    """Benchmark every resolvable entry in this process and write the JSON document atomically."""
+def totals(models: dict) -> dict:
+    """Sums over the timed models (load over compile of the sums, steps per second over all steps), and the models
+    whose load over compile exceeds `TARGET`, cold and warm."""
+    rows = [row for row in models.values() if "loader_load_s" in row]
+    out = {"models": len(rows)}
+    for key in ("mujoco_compile_s", "loader_load_s", "cold_mujoco_compile_s", "cold_loader_load_s"):
+        out[key] = sum(row[key] for row in rows)
+    out["load_over_compile"] = _ratio(out["loader_load_s"], out["mujoco_compile_s"])
+    out["cold_load_over_compile"] = _ratio(out["cold_loader_load_s"], out["cold_mujoco_compile_s"])
+    steps = sum(row["steps"] for row in rows)
+    for side in ("mujoco", "sapien"):
+        seconds = sum(row["steps"] / row[f"harness_{side}_steps_per_s"] for row in rows)
+        out[f"harness_{side}_steps_per_s"] = steps / seconds if seconds > 0 else None
+    set_ctrl_s = sum(row["set_ctrl_us"] * row["steps"] for row in rows)
+    step_s = sum(row["physx_step_us"] * row["steps"] for row in rows)
+    out["set_ctrl_over_step"] = set_ctrl_s / step_s if step_s > 0 else None
+    out["over_target"] = {
+        "warm": [name for name, row in models.items() if (row.get("load_over_compile") or 0) > TARGET],
+        "cold": [name for name, row in models.items() if (row.get("cold_load_over_compile") or 0) > TARGET],
+    }
+    return out
+
+
+def bench(entries: list[ModelEntry], out: Path, steps: int = 200, repeats: int = REPEATS) -> dict:
+    """Benchmark every resolvable entry (the warm side in this process) and write the JSON document atomically."""
     models = {}
     for entry in entries:
         resolved = corpus.resolve(entry)
@@ -90,10 +164,10 @@ def bench(entries: list[ModelEntry], out: Path, steps: int = 200) -> dict:
             models[entry.id] = {"skipped": resolved.skip_reason}
             continue
         try:
-            models[entry.id] = bench_model(str(resolved.path), steps)
+            models[entry.id] = bench_model(str(resolved.path), steps, repeats)
         except Exception as exc:  # noqa: BLE001 - one broken model does not end the benchmark
             models[entry.id] = {"error": f"{type(exc).__name__}: {exc}"}
     doc = {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions(),
-           "repeats": REPEATS, "models": models}
+           "repeats": repeats, "target_load_over_compile": TARGET, "models": models, "totals": totals(models)}
     atomic_write_json(Path(out), doc)
     return doc

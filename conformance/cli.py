@@ -122,6 +122,7 @@ def parser() -> argparse.ArgumentParser:
     bench.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
     bench.add_argument("--out", default=str(Path("reports") / "bench.json"), help="JSON report")
     bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
+    bench.add_argument("--repeats", type=int, default=5, help="loads and compiles per model, cold and warm (median)")
     robust = sub.add_parser("robustness", help="mutants of the corpus's real files, each loaded and stepped in its "
                             "own process; exit 1 on any bad outcome",
                             formatter_class=defaults)
@@ -233,8 +234,10 @@ def _cmd_compare(entries, options, loaders: tuple[str, ...]) -> int:
 def cmd_bench(args) -> int:
     from .bench import bench
 
-    doc = bench(_entries(args), Path(args.out), steps=args.steps)
-    print(f"bench: {args.out} ({len(doc['models'])} models)")
+    doc = bench(_entries(args), Path(args.out), steps=args.steps, repeats=args.repeats)
+    over = doc["totals"]["over_target"]
+    print(f"bench: {args.out} ({len(doc['models'])} models); load over compile above {doc['target_load_over_compile']}: "
+          f"cold {', '.join(over['cold']) or 'none'}; warm {', '.join(over['warm']) or 'none'}")
     return 0
 
 

@@ -1,4 +1,4 @@
-"""`nox -s bench` output: loader time against MuJoCo's compile time, and steps per second."""
+"""`nox -s bench` output: loader time against MuJoCo's compile time, cold and warm, and steps per second."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.bench import bench
+from conformance.bench import TARGET, bench, cold_seconds
 from conformance.manifest import ModelEntry
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -17,12 +17,27 @@ def test_bench_writes_timings_per_model(tmp_path):
     entries = [ModelEntry(id="pendulum", source="fixture:fixtures/pendulum.xml", base_dir=str(ROOT / "corpus")),
                ModelEntry(id="missing", source="fixture:fixtures/nope.xml", base_dir=str(ROOT / "corpus"))]
     out = tmp_path / "bench.json"
-    bench(entries, out, steps=50)
+    bench(entries, out, steps=50, repeats=2)
     doc = json.loads(out.read_text())
+    assert doc["repeats"] == 2 and doc["target_load_over_compile"] == TARGET
     row = doc["models"]["pendulum"]
-    assert row["mujoco_compile_s"] > 0 and row["loader_load_s"] > 0
-    assert row["load_over_compile"] == row["loader_load_s"] / row["mujoco_compile_s"]
+    for when in ("", "cold_"):  # warm (the plain names) and cold, each a median of positive times
+        assert row[f"{when}mujoco_compile_s"] > 0 and row[f"{when}loader_load_s"] > 0
+        assert row[f"{when}load_over_compile"] == row[f"{when}loader_load_s"] / row[f"{when}mujoco_compile_s"]
     assert row["steps"] == 50 and row["harness_sapien_steps_per_s"] > 0 and row["harness_mujoco_steps_per_s"] > 0
     assert row["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_us"] / row["physx_step_us"])
     assert "nope.xml" in doc["models"]["missing"]["skipped"]
     assert doc["versions"]["sapien"]
+    totals = doc["totals"]
+    assert totals["models"] == 1  # the skipped model is not summed
+    for key in ("mujoco_compile_s", "loader_load_s", "cold_mujoco_compile_s", "cold_loader_load_s"):
+        assert totals[key] == pytest.approx(row[key])
+    assert totals["harness_sapien_steps_per_s"] == pytest.approx(row["harness_sapien_steps_per_s"])
+    assert totals["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_over_step"])
+    for when, key in (("warm", "load_over_compile"), ("cold", "cold_load_over_compile")):
+        assert totals["over_target"][when] == (["pendulum"] if row[key] > TARGET else [])
+
+
+def test_a_cold_measurement_that_fails_names_why():
+    with pytest.raises(RuntimeError, match="cold load failed"):
+        cold_seconds(str(ROOT / "corpus" / "fixtures" / "nope.xml"), "load")
