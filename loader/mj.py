@@ -4,6 +4,9 @@ through these (or directly from `MjModel` arrays); nothing here re-implements MJ
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+from contextvars import ContextVar
+
 import mujoco
 import numpy as np
 
@@ -38,10 +41,29 @@ def disabled(model: mujoco.MjModel, *flags: str) -> bool:
     return bool(model.opt.disableflags & bits)
 
 
+_AT_QPOS0: ContextVar[tuple[mujoco.MjModel, mujoco.MjData] | None] = ContextVar("at_qpos0", default=None)
+
+
+@contextmanager
+def sharing_qpos0(model: mujoco.MjModel, data: mujoco.MjData):
+    """Inside the block, `forward_at(model)` at qpos0 is `data`, MuJoCo's forward pass there, made once: a load
+    asks for it from several stages (body poses, the inertia, drives, solver iterations), and every one of them
+    only reads it."""
+    token = _AT_QPOS0.set((model, data))
+    try:
+        yield data
+    finally:
+        _AT_QPOS0.reset(token)
+
+
 def forward_at(model: mujoco.MjModel, qpos: np.ndarray | None = None, all_equalities: bool = False,
                kinematics_only: bool = False) -> mujoco.MjData:
     """MuJoCo's forward pass at qpos0 (or `qpos`): inertia and constraint rows. `all_equalities`: every equality
-    active (their rows at load time, whatever `eq_active0` says); `kinematics_only`: body poses only."""
+    active (their rows at load time, whatever `eq_active0` says); `kinematics_only`: body poses only (the full pass
+    where one is shared: its poses are the same numbers). A caller reads the result and never writes it."""
+    shared = _AT_QPOS0.get()
+    if qpos is None and not all_equalities and shared is not None and shared[0] is model:
+        return shared[1]
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0 if qpos is None else qpos
     if all_equalities:

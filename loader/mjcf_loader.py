@@ -94,6 +94,10 @@ class MJCFLoader:
 
     def _parse(self, mjcf_file, package_dir) -> _Parsed:
         compiled = compile_mjcf(mjcf_file, package_dir)
+        with mj.sharing_qpos0(compiled.model, compiled.at_qpos0):
+            return self._plan(compiled)
+
+    def _plan(self, compiled: CompiledModel) -> _Parsed:
         model = compiled.model
         check_numbers(model, compiled.path)  # before anything is built: a failed load leaves the scene as it was
         self.scene = physx_settings.matched_scene(self.scene, model, compiled.path)  # warns where a given one differs
@@ -165,9 +169,10 @@ def finish(parsed: _Parsed, scene: sapien.Scene, articulations: list, actors: li
     model = parsed.compiled.model
     mapping = _mapping(model, parsed, articulations)
     timestep = physx_settings.scene_timestep(scene, model)
-    controller, actuators, equalities = runtime_plan(model, mapping, scene, articulations, parsed.notes, timestep)
-    if solver_iterations == "auto":
-        tune_iterations(articulations, model, controller, mapping, parsed.notes)
+    with mj.sharing_qpos0(model, parsed.compiled.at_qpos0):
+        controller, actuators, equalities = runtime_plan(model, mapping, scene, articulations, parsed.notes, timestep)
+        if solver_iterations == "auto":
+            tune_iterations(articulations, model, controller, mapping, parsed.notes)
     result = LoadResult(
         path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=scene,
         articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import mujoco
 
+from .. import mj
 from ..errors import MissingAssetError, MJCFError
 
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
@@ -17,11 +18,13 @@ _MISSING_FILE_SIGNS = ("error opening file", "resource not found", "could not op
 
 @dataclass
 class CompiledModel:
-    """The authored structure (`spec`) beside the compiled numbers (`model`) of one MJCF document."""
+    """The authored structure (`spec`) beside the compiled numbers (`model`) of one MJCF document, and MuJoCo's
+    forward pass at qpos0 (`at_qpos0`, which the build reads through `mj.sharing_qpos0`)."""
 
     path: Path
     spec: mujoco.MjSpec
     model: mujoco.MjModel
+    at_qpos0: mujoco.MjData
 
 
 def _raise_for(path: Path, error: Exception) -> None:
@@ -61,9 +64,9 @@ def compile_mjcf(mjcf_file: str | os.PathLike | mujoco.MjSpec,
     except ValueError as error:
         _raise_for(path, error)
     try:  # MuJoCo compiles some models it cannot run: an arena too small for thousands of bodies, say
-        mujoco.mj_forward(model, mujoco.MjData(model))
+        at_qpos0 = mj.forward_at(model)
     except mujoco.FatalError as error:
         raise MJCFError(path, str(error).replace(", line ", ":"), rejected_by="MuJoCo cannot run the compiled model",
                         hint="MuJoCo's forward pass at qpos0 fails; where it says out of memory, raise "
                              "<size memory=...> (e.g. memory=\"512M\")") from None
-    return CompiledModel(path=path, spec=spec, model=model)
+    return CompiledModel(path=path, spec=spec, model=model, at_qpos0=at_qpos0)
