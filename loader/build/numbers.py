@@ -55,6 +55,13 @@ OPTION_FIELDS = tuple(name for name in dir(mujoco.MjOption) if not name.startswi
                       and isinstance(getattr(mujoco.MjOption(), name), (float, np.ndarray)))  # real-valued options
 
 
+def _held(values: np.ndarray, length: bool) -> bool:
+    """Whether every number is finite and within the limit: two reductions over the array as it is stored (a NaN
+    fails both comparisons), so that a model's meshes are not copied to find nothing; `_bad` then finds the row."""
+    limit = REACH if length else MAGNITUDE
+    return values.size == 0 or (float(np.max(values)) <= limit and float(np.min(values)) >= -limit)
+
+
 def _bad(values: np.ndarray, length: bool) -> np.ndarray:
     """Rows (elements) holding a number PhysX cannot hold."""
     values = np.asarray(values, dtype=np.float64)
@@ -78,7 +85,7 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
                         rejected_by="the loader cannot read the model") from None
     for kind, field, length in FIELDS:
         values = getattr(model, field)
-        if not len(values):
+        if not len(values) or _held(values, length):
             continue
         rows = np.flatnonzero(_bad(values, length))
         if rows.size:
