@@ -29,14 +29,15 @@ class CollisionFilter:
         return [int(model.geom_contype[geom]), int(model.geom_conaffinity[geom]), g2, g3]
 
 
-def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]]) -> bool:
-    """True when MuJoCo never generates a contact between bodies b1 and b2."""
+def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]],
+                   filter_parent: bool) -> bool:
+    """True when MuJoCo never generates a contact between bodies b1 and b2 (`filter_parent`: the model does not
+    disable its parent filter)."""
     weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
     if weld1 == weld2:
         return True
     parent1 = int(model.body_weldid[model.body_parentid[weld1]])
     parent2 = int(model.body_weldid[model.body_parentid[weld2]])
-    filter_parent = not mj.disabled(model, "filterparent")
     if filter_parent and weld1 != 0 and weld2 != 0 and (weld1 == parent2 or weld2 == parent1):
         return True
     return (min(b1, b2), max(b1, b2)) in excluded
@@ -66,13 +67,14 @@ def plan_collision_filter(
     excluded = {(s >> 16, s & 0xFFFF) for s in (int(x) for x in model.exclude_signature)}
     must_exclude: list[tuple[int, int]] = []
     must_collide: set[tuple[int, int]] = set()
+    filter_parent = not mj.disabled(model, "filterparent")
     for b1, b2 in combinations(sorted(shape_bodies), 2):
         if not ((contype[b1] & conaffinity[b2]) or (contype[b2] & conaffinity[b1])):
             continue  # their bits never meet: nothing to decide
         if b1 in static_bodies and b2 in static_bodies:
             continue  # PhysX never makes contacts between two bodies that cannot move
         physx_skips = _physx_parent_body(tree, b2) == b1 or _physx_parent_body(tree, b1) == b2
-        if mujoco_filters(model, b1, b2, excluded):
+        if mujoco_filters(model, b1, b2, excluded, filter_parent):
             if not physx_skips:
                 must_exclude.append((b1, b2))
         elif physx_skips:
