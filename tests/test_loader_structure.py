@@ -311,6 +311,24 @@ def test_inertia_blocks_are_mujocos_full_matrix(name):
     assert not np.array_equal(broken, dense)
 
 
+def test_a_load_reads_one_forward_pass_at_qpos0(monkeypatch):
+    """Every stage that reads MuJoCo's forward pass at qpos0 (body poses, the ill-conditioning note, the drives'
+    inertia diagonal, the solver iterations) reads the one the compile made; outside a load a call makes its own.
+    Mutation: a stage that makes its own pass is caught by the count of distinct passes."""
+    from loader import mj
+
+    made, original = [], mj.forward_at
+
+    def spy(model, *args, **kwargs):
+        made.append(original(model, *args, **kwargs))
+        return made[-1]
+
+    monkeypatch.setattr(mj, "forward_at", spy)
+    result = MJCFLoader().load(suite_path("cartpole"))  # no keyframe, no equality: every pass is at qpos0
+    assert len(made) >= 5 and all(data is made[0] for data in made)
+    assert original(result.model) is not made[0]
+
+
 @pytest.mark.parametrize("element, where", [
     ('<body name="b" pos=".2 0 0" quat="1e-30 0 1e-30 0"><joint/><geom size=".1"/></body>', "body 'b'"),
     ('<inertial pos="0 0 0" mass="1" diaginertia="1 2 3" quat="1e-30 1e-30 1e-30 1e-30"/>', "body 'a' <inertial>"),
