@@ -191,6 +191,8 @@ def test_textures_come_from_the_compiled_model(load):
     result = load(suite_path("cartpole"))
     grid = next(t for t in result.textures if t.name == "grid")
     assert grid.type == "2d" and grid.data.ndim == 3 and grid.data.size > 0
+    # MuJoCo's own pixels, not a copy per load, and read-only so that the model's stay as compiled
+    assert np.shares_memory(grid.data, result.model.tex_data) and not grid.data.flags.writeable
 
 
 def test_ignore_classes_skips_a_class_entirely_and_defaults_like_maniskill(tmp_path):

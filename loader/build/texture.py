@@ -21,7 +21,8 @@ class MJCFTexture:
     rgb1: list
     rgb2: list
     file: str
-    # the pixels MuJoCo compiled (procedural textures are generated at compile time), height x width x channels
+    # the pixels MuJoCo compiled (procedural textures are generated at compile time), height x width x channels:
+    # a read-only view of the model's own (a skybox is megabytes, copied on every load otherwise)
     data: np.ndarray = field(default=None, repr=False)
 
 
@@ -32,6 +33,7 @@ def textures(spec: mujoco.MjSpec, model: mujoco.MjModel) -> list[MJCFTexture]:
         height, width, channels = (int(model.tex_height[t]), int(model.tex_width[t]), int(model.tex_nchannel[t]))
         start = int(model.tex_adr[t])
         pixels = model.tex_data[start : start + height * width * channels].reshape(height, width, channels)
+        pixels.flags.writeable = False
         result.append(
             MJCFTexture(
                 name=mj.name(model, "texture", t),
@@ -39,7 +41,7 @@ def textures(spec: mujoco.MjSpec, model: mujoco.MjModel) -> list[MJCFTexture]:
                 rgb1=[float(x) for x in authored.rgb1],
                 rgb2=[float(x) for x in authored.rgb2],
                 file=authored.file,
-                data=pixels.copy(),
+                data=pixels,
             )
         )
     return result
