@@ -108,7 +108,8 @@ def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData, dofs=None) -> tu
 def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
     """The DoFs that move a body: its joints' and every ancestor's (none for a body fixed to the world)."""
     dofs = set()
-    while body > 0:
-        dofs.update(int(d) for d in np.flatnonzero(model.dof_bodyid == body))
+    while body > 0:  # a body's DoFs are contiguous in MuJoCo's layout
+        start = int(model.body_dofadr[body])
+        dofs.update(range(start, start + int(model.body_dofnum[body])))
         body = int(model.body_parentid[body])
     return dofs
