@@ -63,7 +63,8 @@ def conformance(session: nox.Session) -> None:
 
 @nox.session
 def bench(session: nox.Session) -> None:
-    """Loader time vs MuJoCo compile time and the harness's steps per second, as JSON (reports/bench.json)."""
+    """Per model: load over MuJoCo's compile, cold (fresh processes) and warm, each the median over repeats;
+    set_ctrl over PhysX's step; the harness's steps per second; and totals, as JSON (reports/bench.json)."""
     install(session, "harness", "menagerie")
     session.run("python", "-m", "conformance", "bench", *session.posargs)
 
