@@ -44,6 +44,11 @@ def quat_conj(q) -> np.ndarray:
     return np.array([q[0], -q[1], -q[2], -q[3]])
 
 
+def cross3(a, b) -> np.ndarray:
+    """a x b for two 3-vectors (numpy's `cross` costs several times the arithmetic, on every step)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def quat_to_mat(q) -> np.ndarray:
     array = np.asarray(q)
     norm = np.sqrt(array.dot(array)) if array.dtype.kind == "f" else np.linalg.norm(q)  # np.linalg.norm's own

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from ..frames import euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
+from ..frames import cross3, euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
 from .joint import BALL, FREE
 
 
@@ -137,7 +137,7 @@ class Mapping:
         """A floating root's MuJoCo free-joint qpos (7) and qvel (6) into PhysX's root pose and velocities."""
         rotation = quat_to_mat(qpos7[3:])
         omega_world = rotation @ qvel6[3:]
-        v_com = qvel6[:3] + np.cross(omega_world, rotation @ self.body_ipos[body])
+        v_com = qvel6[:3] + cross3(omega_world, rotation @ self.body_ipos[body])
         art.set_root_pose(sapien.Pose(qpos7[:3], qpos7[3:] / np.linalg.norm(qpos7[3:])))
         art.set_root_linear_velocity(v_com.astype(np.float32))
         art.set_root_angular_velocity(omega_world.astype(np.float32))

@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import mj
 from ..build.mapping import Mapping
-from ..frames import quat_to_mat
+from ..frames import cross3, quat_to_mat
 
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 DRIFT_STEP = 1e-6  # rad or m moved along v for the forward difference of A
@@ -36,12 +36,6 @@ def composite(data: mujoco.MjData, bodies: np.ndarray) -> tuple[float, np.ndarra
     total = data.cinert[bodies].sum(axis=0)
     xx, yy, zz, xy, xz, yz = total[:6]
     return float(total[9]), np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis (numpy's `cross` costs more than the arithmetic on 3-vectors)."""
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def pose7(art) -> np.ndarray:
@@ -76,10 +70,9 @@ class Momentum:
         self.data = mujoco.MjData(model)
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
-        gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
-        # per root: the weight gravity puts on each of its tree's bodies (none on compensated ones)
-        self.weights = [gravity * (model.body_mass[tree] * (1.0 - model.body_gravcomp[tree]))[:, None]
-                        for *_, tree in roots]
+        self.gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+        # per root: the mass gravity pulls on, per body of its tree (none of a compensated body's)
+        self.weights = [model.body_mass[tree] * (1.0 - model.body_gravcomp[tree]) for *_, tree in roots]
 
     def contribute(self, step) -> None:
         """Remember the state this physics step starts from (`set_ctrl` settles the last step before)."""
@@ -131,7 +124,7 @@ class Momentum:
             offset = self.data.subtree_com[body] - qpos0[qadr:qadr + 3]  # centre of mass from the root's origin
             root = k - dt * drift - j  # the root's own momentum at q0
             omega = np.linalg.solve(inertia, root[3:])
-            linear = root[:3] / mass - cross(omega, offset)
+            linear = root[:3] / mass - cross3(omega, offset)
             qvel6 = np.concatenate([linear, quat_to_mat(qpos0[qadr + 3:qadr + 7]).T @ omega])
             self.mapping.set_root(articulations[a], body, advanced(qpos0[qadr:qadr + 7], qvel6, dt), qvel6)
             articulations[a].set_qvel(articulations[a].get_qvel())  # its links' velocities follow the root's
@@ -140,10 +133,10 @@ class Momentum:
         """External torque about the tree's centre of mass at the step's start (`self.data` there): gravity on
         the links it acts on (`weights`) and the loader's link forces."""
         centre = self.data.subtree_com[body]
-        torque = cross(self.data.xipos[tree] - centre, weights).sum(axis=0)
+        torque = cross3(weights @ self.data.xipos[tree] - weights.sum() * centre, self.gravity)
         for a, point, force, moment in wrenches:
             if a == art:
-                torque += moment + cross(point - centre, force)
+                torque += moment + cross3(point - centre, force)
         return torque
 
     def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> list[tuple[np.ndarray, float]]:
