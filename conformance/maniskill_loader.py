@@ -25,20 +25,12 @@ import mujoco
 import numpy as np
 import sapien
 
+from loader import has_render_device
 from loader.build.mapping import BodyLink, JointDofs
 from loader.runtime import contacts
 
 NAME = "maniskill"
 _HINGE = {"revolute", "revolute_unwrapped", "continuous"}
-
-
-def render_device() -> bool:
-    """Whether SAPIEN finds a render device (ManiSkill's loader constructs render materials while it parses)."""
-    try:
-        sapien.render.RenderMaterial()
-    except RuntimeError:
-        return False
-    return True
 
 
 class InertMaterial:
@@ -134,7 +126,7 @@ def build(path: str, model: mujoco.MjModel):
     handlers = list(logger.handlers)
     logger.handlers, logger.propagate = [collect], False
     try:
-        with maniskill_physx(model), inert_rendering(module) if not render_device() else contextlib.nullcontext():
+        with maniskill_physx(model), inert_rendering(module) if not has_render_device() else contextlib.nullcontext():
             scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
             scene.timestep = float(model.opt.timestep)
             loader = module.MJCFLoader()

@@ -72,8 +72,9 @@ class Fluid:
         pairs = self.links or [(link, link.cmass_local_pose) for link in
                                (articulations[body.articulation].links[body.link] for body in self.bodies)]
         links = [link for link, _ in pairs]
-        frames = np.array([(link.entity_pose * com).to_transformation_matrix()[:3, :3] for link, com in pairs],
-                          dtype=np.float64)
+        poses = np.array([(link.entity_pose * com).to_transformation_matrix() for link, com in pairs],
+                         dtype=np.float64).reshape(-1, 4, 4)  # each body's centre of mass and inertial frame
+        frames = poses[:, :3, :3]
         angular = np.array([link.angular_velocity for link in links], dtype=np.float64)
         linear = np.array([link.linear_velocity for link in links], dtype=np.float64) - self.wind
         to_body = frames.transpose(0, 2, 1)
@@ -83,9 +84,8 @@ class Fluid:
         torque, force = (frames @ torque[:, :, None])[:, :, 0], (frames @ force[:, :, None])[:, :, 0]
         for link, f, t in zip(links, force, torque):
             link.add_force_torque(f, t)
-        centres = [np.asarray((link.entity_pose * link.cmass_local_pose).p, np.float64) for link in links]
         self.applied.clear()
-        self.applied.extend(zip([body.articulation for body in self.bodies], centres, force, torque))
+        self.applied.extend(zip([body.articulation for body in self.bodies], poses[:, :3, 3], force, torque))
 
 
 def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:

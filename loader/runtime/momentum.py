@@ -107,17 +107,17 @@ class Momentum:
         if not stepped:
             return
         qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
-        kept = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
+        kept, = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
         joints_only = qvel1.copy()
         for _, _, _, dof, _ in self.roots:
             joints_only[dof:dof + 6] = 0.0
-        ahead = self._ahead(qpos0, qvel0)
+        ahead, eps = self._ahead(qpos0, qvel0)
         started, joints_part = self._momenta(qpos0, qvel0, joints_only)  # at the step's start (data stays there)
         for (a, body, qadr, dof, tree), weights, k, s0, ah, j in zip(self.roots, self.weights, kept, started, ahead,
                                                                       joints_part):
             if a not in stepped:
                 continue
-            drift = (ah[0] - s0) / ah[1]  # (dA/dt) v0, a forward difference along v0
+            drift = (ah - s0) / eps  # (dA/dt) v0, a forward difference along v0
             carried = s0[3:] + dt * self._torque(a, body, tree, weights, wrenches)
             k = np.concatenate([k[:3], angular(k[3:], carried)])
             mass, inertia = composite(self.data, tree)
@@ -139,12 +139,13 @@ class Momentum:
                 torque += moment + cross3(point - centre, force)
         return torque
 
-    def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> list[tuple[np.ndarray, float]]:
-        """Per root: the momentum A(q + e v) v a small step e along v, and e (for the forward difference)."""
+    def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[list[np.ndarray], float]:
+        """Per root, the momentum A(q + e v) v a small step e along v; and e (for the forward difference)."""
         eps = DRIFT_STEP / max(1.0, float(np.abs(qvel).max(initial=0.0)))
         ahead = np.array(qpos)
         mujoco.mj_integratePos(self.model, ahead, qvel, eps)
-        return [(m, eps) for m in self._momenta(ahead, qvel)]
+        momenta, = self._momenta(ahead, qvel)
+        return momenta, eps
 
     def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray) -> list[list[np.ndarray]]:
         """Per velocity, per root: the tree's linear momentum and angular momentum about its centre of mass at
@@ -161,7 +162,7 @@ class Momentum:
             mujoco.mj_subtreeVel(model, data)
             out.append([np.concatenate([data.subtree_linvel[body] * model.body_subtreemass[body],
                                         data.subtree_angmom[body]]) for _, body, *_ in self.roots])
-        return out if len(velocities) > 1 else out[0]
+        return out
 
 
 def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float) -> Momentum | None:
