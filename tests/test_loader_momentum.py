@@ -93,3 +93,26 @@ def test_a_read_before_the_step_keeps_the_correction():
         mujoco.mj_step(model, data)
         result.scene.step()
     assert np.abs(result.get_state()[1] - data.qvel).max() < TOLERANCE
+
+
+def _teleported_root_velocity(told: bool) -> np.ndarray:
+    """set_ctrl, then the joints moved by hand in SAPIEN (not through `set_state`), then the physics step; `told`:
+    the term is also told (`forget`) that no step starts where set_ctrl saw the state."""
+    result, _ = contact_free(FIXTURE)
+    for _ in range(3):
+        result.set_ctrl(None)
+        result.scene.step()
+    result.set_ctrl(None)
+    art = result.articulations[0]
+    art.set_qpos(art.get_qpos() + np.float32(0.2))
+    art.set_qvel(art.get_qvel() + np.float32(1.0))
+    if told:
+        result.controller.momentum.forget()
+    result.scene.step()
+    return result.get_state()[1][:6]
+
+
+def test_a_step_from_joints_moved_by_hand_is_left_as_physx_ends_it():
+    """The joints did not move by one step of their velocity from where set_ctrl saw them: the term cannot know
+    the step's start, so it leaves PhysX's end state alone (as when told) instead of correcting from a stale one."""
+    assert np.array_equal(_teleported_root_velocity(False), _teleported_root_velocity(True))
