@@ -70,6 +70,9 @@ class ModelEntry:
     expect: dict[str, Expectation] = field(default_factory=dict)
     fault: str | None = None  # harness self-test only: make the worker crash, hang or poison SAPIEN's state
     base_dir: str = "."
+    # from a manifest, whose expectations name every skip; False for a file given on the command line, where a tier
+    # the model itself rules out (no actuators) is skipped without being worse
+    listed: bool = True
 
     def expected(self, tier: str) -> str:
         exp = self.expect.get(tier)
@@ -194,7 +197,7 @@ def from_paths(paths: list[str], tiers: tuple[str, ...] = DEFAULT_TIERS, timeout
                known: dict[Path, ModelEntry] | None = None) -> Manifest:
     """An ad-hoc manifest for MJCF files given on the command line. A file that is a manifest model (`known`: its
     resolved path -> entry) is that entry, with its id, tiers and expectations; any other file expects every tier to
-    pass and is named by its stem, or by its parent folder where the stem is generic (`GENERIC_STEMS`) or repeats
+    pass or be skipped for the model's own reason (`listed`) and is named by its stem, or by its parent folder where the stem is generic (`GENERIC_STEMS`) or repeats
     (tests/test_conformance_manifest.py::test_command_line_paths_become_entries_named_by_their_folder_where_stems_repeat)."""
     files = expand_paths(paths)
     known = known or {}
@@ -216,5 +219,5 @@ def from_paths(paths: list[str], tiers: tuple[str, ...] = DEFAULT_TIERS, timeout
         if entry is not None:
             models.append(replace(entry, id=mid))
         else:
-            models.append(ModelEntry(id=mid, source=str(f.resolve()), tiers=tiers, timeout_s=timeout_s))
+            models.append(ModelEntry(id=mid, source=str(f.resolve()), tiers=tiers, timeout_s=timeout_s, listed=False))
     return Manifest("<command line>", tuple(models))

@@ -63,7 +63,7 @@ def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
             change = _left_band(expectation, detail)
             if change is not None:
                 raw, detail = "changed", {**detail, "notes": [*detail.get("notes", []), change]}
-        worse = OUTCOME_RANK[raw] > OUTCOME_RANK[expected]
+        worse = OUTCOME_RANK[raw] > OUTCOME_RANK[expected] and not (raw == "skipped" and not entry.listed)
         claimed = expectation.passes_without if expectation is not None else ()
         if raw == "fail" and claimed and not claim_holds(detail.get("isolation", []), claimed):
             worse = True  # the manifest's reason is a claim the run could not reproduce

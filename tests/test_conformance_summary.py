@@ -45,6 +45,15 @@ def test_worse_than_expected(raw, expected, worse):
     assert v.worse is worse and v.raw == raw
 
 
+@pytest.mark.parametrize("raw,worse", [("skipped", False), ("fail", True), ("pass", False)])
+def test_a_file_from_the_command_line_may_skip_a_tier_it_rules_out(raw, worse):
+    """No manifest names its skips (a model without actuators skips the actuated tiers): a skip is not worse there;
+    a failure still is. A manifest entry's unexpected skip is worse (`test_worse_than_expected`)."""
+    entry = ModelEntry(id="m", source="x", tiers=("actuated",), listed=False)
+    (v,) = summary.judge(entry, _result("ok", SEEN, actuated=raw))
+    assert v.worse is worse and v.outcome == raw
+
+
 def test_a_crashed_worker_fails_every_tier():
     entry = ModelEntry(id="m", source="x", tiers=("structure", "dynamics"))
     verdicts = summary.judge(entry, ModelResult("m", "crashed", reason="killed by SIGSEGV"))
