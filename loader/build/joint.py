@@ -65,10 +65,9 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
         notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
                    "scales with the joint reaction force, MuJoCo's is a constant torque")
     if jtype == FREE:
-        for value, what in ((damping, "damping"), (armature, "armature"), (stiffness, "stiffness")):
-            if value > 0:
-                notes.drop("joint", name, f"free joint {what} {value:g} dropped: a PhysX floating root has no "
-                           "joint to carry it")
+        if stiffness > 0:  # damping and armature: `runtime/momentum.py`
+            notes.drop("joint", name, f"free joint stiffness {stiffness:g} dropped: a PhysX floating root has no "
+                       "joint to carry it")
         return []
     if jtype in (HINGE, SLIDE):
         limited = bool(model.jnt_limited[j]) and not mj.disabled(model, "limit", "constraint")

@@ -16,6 +16,7 @@ import sapien
 
 from ..frames import cross3, euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
 from .joint import BALL, FREE
+from .tree import centres
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,7 @@ class Mapping:
     @classmethod
     def from_model(cls, model: mujoco.MjModel, bodies, joints, geoms, articulation_dofs) -> Mapping:
         return cls(bodies, joints, geoms, articulation_dofs, model.jnt_type.copy(), model.jnt_qposadr.copy(),
-                   model.jnt_dofadr.copy(), model.jnt_bodyid.copy(), model.body_ipos.copy(), model.nq, model.nv)
+                   model.jnt_dofadr.copy(), model.jnt_bodyid.copy(), centres(model), model.nq, model.nv)
 
     @property
     def dofs(self) -> list[tuple[int, int | None]]:

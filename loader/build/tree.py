@@ -56,9 +56,9 @@ class TreePlan:
     notes: Notes
 
 
-def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes) -> None:
+def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes, centre: np.ndarray) -> None:
     """The body's mass and principal moments as MuJoCo compiled them; PhysX keeps tiny moments, but replaces a zero
-    one with 1, so a zero moment gets `ZERO_MOMENT` (listed)."""
+    one with 1, so a zero moment gets `ZERO_MOMENT` (listed). `centre`: the link's centre of mass (`centres`)."""
     mass = float(model.body_mass[b])
     if mass > 0:
         link.mass = mass
@@ -67,12 +67,21 @@ def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes) 
             notes.approximate("body", mj.name(model, "body", b), f"zero principal moment of inertia given "
                               f"{ZERO_MOMENT:g} kg m^2 (PhysX replaces a zero moment with 1)")
         link.inertia = np.where(moments > 0, moments, ZERO_MOMENT)
-    link.cmass = pose(model.body_ipos[b], model.body_iquat[b])
+    link.cmass = pose(centre, model.body_iquat[b])
+
+
+def centres(model: mujoco.MjModel) -> np.ndarray:
+    """Each body's link's centre of mass in the body frame: MuJoCo's, or the origin for a massless body, whose
+    `body_ipos` MuJoCo leaves at the body's position in its parent. A helper mass there, far from the tree's real
+    mass, makes PhysX's articulation ill-conditioned: a falling rigid tree starts turning
+    (tests/test_loader_free_joint.py::test_a_massless_root_carrying_a_heavy_child_falls_without_turning)."""
+    return np.where(model.body_mass[:, None] > 0, model.body_ipos, 0.0)
 
 
 def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
     data = mj.forward_at(model, kinematics_only=True)
     notes = Notes()
+    centre = centres(model)
     articulations: list[ArticulationPlan] = []
     body_link: dict[int, tuple[int, int]] = {}
     for b in range(1, model.nbody):
@@ -88,7 +97,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
             if has_free or not subs:
                 art = ArticulationPlan(name, b, floating=has_free or not fix_root_link, root_pose=world)
                 art.links.append(LinkPlan(name, None, b, JointPlan("undefined" if has_free else root_type)))
-                _body_inertial(model, b, art.links[-1], notes)
+                _body_inertial(model, b, art.links[-1], notes, centre[b])
                 articulations.append(art)
                 body_link[b] = (a, 0)
                 continue
@@ -103,7 +112,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
         relative = pose(model.body_pos[b], model.body_quat[b])
         if not subs:
             link = LinkPlan(name, parent_index, b, JointPlan("fixed"), pose_in_parent=relative)
-            _body_inertial(model, b, link, notes)
+            _body_inertial(model, b, link, notes, centre[b])
             art.links.append(link)
         for k, sub in enumerate(subs):
             last = k == len(subs) - 1
@@ -116,7 +125,7 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
                 pose_in_parent=base * sub.frame_in_child * sub.ref_offset,
             )
             if last:
-                _body_inertial(model, b, link, notes)
+                _body_inertial(model, b, link, notes, centre[b])
             art.links.append(link)
             parent_index = len(art.links) - 1
         body_link[b] = (a, len(art.links) - 1)

@@ -112,6 +112,8 @@ class Controller:
         rows = self.term("rows")
         if rows is not None:
             rows.contacts = enabled and not mj.disabled(self.model, "contact")
+        if self.momentum is not None:
+            self.momentum.contacts = enabled
 
     def velocity_readers(self) -> list:
         """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
@@ -208,6 +210,6 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
     terms += [SlideTerm(slides)] if slides else []
     terms += [term for term in (fluid, gravcomp) if term is not None]
     terms += [EqualityTerm(connects)] if connects else []
-    momentum = plan_momentum(model, mapping, articulations, timestep)
+    momentum = plan_momentum(model, mapping, articulations, timestep, notes, scene)
     terms += [momentum] if momentum is not None else []
     return Controller(model, mapping, articulations, passive, terms, activation, timestep), maps, equalities

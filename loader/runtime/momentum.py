@@ -10,7 +10,8 @@ matrix. Where the links turn relative to each other within a step, the roots end
 `Momentum.settle` recovers MuJoCo's root velocity after a physics step: it solves
 A(q0) v1 = (P', L) - dt (dA/dt) v0 for the root's part of v1, with P' PhysX's end linear momentum, L the start's
 angular momentum plus dt T scaled to PhysX's end size, and the joint part PhysX's; it writes the root pose MuJoCo's
-position update gives. Contact torques, which it cannot see, leave L's size right and its direction approximate.
+position update gives. A tree a contact pushed in the step keeps PhysX's L: SAPIEN reports a contact's normal impulse
+only, so the torque of friction is unknown (tests/test_loader_momentum.py::test_a_tree_a_contact_turns_keeps_physxs_angular_momentum).
 It acts only where the joints moved exactly as PhysX's position update moves them (position by timestep x
 velocity): not after a `set_state`, where contacts corrected positions, or on a second read.
 (tests/test_loader_momentum.py::test_a_free_robot_kicked_by_its_joints_keeps_mujocos_root_velocity)
@@ -18,15 +19,22 @@ velocity): not after a `set_state`, where contacts corrected positions, or on a 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
 from .. import mj
 from ..build.mapping import Mapping
+from ..build.tree import centres
+from ..errors import Notes
 from ..frames import cross3, quat_to_mat
+from .free_joint import FreeJointLaw, differs
 
 FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 DRIFT_STEP = 1e-6  # rad or m moved along v for the forward difference of A
+ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
 
 
@@ -59,27 +67,46 @@ def angular(kept: np.ndarray, carried: np.ndarray) -> np.ndarray:
     return carried * (size / norm) if norm > 0.0 else kept
 
 
+@dataclass(frozen=True, eq=False)
+class Root:
+    """A floating articulation's root: its free joint's addresses, its tree's bodies and DoFs, and the mass gravity
+    pulls on per body of the tree (none of a compensated body's)."""
+
+    articulation: int
+    body: int
+    qposadr: int
+    dofadr: int
+    tree: np.ndarray
+    dofs: np.ndarray
+    weights: np.ndarray
+    damped: bool  # MuJoCo's step adds to the free joint what PhysX's does not (`FreeJointLaw`)
+
+
 class Momentum:
-    """Per floating articulation with joints: its root body, free joint's addresses and tree's bodies."""
+    """Per floating articulation (`Root`): the root's velocity after each PhysX step as MuJoCo's step leaves it."""
 
     name = "momentum"
 
-    def __init__(self, model: mujoco.MjModel, mapping: Mapping, roots: list[tuple[int, int, int, int, np.ndarray]],
-                 timestep: float):
-        self.model, self.mapping, self.roots = model, mapping, roots  # (articulation, body, qposadr, dofadr, tree)
+    def __init__(self, model: mujoco.MjModel, mapping: Mapping, roots: list[Root], timestep: float, scene=None,
+                 articulations=()):
+        self.model, self.mapping, self.roots = model, mapping, roots
         self.data = mujoco.MjData(model)
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
         self.gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
-        # per root: the mass gravity pulls on, per body of its tree (none of a compensated body's)
-        self.weights = [model.body_mass[tree] * (1.0 - model.body_gravcomp[tree]) for *_, tree in roots]
+        self.scene = scene
+        self.contacts = scene is not None  # SAPIEN's contacts are on (`Controller.contacts`)
+        self.links = {root.articulation: set(articulations[root.articulation].links) for root in roots}
+        damped = [root for root in roots if root.damped]
+        self.law = FreeJointLaw(model, mapping, damped, timestep) if damped else None
 
     def contribute(self, step) -> None:
         """Remember the state this physics step starts from (`set_ctrl` settles the last step before)."""
         q = step.layout.split(step.q)
         qpos, qvel = step.mujoco_state(self.mapping)
-        poses = [pose7(step.articulations[a]) for a, *_ in self.roots]
-        self.start = (qpos, qvel, [q[a].copy() for a, *_ in self.roots], poses)
+        arts = step.articulations
+        self.start = (qpos, qvel, [q[r.articulation].copy() for r in self.roots],
+                      [pose7(arts[r.articulation]) for r in self.roots])
 
     def forget(self, joints=None) -> None:
         """The state was set from outside (or the term switched off): the next read is not the end of a step."""
@@ -97,47 +124,64 @@ class Momentum:
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
         v = [np.asarray(art.get_qvel(), np.float64) for art in articulations]
         stepped, still = [], True
-        for (a, *_), q0, pose0 in zip(self.roots, joints0, poses0):
+        for root, q0, pose0 in zip(self.roots, joints0, poses0):
+            a = root.articulation
             still = still and np.array_equal(q[a], q0) and np.array_equal(pose7(articulations[a]), pose0)
             if np.abs(q[a] - q0 - dt * v[a]).max(initial=0.0) <= MOVED * (1.0 + np.abs(q[a]).max(initial=0.0)):
-                stepped.append(a)
+                stepped.append(root)
         if still:
             return  # read before the physics step: it is still to come
         self.start = None
         if not stepped:
             return
+        contacts = self.scene.get_contacts() if self.contacts else []
         qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
         kept, = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
         joints_only = qvel1.copy()
-        for _, _, _, dof, _ in self.roots:
-            joints_only[dof:dof + 6] = 0.0
+        for root in self.roots:
+            joints_only[root.dofadr:root.dofadr + 6] = 0.0
         ahead, eps = self._ahead(qpos0, qvel0)
         started, joints_part = self._momenta(qpos0, qvel0, joints_only)  # at the step's start (data stays there)
-        for (a, body, qadr, dof, tree), weights, k, s0, ah, j in zip(self.roots, self.weights, kept, started, ahead,
-                                                                      joints_part):
-            if a not in stepped:
+        for i, root in enumerate(self.roots):
+            if root not in stepped:
                 continue
-            drift = (ah - s0) / eps  # (dA/dt) v0, a forward difference along v0
-            carried = s0[3:] + dt * self._torque(a, body, tree, weights, wrenches)
-            k = np.concatenate([k[:3], angular(k[3:], carried)])
-            mass, inertia = composite(self.data, tree)
-            offset = self.data.subtree_com[body] - qpos0[qadr:qadr + 3]  # centre of mass from the root's origin
-            root = k - dt * drift - j  # the root's own momentum at q0
-            omega = np.linalg.solve(inertia, root[3:])
-            linear = root[:3] / mass - cross3(omega, offset)
-            qvel6 = np.concatenate([linear, quat_to_mat(qpos0[qadr + 3:qadr + 7]).T @ omega])
-            self.mapping.set_root(articulations[a], body, advanced(qpos0[qadr:qadr + 7], qvel6, dt), qvel6)
-            articulations[a].set_qvel(articulations[a].get_qvel())  # its links' velocities follow the root's
+            drift = (ahead[i] - started[i]) / eps  # (dA/dt) v0, a forward difference along v0
+            if self._touching(root, contacts):  # contacts' torques (friction unseen) turn it: PhysX's direction
+                k = kept[i]
+            else:
+                carried = started[i][3:] + dt * self._torque(root, wrenches)
+                k = np.concatenate([kept[i][:3], angular(kept[i][3:], carried)])
+            mass, inertia = composite(self.data, root.tree)
+            adr, dof = root.qposadr, root.dofadr
+            offset = self.data.subtree_com[root.body] - qpos0[adr:adr + 3]  # centre of mass from the root's origin
+            own = k - dt * drift - joints_part[i]  # the root's own momentum at q0
+            omega = np.linalg.solve(inertia, own[3:])
+            linear = own[:3] / mass - cross3(omega, offset)
+            qvel1[dof:dof + 3], qvel1[dof + 3:dof + 6] = linear, quat_to_mat(qpos0[adr + 3:adr + 7]).T @ omega
+        if self.law is not None:  # `self.data` is still at q0
+            self.law.correct(self.data, [r for r in stepped if r.damped], qvel0, qvel1, articulations)
+        for root in stepped:
+            adr, dof = root.qposadr, root.dofadr
+            self.mapping.set_root(articulations[root.articulation], root.body,
+                                  advanced(qpos0[adr:adr + 7], qvel1[dof:dof + 6], dt), qvel1[dof:dof + 6])
+            articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
 
-    def _torque(self, art: int, body: int, tree: np.ndarray, weights: np.ndarray, wrenches) -> np.ndarray:
+    def _torque(self, root: Root, wrenches) -> np.ndarray:
         """External torque about the tree's centre of mass at the step's start (`self.data` there): gravity on
-        the links it acts on (`weights`) and the loader's link forces."""
-        centre = self.data.subtree_com[body]
-        torque = cross3(weights @ self.data.xipos[tree] - weights.sum() * centre, self.gravity)
+        the links it acts on and the loader's link forces."""
+        centre = self.data.subtree_com[root.body]
+        weights = root.weights
+        torque = cross3(weights @ self.data.xipos[root.tree] - weights.sum() * centre, self.gravity)
         for a, point, force, moment in wrenches:
-            if a == art:
+            if a == root.articulation:
                 torque += moment + cross3(point - centre, force)
         return torque
+
+    def _touching(self, root: Root, contacts) -> bool:
+        """Whether a contact pushed one of the root's tree's links in the last step."""
+        links = self.links[root.articulation]
+        return any(body in links for contact in contacts for body in contact.bodies
+                   if any(np.any(point.impulse) for point in contact.points))
 
     def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[list[np.ndarray], float]:
         """Per root, the momentum A(q + e v) v a small step e along v; and e (for the forward difference)."""
@@ -160,18 +204,32 @@ class Momentum:
             data.qvel[:] = qvel
             mujoco.mj_comVel(model, data)
             mujoco.mj_subtreeVel(model, data)
-            out.append([np.concatenate([data.subtree_linvel[body] * model.body_subtreemass[body],
-                                        data.subtree_angmom[body]]) for _, body, *_ in self.roots])
+            out.append([np.concatenate([data.subtree_linvel[r.body] * model.body_subtreemass[r.body],
+                                        data.subtree_angmom[r.body]]) for r in self.roots])
         return out
 
 
-def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float) -> Momentum | None:
-    """The floating articulations with joints (None without any): those whose root body has MuJoCo's free joint."""
+def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float,
+                  notes: Notes, scene=None) -> Momentum | None:
+    """The floating articulations (None without any) whose step differs between PhysX and MuJoCo: those with joints
+    or several bodies, with a free joint law (`free_joint.differs`), or a lone body whose spin turns under its own
+    inertia (principal moments not all equal, or the centre of mass off the origin)."""
     roots = []
     for j, target in enumerate(mapping.joints):
-        if int(model.jnt_type[j]) != FREE or articulations[target.articulation].dof == 0:
+        if int(model.jnt_type[j]) != FREE:
             continue
-        body = int(model.jnt_bodyid[j])
+        body, dof = int(model.jnt_bodyid[j]), int(model.jnt_dofadr[j])
         tree = np.flatnonzero(model.body_rootid == body)
-        roots.append((target.articulation, body, int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), tree))
-    return Momentum(model, mapping, roots, timestep) if roots else None
+        damped = differs(model, j, tree)
+        inertia = model.body_inertia[body]
+        spinning = tree.size > 1 or np.any(centres(model)[body]) or not np.allclose(inertia, inertia.mean(),
+                                                                                    rtol=ISOTROPIC, atol=0.0)
+        if articulations[target.articulation].dof == 0 and not damped and not spinning:
+            continue
+        dofs = np.flatnonzero(np.isin(model.dof_bodyid, tree))
+        if damped and np.any(np.isin(model.jnt_type[np.isin(model.jnt_bodyid, tree)], BALL)):
+            notes.approximate("joint", mj.name(model, "joint", j), "free joint damping or armature: the tree's ball "
+                              "joints keep PhysX's velocity where MuJoCo's couples them to the root's")
+        weights = model.body_mass[tree] * (1.0 - model.body_gravcomp[tree])
+        roots.append(Root(target.articulation, body, int(model.jnt_qposadr[j]), dof, tree, dofs, weights, damped))
+    return Momentum(model, mapping, roots, timestep, scene, articulations) if roots else None
