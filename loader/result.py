@@ -55,6 +55,7 @@ class LoadResult(MuJoCoState):
             if link.soft is not None:
                 link.soft.set_active(bool(self.model.eq_active0[link.soft.equality]))
         self.mapping.set_state(self.articulations, *self.keyframe_state(key))
+        self.controller.forget()
         self.set_act(None if key is None else self.model.keyframe(key).act)
         self.set_ctrl(self.ctrl(key), advance=False)
 

@@ -28,8 +28,7 @@ class MuJoCoState:
         qpos = command_vector(self.path, "qpos", qpos, self.model.nq, "qpos entries (nq)")
         qvel = command_vector(self.path, "qvel", qvel, self.model.nv, "DoFs (nv)")
         self.mapping.set_state(self.articulations, qpos, qvel)
-        if self.controller.momentum is not None:
-            self.controller.momentum.forget()  # no physics step ends at this state
+        self.controller.forget()
 
     def keyframe_state(self, key: int | str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """MuJoCo (qpos, qvel) of keyframe `key` (index or name), or of qpos0 at rest when `key` is None."""

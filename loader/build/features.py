@@ -49,9 +49,6 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
                           "contacts (runtime/rows.py, set_ctrl every step), and PhysX applies its rigid ones; "
                           "PhysX's hard limits after release()")
     integrator = int(model.opt.integrator)
-    if integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and mj.disabled(model, "eulerdamp") and np.any(model.dof_damping):
-        notes.approximate("option", "flag eulerdamp", "joint damping is explicit in MuJoCo with eulerdamp disabled; "
-                          "PhysX drives apply it implicitly (first order in the timestep apart)")
     if integrator == int(mujoco.mjtIntegrator.mjINT_RK4):
         notes.approximate("option", "integrator", "RK4 has no PhysX counterpart: simulated as MuJoCo's Euler "
                           "(semi-implicit), first order in the timestep apart over a fixed time")

@@ -34,6 +34,7 @@ from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
 from .tendons import IMPLICIT, TendonTerm, map_tendons
 
+EULER = int(mujoco.mjtIntegrator.mjINT_EULER)
 STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp", "equalities")
 
 
@@ -106,6 +107,13 @@ class Controller:
         """After a physics step: floating roots' velocities as MuJoCo's step leaves them (`runtime/momentum.py`)."""
         if self.momentum is not None and "momentum" not in self.off:
             self.momentum.settle(self.articulations, [w for t in self.terms for w in getattr(t, "applied", ())])
+
+    def forget(self) -> None:
+        """The state was set from outside: no physics step ends at it (`momentum`), and MuJoCo's solver starts
+        afresh (`rows`' warm start, as in a new `MjData`)."""
+        for term in [*self.terms, *self.off.values()]:
+            if hasattr(term, "forget"):
+                term.forget()
 
     def contacts(self, enabled: bool) -> None:
         """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
@@ -204,7 +212,8 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
     connects = [link.soft for link in equalities if link.soft is not None and link.kind == "D6 joint"]
-    terms = [actuators, StiffnessTerm(), DriveWriter(passive, dof_inertia(model, mapping))]
+    explicit_damping = int(model.opt.integrator) == EULER and mj.disabled(model, "eulerdamp")
+    terms = [actuators, StiffnessTerm(explicit_damping), DriveWriter(passive, dof_inertia(model, mapping))]
     terms += [TendonTerm(tendons)] if tendons else []
     terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []

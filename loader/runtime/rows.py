@@ -18,13 +18,17 @@ import mujoco
 import numpy as np
 
 from .. import mj
+from ..build.joint import FREE
 from ..build.mapping import Mapping
 from ..build.physx_settings import MAX_DEPENETRATION_VELOCITY
+from ..build.tree import centres
+from ..frames import cross3
 from .dof_step import DofKey, Step
 
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
 SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
 MAPPED_JOINTS = ("hinge", "slide")
+EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
 JOINT_ROWS = tuple(int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}")) for name in (
     "LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON",
     "EQUALITY"))  # the copy's equality rows: joint and tendon couplings
@@ -71,10 +75,19 @@ class RowTerm:
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]  # the hinge/slide DoFs the rows' force reaches
         self.mujoco_dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
+        centre = centres(mirror)
+        self.roots = [(t.articulation, mapping.bodies[int(mirror.jnt_bodyid[j])].link, int(mirror.jnt_bodyid[j]),
+                       int(mirror.jnt_dofadr[j]), centre[int(mirror.jnt_bodyid[j])])
+                      for j, t in enumerate(mapping.joints) if int(mirror.jnt_type[j]) == FREE]
+        self.applied: list = []  # this step's root wrenches (articulation, centre of mass, force, torque), world
         self.soft = False
         self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
+        # MuJoCo integrates its solver's qacc, not an acceleration solved from the forces (`joint_rows`)
+        integrator = int(mirror.opt.integrator)
+        self.accelerated = integrator == RK4 or (integrator == EULER and not (
+            np.any(mirror.dof_damping) and not mj.disabled(mirror, "eulerdamp")))
 
     def compile(self, layout) -> None:
         """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
@@ -101,18 +114,52 @@ class RowTerm:
             self.mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
             mujoco.mj_forward(self.mirror, self.data)
             self.mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        step.force[self.flat] += self.joint_rows()[self.mujoco_dofs]
+        force = self.joint_rows()
+        step.force[self.flat] += force[self.mujoco_dofs]
+        if step.advance:
+            self.push_roots(step, force)
+        self.data.qacc_warmstart[:] = self.data.qacc  # MuJoCo's next solve starts from this one's acceleration
+
+    def push_roots(self, step: Step, force: np.ndarray) -> None:
+        """The rows' force on floating roots, as a wrench on each root link (added once per physics step): none
+        from a converged solve, whose joint rows leave a free joint alone; a solver stopped early moves it
+        (tests/test_loader_unconverged.py::test_an_unconverged_solve_pushes_the_free_joint_as_mujoco_does)."""
+        self.applied.clear()
+        data = self.data
+        for art, link, body, dof, centre in self.roots:
+            wrench = force[dof:dof + 6]
+            if not wrench.any():
+                continue
+            rotation = data.xmat[body].reshape(3, 3)
+            origin = data.xpos[body]
+            com = origin + rotation @ centre
+            torque = rotation @ wrench[3:] + cross3(origin - com, wrench[:3])
+            step.layout.links[art][link].add_force_torque(wrench[:3].astype(np.float32), torque.astype(np.float32))
+            self.applied.append((art, com, wrench[:3].copy(), torque))
 
     def joint_rows(self) -> np.ndarray:
         """The generalized force of the joint limit and friction rows alone (contact rows, solved with them when
-        contacts are on, are PhysX's to apply)."""
-        data = self.data
-        if not self.contacts:
-            return data.qfrc_constraint
+        contacts are on, are PhysX's to apply): the constraint force MuJoCo's step integrates. Its implicit
+        integrators, and Euler with implicit damping, solve for the acceleration from `qfrc_constraint`; Euler
+        without implicit damping integrates the solver's qacc, which a solver stopped before convergence
+        (`iterations="1"`) leaves short of `qfrc_constraint`'s, so there the force is M (qacc - qacc_smooth) less
+        the contact rows' J^T f (tests/test_loader_unconverged.py::test_an_unconverged_solve_applies_mujocos_acceleration)."""
+        data, mirror = self.data, self.mirror
+        force = np.zeros(mirror.nv)
+        if not data.nefc:
+            return force
         rows = np.isin(data.efc_type[:data.nefc], JOINT_ROWS)
-        force = np.zeros(self.mirror.nv)
-        if rows.any():
-            mujoco.mj_mulJacTVec(self.mirror, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
+        if not self.accelerated:
+            if not self.contacts:
+                return data.qfrc_constraint
+            if rows.any():
+                mujoco.mj_mulJacTVec(mirror, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
+            return force
+        mujoco.mj_mulM(mirror, data, force, data.qacc - data.qacc_smooth)
+        if self.contacts and not rows.all():
+            pushed = np.zeros(mirror.nv)
+            mujoco.mj_mulJacTVec(mirror, data, pushed, np.where(rows, 0.0, data.efc_force[:data.nefc]))
+            force -= pushed
         return force
 
     def mirror_state(self, step: Step) -> None:
@@ -130,6 +177,10 @@ class RowTerm:
         if step.act is not None:
             data.act[:] = step.act
         data.qfrc_applied[:] = 0.0 if step.qfrc_applied is None else step.qfrc_applied
+
+    def forget(self) -> None:
+        """A state set from outside: the next solve starts without a warm start, as in a new `MjData`."""
+        self.data.qacc_warmstart[:] = 0.0
 
     def set_active(self, equality: int, active: bool) -> None:
         """MuJoCo's `eq_active` of a joint or tendon coupling."""
