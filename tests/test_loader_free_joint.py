@@ -13,7 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-from support.lockstep import paired_rollout
+from support.lockstep import at_keyframe, paired_rollout
 
 from loader import MJCFLoader
 from loader.runtime.free_joint import gyroscopic_derivative
@@ -37,11 +37,7 @@ def _fixture(tmp_path: Path, integrator: str | None) -> Path:
 
 
 def _worst_velocity(path: Path, mutate=None) -> float:
-    result = MJCFLoader().load(path)
-    model = result.model
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    result.set_state(data.qpos, data.qvel)
+    result, model, data = at_keyframe(path)
     if mutate:
         mutate(result.controller.momentum)
     return float(paired_rollout(result, model, data, STEPS).qvel.max())

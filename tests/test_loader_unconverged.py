@@ -13,8 +13,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-
-from loader import MJCFLoader
+from support.lockstep import at_keyframe, paired_rollout
 
 FIXTURE = Path(__file__).parents[1] / "corpus" / "fixtures" / "one_iteration_legs.xml"
 STEPS = 250  # 1 s
@@ -25,22 +24,15 @@ TOLERANCE = 1e-4
 IMPLICIT_STEPS = 25  # the eulerdamp variant: 2.9e-5 at 25 steps; taking the solver's qacc there 81
 
 
+def _swinging(step: int, data: mujoco.MjData) -> np.ndarray:
+    return 0.8 * np.sin(0.04 * step + np.arange(data.ctrl.size))
+
+
 def _worst_velocity(mutate=None, path: Path = FIXTURE, steps: int = STEPS) -> float:
-    result = MJCFLoader().load(path)
-    model = result.model
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    result.set_state(data.qpos, data.qvel)
+    result, model, data = at_keyframe(path)
     if mutate:
         mutate(result.controller)
-    worst = 0.0
-    for step in range(steps):
-        data.ctrl[:] = 0.8 * np.sin(0.04 * step + np.arange(model.nu))
-        result.set_ctrl(data.ctrl.copy())
-        mujoco.mj_step(model, data)
-        result.scene.step()
-        worst = max(worst, float(np.abs(result.get_state()[1] - data.qvel).max()))
-    return worst
+    return float(paired_rollout(result, model, data, steps, _swinging).qvel.max())
 
 
 def _constraint_force(controller) -> None:

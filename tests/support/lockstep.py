@@ -46,6 +46,16 @@ def contact_free(path: str | Path, mutate: Callable | None = None):
     return result, model
 
 
+def at_keyframe(path: str | Path, key: int = 0):
+    """Load `path` with both sides at keyframe `key` (its velocities too). Returns (result, model, data)."""
+    result = MJCFLoader().load(path)
+    model = result.model
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, key)
+    result.set_state(data.qpos, data.qvel)
+    return result, model, data
+
+
 def paired_rollout(result, model: mujoco.MjModel, data: mujoco.MjData, steps: int, ctrl_at: CtrlAt = no_ctrl,
                    set_ctrl: bool = True) -> Paired:
     """Step MuJoCo (`model`, `data`) and SAPIEN together from their current states. `ctrl_at(step, data)` gives
