@@ -149,7 +149,7 @@ def test_limit_rows_under_contact_stay_finite():
 def _whole_constraint_force(self):
     """MuJoCo's whole constraint force on the joints: its contact rows' share with the joint rows'."""
     force = self.data.qfrc_constraint.copy()
-    for *_, dof, _ in self.roots:
+    for *_, dof, _ in self.push.roots:
         force[dof:dof + 6] = 0.0  # a joint row never pushes a free joint
     return force
 

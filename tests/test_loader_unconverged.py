@@ -52,7 +52,7 @@ def _cold_start(controller) -> None:
 
 
 def _root_left_out(controller) -> None:
-    controller.term("rows").push_roots = lambda step, force: None
+    controller.term("rows").push = lambda data, force, links: None
 
 
 def _implicit_damping(controller) -> None:

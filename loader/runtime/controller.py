@@ -45,10 +45,8 @@ class Controller:
 
     def __init__(self, model: mujoco.MjModel, mapping, articulations: list, passive: dict[DofKey, DofDrive],
                  terms: list, activation: Activation | None = None, timestep: float | None = None):
-        self.model = model
+        self.model, self.mapping, self.articulations = model, mapping, articulations
         self.timestep = float(model.opt.timestep if timestep is None else timestep)  # the scene's: one PhysX step
-        self.mapping = mapping
-        self.articulations = articulations
         self.joints = [art.active_joints for art in articulations]  # the property builds a new list per call
         self.passive = passive
         self.layout = DofLayout(articulations, list(passive))
@@ -57,8 +55,7 @@ class Controller:
         self.off: dict[str, object] = {}  # terms switched off, by name
         self.command = Command(model, activation)
         self.stale = True  # the terms' arrays need compiling (`compile`)
-        self.base: np.ndarray | None = None
-        self._readers: list | None = None
+        self.base, self._readers = None, None  # the step's starting law (`compile`), link readers
         self.momentum = next((t for t in terms if t.name == "momentum"), None)  # floating roots (`settle`)
 
     @property
@@ -72,8 +69,7 @@ class Controller:
         return found if found is not None or on else self.off.get(name)
 
     def laws(self) -> dict[DofKey, DofDrive]:
-        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps);
-        an edit to one takes effect at the next `set_ctrl`."""
+        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps)."""
         actuators = self.term("actuators")
         return {**self.passive, **(actuators.laws if actuators is not None else {})}
 
@@ -109,11 +105,9 @@ class Controller:
             self.momentum.settle(self.articulations, [w for t in self.terms for w in getattr(t, "applied", ())])
 
     def forget(self) -> None:
-        """The state was set from outside: no physics step ends at it (`momentum`), and MuJoCo's solver starts
-        afresh (`rows`' warm start, as in a new `MjData`)."""
+        """A state set from outside: no step ends at it (`momentum`), MuJoCo's solve starts cold (`rows`)."""
         for term in [*self.terms, *self.off.values()]:
-            if hasattr(term, "forget"):
-                term.forget()
+            getattr(term, "forget", lambda: None)()
 
     def contacts(self, enabled: bool) -> None:
         """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""

@@ -67,6 +67,24 @@ def angular(kept: np.ndarray, carried: np.ndarray) -> np.ndarray:
     return carried * (size / norm) if norm > 0.0 else kept
 
 
+def touching(links: set, contacts) -> bool:
+    """Whether a contact pushed one of `links` in the last step."""
+    return any(body in links for contact in contacts for body in contact.bodies
+               if any(np.any(point.impulse) for point in contact.points))
+
+
+def external_torque(data: mujoco.MjData, root, gravity: np.ndarray, wrenches) -> np.ndarray:
+    """External torque about the root's tree's centre of mass at the step's start (`data` there): gravity on the
+    links it acts on and the loader's link forces (articulation, point, force, torque)."""
+    centre = data.subtree_com[root.body]
+    weights = root.weights
+    torque = cross3(weights @ data.xipos[root.tree] - weights.sum() * centre, gravity)
+    for a, point, force, moment in wrenches:
+        if a == root.articulation:
+            torque += moment + cross3(point - centre, force)
+    return torque
+
+
 @dataclass(frozen=True, eq=False)
 class Root:
     """A floating articulation's root: its free joint's addresses, its tree's bodies and DoFs, and the mass gravity
@@ -146,10 +164,10 @@ class Momentum:
             if root not in stepped:
                 continue
             drift = (ahead[i] - started[i]) / eps  # (dA/dt) v0, a forward difference along v0
-            if self._touching(root, contacts):  # contacts' torques (friction unseen) turn it: PhysX's direction
+            if touching(self.links[root.articulation], contacts):  # contacts' torques (friction unseen) turn it: PhysX's direction
                 k = kept[i]
             else:
-                carried = started[i][3:] + dt * self._torque(root, wrenches)
+                carried = started[i][3:] + dt * external_torque(self.data, root, self.gravity, wrenches)
                 k = np.concatenate([kept[i][:3], angular(kept[i][3:], carried)])
             mass, inertia = composite(self.data, root.tree)
             adr, dof = root.qposadr, root.dofadr
@@ -165,23 +183,6 @@ class Momentum:
             self.mapping.set_root(articulations[root.articulation], root.body,
                                   advanced(qpos0[adr:adr + 7], qvel1[dof:dof + 6], dt), qvel1[dof:dof + 6])
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
-
-    def _torque(self, root: Root, wrenches) -> np.ndarray:
-        """External torque about the tree's centre of mass at the step's start (`self.data` there): gravity on
-        the links it acts on and the loader's link forces."""
-        centre = self.data.subtree_com[root.body]
-        weights = root.weights
-        torque = cross3(weights @ self.data.xipos[root.tree] - weights.sum() * centre, self.gravity)
-        for a, point, force, moment in wrenches:
-            if a == root.articulation:
-                torque += moment + cross3(point - centre, force)
-        return torque
-
-    def _touching(self, root: Root, contacts) -> bool:
-        """Whether a contact pushed one of the root's tree's links in the last step."""
-        links = self.links[root.articulation]
-        return any(body in links for contact in contacts for body in contact.bodies
-                   if any(np.any(point.impulse) for point in contact.points))
 
     def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[list[np.ndarray], float]:
         """Per root, the momentum A(q + e v) v a small step e along v; and e (for the forward difference)."""

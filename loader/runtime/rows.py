@@ -18,17 +18,14 @@ import mujoco
 import numpy as np
 
 from .. import mj
-from ..build.joint import FREE
 from ..build.mapping import Mapping
 from ..build.physx_settings import MAX_DEPENETRATION_VELOCITY
-from ..build.tree import centres
-from ..frames import cross3
 from .dof_step import DofKey, Step
+from .integrated import RootPush, accelerated, integrated_force
 
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
 SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
 MAPPED_JOINTS = ("hinge", "slide")
-EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
 JOINT_ROWS = tuple(int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}")) for name in (
     "LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON",
     "EQUALITY"))  # the copy's equality rows: joint and tendon couplings
@@ -75,19 +72,12 @@ class RowTerm:
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]  # the hinge/slide DoFs the rows' force reaches
         self.mujoco_dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
-        centre = centres(mirror)
-        self.roots = [(t.articulation, mapping.bodies[int(mirror.jnt_bodyid[j])].link, int(mirror.jnt_bodyid[j]),
-                       int(mirror.jnt_dofadr[j]), centre[int(mirror.jnt_bodyid[j])])
-                      for j, t in enumerate(mapping.joints) if int(mirror.jnt_type[j]) == FREE]
-        self.applied: list = []  # this step's root wrenches (articulation, centre of mass, force, torque), world
+        self.push = RootPush(mirror, mapping)  # a free joint's share of an unconverged solve
         self.soft = False
         self.flags = int(mirror.opt.disableflags)  # the model's own
         self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
-        # MuJoCo integrates its solver's qacc, not an acceleration solved from the forces (`joint_rows`)
-        integrator = int(mirror.opt.integrator)
-        self.accelerated = integrator == RK4 or (integrator == EULER and not (
-            np.any(mirror.dof_damping) and not mj.disabled(mirror, "eulerdamp")))
+        self.accelerated = accelerated(mirror)  # MuJoCo integrates the solver's qacc (`integrated.py`)
 
     def compile(self, layout) -> None:
         """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
@@ -109,58 +99,20 @@ class RowTerm:
             self.hold(step.joints, soft=True)
         self.clear_of(step)
         self.mirror_state(step)
-        mujoco.mj_forward(self.mirror, self.data)
-        if self.contacts and deep_contact(self.data, step.timestep, self.depenetration):
-            self.mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-            mujoco.mj_forward(self.mirror, self.data)
-            self.mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        solve(self.mirror, self.data, self.contacts, step.timestep, self.depenetration)
         force = self.joint_rows()
         step.force[self.flat] += force[self.mujoco_dofs]
         if step.advance:
-            self.push_roots(step, force)
+            self.push(self.data, force, step.layout.links)
         self.data.qacc_warmstart[:] = self.data.qacc  # MuJoCo's next solve starts from this one's acceleration
 
-    def push_roots(self, step: Step, force: np.ndarray) -> None:
-        """The rows' force on floating roots, as a wrench on each root link (added once per physics step): none
-        from a converged solve, whose joint rows leave a free joint alone; a solver stopped early moves it
-        (tests/test_loader_unconverged.py::test_an_unconverged_solve_pushes_the_free_joint_as_mujoco_does)."""
-        self.applied.clear()
-        data = self.data
-        for art, link, body, dof, centre in self.roots:
-            wrench = force[dof:dof + 6]
-            if not wrench.any():
-                continue
-            rotation = data.xmat[body].reshape(3, 3)
-            origin = data.xpos[body]
-            com = origin + rotation @ centre
-            torque = rotation @ wrench[3:] + cross3(origin - com, wrench[:3])
-            step.layout.links[art][link].add_force_torque(wrench[:3].astype(np.float32), torque.astype(np.float32))
-            self.applied.append((art, com, wrench[:3].copy(), torque))
+    applied = property(lambda self: self.push.applied)  # this step's root wrenches, for the momentum term
 
     def joint_rows(self) -> np.ndarray:
-        """The generalized force of the joint limit and friction rows alone (contact rows, solved with them when
-        contacts are on, are PhysX's to apply): the constraint force MuJoCo's step integrates. Its implicit
-        integrators, and Euler with implicit damping, solve for the acceleration from `qfrc_constraint`; Euler
-        without implicit damping integrates the solver's qacc, which a solver stopped before convergence
-        (`iterations="1"`) leaves short of `qfrc_constraint`'s, so there the force is M (qacc - qacc_smooth) less
-        the contact rows' J^T f (tests/test_loader_unconverged.py::test_an_unconverged_solve_applies_mujocos_acceleration)."""
-        data, mirror = self.data, self.mirror
-        force = np.zeros(mirror.nv)
-        if not data.nefc:
-            return force
-        rows = np.isin(data.efc_type[:data.nefc], JOINT_ROWS)
-        if not self.accelerated:
-            if not self.contacts:
-                return data.qfrc_constraint
-            if rows.any():
-                mujoco.mj_mulJacTVec(mirror, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
-            return force
-        mujoco.mj_mulM(mirror, data, force, data.qacc - data.qacc_smooth)
-        if self.contacts and not rows.all():
-            pushed = np.zeros(mirror.nv)
-            mujoco.mj_mulJacTVec(mirror, data, pushed, np.where(rows, 0.0, data.efc_force[:data.nefc]))
-            force -= pushed
-        return force
+        """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
+        PhysX's to apply), as MuJoCo's step integrates it (`integrated.py`)."""
+        rows = np.isin(self.data.efc_type[:self.data.nefc], JOINT_ROWS)
+        return integrated_force(self.mirror, self.data, rows, self.accelerated, self.contacts)
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
@@ -221,6 +173,16 @@ class RowTerm:
         self.hold(joints, soft=False)
 
     removed = release
+
+
+def solve(mirror: mujoco.MjModel, data: mujoco.MjData, contacts: bool, timestep: float, depenetration: float) -> None:
+    """MuJoCo's solve of the copy at `data`'s state; again without contacts while one is too deep for PhysX's push
+    (`deep_contact`)."""
+    mujoco.mj_forward(mirror, data)
+    if contacts and deep_contact(data, timestep, depenetration):
+        mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        mujoco.mj_forward(mirror, data)
+        mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
 
 
 def scalar_state(model: mujoco.MjModel, mapping: Mapping, layout) -> np.ndarray | None:

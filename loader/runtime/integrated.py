@@ -1,0 +1,78 @@
+"""The constraint force MuJoCo's step integrates, from a solve of MuJoCo's copy (`rows.py`).
+
+Its implicit integrators, and Euler with implicit damping, solve for the acceleration from `qfrc_constraint`. Euler
+without implicit damping (and RK4, stage by stage) integrates the solver's own qacc, which a solver stopped before
+convergence (`iterations="1"`) leaves short of `qfrc_constraint`'s: there the force is M (qacc - qacc_smooth) less
+the contact rows' J^T f, and it can push a free joint, whose share goes on the root link as a wrench.
+(tests/test_loader_unconverged.py)
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .. import mj
+from ..build.joint import FREE
+from ..build.mapping import Mapping
+from ..build.tree import centres
+from ..frames import cross3
+
+EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
+
+
+def accelerated(model: mujoco.MjModel) -> bool:
+    """Whether MuJoCo's step integrates the solver's qacc (not an acceleration solved from the forces)."""
+    integrator = int(model.opt.integrator)
+    implicit_damping = bool(np.any(model.dof_damping)) and not mj.disabled(model, "eulerdamp")
+    return integrator == RK4 or (integrator == EULER and not implicit_damping)
+
+
+def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray, qacc: bool,
+                     contacts: bool) -> np.ndarray:
+    """The generalized force of the constraint rows `rows` (a mask over data's rows) that MuJoCo's step integrates
+    (`qacc`: it integrates the solver's qacc); the other rows are contacts, solved with them when `contacts`."""
+    force = np.zeros(model.nv)
+    if not data.nefc:
+        return force
+    if not qacc:
+        if not contacts:
+            return data.qfrc_constraint
+        if rows.any():
+            mujoco.mj_mulJacTVec(model, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
+        return force
+    mujoco.mj_mulM(model, data, force, data.qacc - data.qacc_smooth)
+    if contacts and not rows.all():
+        pushed = np.zeros(model.nv)
+        mujoco.mj_mulJacTVec(model, data, pushed, np.where(rows, 0.0, data.efc_force[:data.nefc]))
+        force -= pushed
+    return force
+
+
+class RootPush:
+    """A constraint force's share on the floating roots, as a wrench on each root link (added once per physics
+    step): none from a converged solve, whose joint rows leave a free joint alone."""
+
+    def __init__(self, model: mujoco.MjModel, mapping: Mapping):
+        centre = centres(model)
+        self.roots = []  # (articulation, link, body, dof address, centre of mass in the body frame)
+        for j, target in enumerate(mapping.joints):
+            if int(model.jnt_type[j]) == FREE:
+                body = int(model.jnt_bodyid[j])
+                self.roots.append((target.articulation, mapping.bodies[body].link, body, int(model.jnt_dofadr[j]),
+                                   centre[body]))
+        self.applied: list = []  # this step's wrenches (articulation, centre of mass, force, torque), world
+
+    def __call__(self, data: mujoco.MjData, force: np.ndarray, links: list) -> None:
+        """`data` at the step's start; `links` per articulation."""
+        self.applied.clear()
+        for art, link, body, dof, centre in self.roots:
+            wrench = force[dof:dof + 6]
+            if not wrench.any():
+                continue
+            rotation = data.xmat[body].reshape(3, 3)
+            origin = data.xpos[body]
+            com = origin + rotation @ centre
+            torque = rotation @ wrench[3:] + cross3(origin - com, wrench[:3])
+            links[art][link].add_force_torque(wrench[:3].astype(np.float32), torque.astype(np.float32))
+            self.applied.append((art, com, wrench[:3].copy(), torque))
