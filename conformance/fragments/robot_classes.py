@@ -1,7 +1,8 @@
 """Documents of the classes real robots showed and the general generator missed: arms exported from URDF
 (frictionloss with no armature and tiny damping on every joint), joints started past their ends (several at once,
-so that many limit rows act together), tiny and zero inertias (dummy links, welded sensor frames), and gripper
-fingers coupled by a joint equality under position servos."""
+so that many limit rows act together), tiny and zero inertias (dummy links, welded sensor frames), gripper fingers
+coupled by a joint equality under position servos, a floating base and a tossed free object whose free joints
+carry damping and armature, and MuJoCo Playground's solver setting of one iteration."""
 
 from __future__ import annotations
 
@@ -40,6 +41,13 @@ def _link(draw, index: int) -> tuple[str, str, float, float, bool]:
     return f'<body name="l{index}" pos="{pos}">{joint}{inertial}', name, lo, hi, slide
 
 
+def _free_joint(draw) -> str:
+    """A free joint's damping and armature (each present half of the time), as attributes."""
+    damping = _f(draw(st.floats(0.001, 0.5))) if draw(st.booleans()) else "0"
+    armature = _f(draw(st.floats(0.001, 0.05))) if draw(st.booleans()) else "0"
+    return f'damping="{damping}" armature="{armature}"'
+
+
 @st.composite
 def robot_classes(draw) -> RawDocument:
     """An arm of 2-5 links (hinges, some slides) with the classes above, a keyframe that starts 1-3 joints past
@@ -57,7 +65,17 @@ def robot_classes(draw) -> RawDocument:
                  '<body name="right"><joint name="right" type="slide" axis="0 -1 0" range="0 .04" damping=".1"/>'
                  '<geom type="box" size=".01 .01 .03" pos="0 -.02 0" mass=".02"/></body></body>')
     body += "</body>" * count
-    qpos = []
+    floating = draw(st.booleans())  # the arm on a floating base, its free joint damped
+    if floating:
+        body = (f'<body name="base" pos="0 0 1"><joint name="base" type="free" {_free_joint(draw)}/>'
+                f'<inertial pos="0 0 0" mass="2" diaginertia=".02 .03 .04"/>{body}</body>')
+    tossed = draw(st.booleans())  # a free object thrown spinning, its centre of mass off its origin
+    if tossed:
+        size = " ".join(_f(draw(st.floats(0.01, 0.05))) for _ in range(3))
+        body += (f'<body name="object" pos="1 0 1"><joint name="object" type="free" {_free_joint(draw)}/>'
+                 f'<geom type="ellipsoid" size="{size}" pos="{_f(draw(st.floats(0, 0.02)))} 0 0" '
+                 f'mass="{_f(draw(st.floats(0.02, 0.5)))}"/></body>')
+    qpos = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0] if floating else []
     past = draw(st.lists(st.integers(0, count - 1), min_size=1, max_size=min(3, count), unique=True))
     for i, (_, _, lo, hi, slide) in enumerate(links):
         beyond = draw(st.floats(0.02, 0.1 if slide else 0.5))
@@ -77,9 +95,14 @@ def robot_classes(draw) -> RawDocument:
         if draw(st.booleans()):
             actuators.append('<position joint="right" kp="50" kv="2" ctrlrange="0 .04"/>')
         equality = '<equality><joint joint1="left" joint2="right"/></equality>'
-    ctrl = " ".join("0" for _ in actuators)
-    key = f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}" ctrl="{ctrl}"/></keyframe>' if actuators else \
-        f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}"/></keyframe>'
-    xml = (f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"/>'
+    qvel = [0.0] * ((6 if floating else 0) + count + (2 if gripper else 0))
+    if tossed:
+        qpos += [1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+        qvel += [draw(st.floats(-1, 1)) for _ in range(3)] + [draw(st.floats(-5, 5)) for _ in range(3)]
+    ctrl = f' ctrl="{" ".join("0" for _ in actuators)}"' if actuators else ""
+    key = (f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}" qvel="{" ".join(_f(float(v)) for v in qvel)}"{ctrl}/>'
+           '</keyframe>')
+    solver = ' iterations="1" ls_iterations="5"' if draw(st.integers(0, 3)) == 0 else ""  # Playground's setting
+    xml = (f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"{solver}/>'
            f'<worldbody>{body}</worldbody><actuator>{"".join(actuators)}</actuator>{equality}{key}</mujoco>')
     return RawDocument(xml, label="robot class")
