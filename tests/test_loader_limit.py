@@ -293,3 +293,32 @@ def test_a_gripper_with_a_part_jammed_inside_another_stays_calm(jam_rule, monkey
     paired = paired_rollout(result, model, mujoco.MjData(model), 50, lambda step, data: rng.uniform(low, high))
     assert (paired.sapien_speed.max() < JAMMED_SPEED_FLOOR) == jam_rule, (paired.sapien_speed.max(),
                                                                          paired.mujoco_speed.max())
+
+
+LENT = """<mujoco><option timestep="0.002"/><worldbody>
+  <body pos="0 0 1"><joint name="ball" type="ball" range="0 40" frictionloss="0.01"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/>
+    <body pos=".3 0 0"><joint name="hinge" axis="0 1 0" range="-30 30" frictionloss="0.01"/>
+      <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/></body></body></worldbody>
+  <actuator><motor joint="ball" gear="0 1 0"/><motor joint="hinge"/></actuator></mujoco>"""
+
+
+def test_the_rows_solve_with_the_loaded_model_and_leave_it_as_it_was():
+    """MuJoCo's copy for the rows is the loaded model lent for each solve (`rows.LentModel`): what the copy changes
+    (the ball joint's limit and friction, the unmapped actuator's gains) and the flags the solve sets are in it only
+    while MuJoCo solves, so `result.model` reads the same after steps as before them, number for number."""
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(LENT))
+    lent = result.controller.term("rows").lent
+    assert lent.model is result.model and not lent.copied
+    assert {field for field, _, _ in lent.overrides} >= {"jnt_limited", "dof_frictionloss"}
+    before = mujoco.MjModel.from_xml_string(LENT)
+    for disabled in (False, True):  # the solve turns actuation off in the flags while the actuators are
+        result.disable_actuators(disabled)
+        for _ in range(10):
+            result.set_ctrl(np.array([0.2, -0.1]))
+            result.scene.step()
+    changed = [name for name in dir(before) if isinstance(getattr(before, name), np.ndarray)
+               and not np.array_equal(getattr(before, name), getattr(result.model, name), equal_nan=True)]
+    assert not changed, changed
+    assert result.model.opt.disableflags == before.opt.disableflags
+    assert result.model.opt.timestep == before.opt.timestep

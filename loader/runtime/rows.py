@@ -53,37 +53,95 @@ class HardLimit:
         return low, high
 
 
+class LentModel:
+    """MuJoCo's copy of the model for the rows, as the loaded model itself lent for each solve: the few numbers where
+    the copy differs (`overrides`: (array, flat index, values); the scene's `timestep`) are written in for the solve
+    and put back after it, and so are the flags the solve sets (`with lent as model:`). A real copy duplicates the
+    whole model, meshes included, and costs a large part of a load; `own()` makes one (the solves use it from then
+    on: a caller that edits it changes the rows alone)."""
+
+    def __init__(self, model: mujoco.MjModel, overrides: list[tuple[str, np.ndarray, np.ndarray]], timestep: float):
+        self.model = model
+        self.overrides = overrides
+        self.timestep = timestep
+        self.copied = False
+
+    def __enter__(self) -> mujoco.MjModel:
+        model = self.model
+        self.saved = (model.opt.disableflags, model.opt.timestep,
+                      [self._swap(model, field, index, values) for field, index, values in self.overrides])
+        model.opt.timestep = self.timestep
+        return model
+
+    def __exit__(self, *exc) -> None:
+        model = self.model
+        model.opt.disableflags, model.opt.timestep, own = self.saved
+        for (field, index, _), values in zip(self.overrides, own):
+            self._swap(model, field, index, values)
+
+    @staticmethod
+    def _swap(model: mujoco.MjModel, field: str, index: np.ndarray, values: np.ndarray) -> np.ndarray:
+        array = getattr(model, field).reshape(-1)  # a view: writing it writes the model
+        before = array[index]
+        array[index] = values
+        return before
+
+    def own(self) -> mujoco.MjModel:
+        if not self.copied:
+            copied = copy.deepcopy(self.model)
+            for field, index, values in self.overrides:
+                self._swap(copied, field, index, values)
+            copied.opt.timestep = self.timestep
+            self.model, self.overrides, self.copied = copied, [], True
+        return self.model
+
+
+def overrides(model: mujoco.MjModel, edits: dict[str, dict[int, float]]) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The `edits` (per array, flat index: the copy's value) that change a number of `model`, bit for bit."""
+    found = []
+    for field, at in edits.items():
+        array = getattr(model, field).reshape(-1)
+        index = np.array(sorted(at), dtype=np.intp)
+        values = np.array([at[i] for i in index.tolist()], dtype=array.dtype)
+        own = array[index]
+        differs = (own != values) | (np.signbit(own) != np.signbit(values))
+        if differs.any():
+            found.append((field, index[differs], values[differs]))
+    return found
+
+
 class RowTerm:
-    """Per step: SAPIEN's state, ctrl, activation and applied force into a contact-free copy of the model, MuJoCo's
-    constraint force out, added to the joints' forces."""
+    """Per step: SAPIEN's state, ctrl, activation and applied force into a contact-free copy of the model
+    (`LentModel`), MuJoCo's constraint force out, added to the joints' forces."""
 
     name = "rows"
+    mirror = property(lambda self: self.lent.own(), doc="MuJoCo's copy as the term's own model (`LentModel.own`)")
 
-    def __init__(self, mirror: mujoco.MjModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int],
+    def __init__(self, lent: LentModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int],
                  standby: list | None = None):
-        self.mirror = mirror
-        self.data = mujoco.MjData(mirror)
+        self.lent, model = lent, lent.model
+        self.data = mujoco.MjData(model)
         self.couplings = couplings  # the equalities MuJoCo's copy solves
         self.standby = standby or []  # the D6 joints that hold those loops after release() (runtime/equalities.py)
         self.data.eq_active[:] = 0
-        self.data.eq_active[couplings] = mirror.eq_active0[couplings]
+        self.data.eq_active[couplings] = model.eq_active0[couplings]
         self.mapping = mapping
         self.set_limits(limits)
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]  # the hinge/slide DoFs the rows' force reaches
-        self.mujoco_dofs = np.array([int(mirror.jnt_dofadr[j]) for j, _ in joints], dtype=int)
-        self.push = RootPush(mirror, mapping)  # a free joint's share of an unconverged solve
+        self.mujoco_dofs = np.array([int(model.jnt_dofadr[j]) for j, _ in joints], dtype=int)
+        self.push = RootPush(model, mapping)  # a free joint's share of an unconverged solve
         self.soft = False
-        self.flags = int(mirror.opt.disableflags)  # the model's own
-        self.contacts = not mj.disabled(mirror, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
+        self.flags = int(model.opt.disableflags)  # the model's own
+        self.contacts = not mj.disabled(model, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
-        self.accelerated = accelerated(mirror)  # MuJoCo integrates the solver's qacc (`integrated.py`)
+        self.accelerated = accelerated(model)  # MuJoCo integrates the solver's qacc (`integrated.py`)
 
     def compile(self, layout) -> None:
         """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
         self.flat = layout.flat_of(self.keys)
         self.limit_flat = layout.flat_of(self.limit_keys)
-        self.scalar = scalar_state(self.mirror, self.mapping, layout)
+        self.scalar = scalar_state(self.lent.model, self.mapping, layout)
 
     def set_limits(self, limits: list[HardLimit]) -> None:
         """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
@@ -98,9 +156,10 @@ class RowTerm:
         if not self.soft:
             self.hold(step.joints, soft=True)
         self.clear_of(step)
-        self.mirror_state(step)
-        solve(self.mirror, self.data, self.contacts, step.timestep, self.depenetration)
-        force = self.joint_rows()
+        with self.lent as model:
+            self.mirror_state(step)
+            solve(model, self.data, self.contacts, step.timestep, self.depenetration)
+            force = self.joint_rows()
         step.force[self.flat] += force[self.mujoco_dofs]
         if step.advance:
             self.push(self.data, force, step.layout.links)
@@ -112,15 +171,15 @@ class RowTerm:
         """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
         PhysX's to apply), as MuJoCo's step integrates it (`integrated.py`)."""
         rows = np.isin(self.data.efc_type[:self.data.nefc], JOINT_ROWS)
-        return integrated_force(self.mirror, self.data, rows, self.accelerated, self.contacts)
+        return integrated_force(self.lent.model, self.data, rows, self.accelerated, self.contacts)
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
         and actuation off while the loader's actuators are."""
-        data, mirror = self.data, self.mirror
+        data, model = self.data, self.lent.model
         actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         flags = (self.flags | actuation) if not step.actuated else self.flags
-        mirror.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        model.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         if self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
             data.qpos[:], data.qvel[:] = step.q[self.scalar], step.v[self.scalar]
         else:
@@ -166,7 +225,7 @@ class RowTerm:
             if soft:
                 loop.stand_by()
             else:
-                loop.lock(float(self.mirror.opt.timestep))
+                loop.lock(self.lent.timestep)
         self.soft = soft
 
     def release(self, joints) -> None:
@@ -252,23 +311,27 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
                or (model.tendon_frictionloss[t] > 0 and not mj.disabled(model, "frictionloss"))]
     if not limited and not frictional and not couplings and not tendons:
         return None
-    mirror = copy.deepcopy(model)
-    if timestep is not None:
-        mirror.opt.timestep = timestep  # MuJoCo solves the rows for one step of the scene
+    edits: dict[str, dict[int, float]] = {}  # what MuJoCo's copy changes: per array, flat index -> value
+
+    def edit(field: str, start: int, count: int, value: float) -> None:
+        edits.setdefault(field, {}).update((i, value) for i in range(start, start + count))
+
     for j, target in enumerate(mapping.joints):
         if target.kind not in MAPPED_JOINTS:
-            mirror.jnt_limited[j] = 0
-            dof, count = int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1)
-            mirror.dof_frictionloss[dof:dof + count] = 0.0
+            edit("jnt_limited", j, 1, 0)
+            edit("dof_frictionloss", int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1), 0.0)
     for t in range(model.ntendon):
         moved = tendon_dofs(model, t)
         if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(model, moved):
-            mirror.tendon_limited[t], mirror.tendon_frictionloss[t] = 0, 0.0
+            edit("tendon_limited", t, 1, 0)
+            edit("tendon_frictionloss", t, 1, 0.0)
             notes.drop("tendon", mj.name(model, "tendon", t), "length limit and frictionloss not mapped: the tendon "
                        "moves a ball or free joint, which takes no joint force in SAPIEN")
     for a in unmapped_actuators:
-        mirror.actuator_gainprm[a] = 0.0
-        mirror.actuator_biasprm[a] = 0.0
+        for field in ("actuator_gainprm", "actuator_biasprm"):
+            width = getattr(model, field).shape[1]
+            edit(field, a * width, width, 0.0)
     limits = [HardLimit((mapping.joints[j].articulation, mapping.joints[j].dofs[0]), *map(float, model.jnt_range[j]),
                         slide=mapping.joints[j].kind == "slide") for j in limited]
-    return RowTerm(mirror, mapping, limits, couplings, standby)
+    lent = LentModel(model, overrides(model, edits), float(model.opt.timestep if timestep is None else timestep))
+    return RowTerm(lent, mapping, limits, couplings, standby)
