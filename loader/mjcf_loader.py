@@ -14,7 +14,7 @@ import numpy as np
 import sapien
 
 from . import mj
-from .build import physx_settings
+from .build import hulls, physx_settings
 from .build.builders import MJCFActorBuilder, MJCFArticulationBuilder
 from .build.camera import CameraConfig, cameras, sites
 from .build.compile import CompiledModel, compile_mjcf
@@ -111,6 +111,7 @@ class MJCFLoader:
         shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes)
                   for g in kept if collides(model, g)}
         shapes = {g: s for g, s in shapes.items() if s is not None}
+        hulls.plan_sharing(shapes.values())
         contact_filter = plan_collision_filter(
             model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
         for g, shape in shapes.items():

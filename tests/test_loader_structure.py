@@ -355,3 +355,45 @@ def test_a_frame_quaternion_the_compiler_left_unnormalized_is_a_typed_error(elem
     assert where in str(caught.value)
     monkeypatch.setattr(loader.mjcf_loader, "check_numbers", lambda model, path: None)
     MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+
+
+def test_a_shared_mesh_is_cooked_once(tmp_path, monkeypatch):
+    """Three geoms of one mesh get their hull from one file of `loader/build/hulls.py` (cooked once), a mesh of one
+    geom is cooked from memory, a second load cooks neither from memory again, and every hull is the one PhysX
+    cooks from the mesh's vertices (101 and 50 of them: the file pads the last triangle)."""
+    import sapien
+
+    rng = np.random.default_rng(20261125)
+
+    def cloud(n: int) -> str:
+        return " ".join(f"{x:.5f}" for x in rng.uniform(-0.05, 0.05, 3 * n))
+
+    path = tmp_path / "meshes.xml"
+    path.write_text(f"""<mujoco><asset><mesh name="shared" vertex="{cloud(101)}"/>
+      <mesh name="single" vertex="{cloud(50)}"/></asset>
+      <worldbody><body pos="0 0 1"><freejoint/><geom type="mesh" mesh="shared"/>
+        <geom type="mesh" mesh="shared" pos=".2 0 0"/><geom type="mesh" mesh="shared" pos=".4 0 0"/>
+        <geom type="mesh" mesh="single" pos=".6 0 0"/></body></worldbody></mujoco>""")
+    convex = sapien.physx.PhysxCollisionShapeConvexMesh
+    sources = []
+
+    def recorded(source, scale, material):
+        sources.append(source if isinstance(source, str) else "memory")
+        return convex(source, scale, material)
+
+    monkeypatch.setattr(sapien.physx, "PhysxCollisionShapeConvexMesh", recorded)
+    result = MJCFLoader().load(path)
+    assert sources[3] == "memory" and sources[0] != "memory" and sources[:3] == [sources[0]] * 3, sources
+    sources.clear()
+    MJCFLoader().load(path)
+    assert "memory" not in sources and len(set(sources)) == 2, sources
+    model = result.model
+    shapes = result.articulations[0].links[0].collision_shapes
+    assert len(shapes) == 4
+    for g, shape in enumerate(shapes):
+        mesh = int(model.geom_dataid[g])
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        cooked = convex(np.ascontiguousarray(model.mesh_vert[start:start + count], np.float32), np.ones(3, np.float32),
+                        shape.physical_material)
+        assert np.array_equal(shape.get_vertices(), cooked.get_vertices())
+        assert np.array_equal(shape.get_triangles(), cooked.get_triangles())

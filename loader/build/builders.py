@@ -10,6 +10,7 @@ import sapien
 from sapien.wrapper.actor_builder import ActorBuilder
 from sapien.wrapper.articulation_builder import ArticulationBuilder, LinkBuilder
 
+from . import hulls
 from . import physx_settings as physx
 from .geom import ShapePlan
 from .tree import LinkPlan
@@ -38,9 +39,7 @@ def make_shape(plan: ShapePlan, dynamic: bool) -> sapien.physx.PhysxCollisionSha
     elif plan.kind == "plane":
         shape = sapien.physx.PhysxCollisionShapePlane(material=material)
     elif plan.kind == "convex":
-        shape = sapien.physx.PhysxCollisionShapeConvexMesh(
-            np.ascontiguousarray(plan.vertices, np.float32), np.asarray(plan.scale, np.float32), material
-        )
+        shape = hulls.convex_shape(plan.vertices, plan.scale, material, plan.mesh_key, plan.shared)
     elif plan.kind == "triangles":
         shape = sapien.physx.PhysxCollisionShapeTriangleMesh(
             np.ascontiguousarray(plan.vertices, np.float32), np.ascontiguousarray(plan.triangles, np.uint32),

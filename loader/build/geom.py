@@ -41,6 +41,8 @@ class ShapePlan:
     scale: np.ndarray = field(default_factory=lambda: np.ones(3))
     friction: float = 1.0
     groups: list[int] = field(default_factory=lambda: [0, 0, 0, 0])
+    mesh_key: str | None = None  # a convex shape's vertex set (`hulls.plan_sharing`)
+    shared: bool = False  # ... which another shape of the load has too: cooked once for both
 
 
 def collides(model: mujoco.MjModel, g: int) -> bool:
