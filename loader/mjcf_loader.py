@@ -108,7 +108,8 @@ class MJCFLoader:
         kept = [g for g in range(model.ngeom) if geom_class.get(g) not in self.ignore_classes]
         static = {0} | ({b for b in range(model.nbody) if model.body_weldid[b] == 0} if self.fix_root_link else set())
         contact_off = mj.disabled(model, "contact", "constraint")
-        shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes)
+        meshes: dict = {}
+        shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes, meshes)
                   for g in kept if collides(model, g)}
         shapes = {g: s for g, s in shapes.items() if s is not None}
         hulls.plan_sharing(shapes.values())

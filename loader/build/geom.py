@@ -91,8 +91,10 @@ def hfield_triangles(model: mujoco.MjModel, h: int) -> tuple[np.ndarray, np.ndar
     return vertices, triangles
 
 
-def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes) -> ShapePlan | None:
-    """The collision shape of geom `g` (None when it gets none); `static` says the body never moves."""
+def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes,
+               meshes: dict[int, np.ndarray] | None = None) -> ShapePlan | None:
+    """The collision shape of geom `g` (None when it gets none); `static` says the body never moves. `meshes`
+    keeps each mesh's vertices for the geoms after the first that use it (one array, read only)."""
     gtype = int(model.geom_type[g])
     size = model.geom_size[g]
     geom_pose = pose(model.geom_pos[g], model.geom_quat[g])
@@ -119,7 +121,11 @@ def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes) -> Sha
                          friction=friction)
     if gtype == MESH:
         mesh = int(model.geom_dataid[g])
-        vertices = mesh_vertices(model, mesh)
+        vertices = meshes.get(mesh) if meshes is not None else None
+        if vertices is None:
+            vertices = mesh_vertices(model, mesh)
+            if meshes is not None:
+                meshes[mesh] = vertices
         if len(vertices) > PHYSX_HULL_VERTEX_LIMIT:
             hull = model.mesh_graph[model.mesh_graphadr[mesh]] if model.mesh_graphadr[mesh] >= 0 else 0
             if hull > PHYSX_HULL_VERTEX_LIMIT:

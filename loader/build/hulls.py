@@ -36,15 +36,16 @@ _folder: list[str] = []  # this process's folder of hull files, made on first us
 def key(vertices: np.ndarray) -> str:
     """A vertex set's identity: the digest of its float32 coordinates in order."""
     data = np.ascontiguousarray(vertices, np.float32)
-    return f"{len(data)}-{hashlib.blake2b(data.tobytes(), digest_size=16).hexdigest()}"
+    return f"{len(data)}-{hashlib.sha256(memoryview(data).cast('B')).hexdigest()}"
 
 
 def plan_sharing(plans: Iterable) -> None:
     """Mark the convex shape plans of one load whose vertex set another of them has too (`shared`), each with its
     vertex set's `mesh_key`."""
     convex = [plan for plan in plans if plan.kind == "convex"]
+    keys: dict[int, str] = {}  # by vertex array: geoms of one mesh share theirs (`geom.plan_shape`)
     for plan in convex:
-        plan.mesh_key = key(plan.vertices)
+        plan.mesh_key = keys.get(id(plan.vertices)) or keys.setdefault(id(plan.vertices), key(plan.vertices))
     uses = Counter(plan.mesh_key for plan in convex)
     for plan in convex:
         plan.shared = uses[plan.mesh_key] > 1

@@ -320,9 +320,9 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
         if target.kind not in MAPPED_JOINTS:
             edit("jnt_limited", j, 1, 0)
             edit("dof_frictionloss", int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1), 0.0)
-    for t in range(model.ntendon):
-        moved = tendon_dofs(model, t)
-        if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(model, moved):
+    for t in range(model.ntendon):  # a tendon's DoFs, only where it has rows: finding them walks its path
+        if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(
+                model, tendon_dofs(model, t)):
             edit("tendon_limited", t, 1, 0)
             edit("tendon_frictionloss", t, 1, 0.0)
             notes.drop("tendon", mj.name(model, "tendon", t), "length limit and frictionloss not mapped: the tendon "
