@@ -101,3 +101,29 @@ def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at
         loaded.articulations[0].solver_position_iterations = at_qpos0
     result, model = contact_free(FOLDING_ARM, qpos0_only)
     assert replay(result, model, _arm_ctrl, 1.0).max() > ROLLOUT_TOLERANCE
+
+
+def test_the_radii_run_on_one_blas_thread(monkeypatch):
+    """The load's linear algebra (each tree's inverse inertia, the radii) runs on one BLAS thread whatever the
+    process runs with, and back on its threads after: threaded, a humanoid's took a hundred times longer on busy
+    shared cores for the same numbers."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import loader.mj
+
+    def blas_threads() -> set[int]:
+        return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+    seen = []
+    pinv = np.linalg.pinv
+
+    def recorded(*args, **kwargs):
+        seen.append(blas_threads())
+        return pinv(*args, **kwargs)
+
+    monkeypatch.setattr(loader.mj.np.linalg, "pinv", recorded)
+    with threadpool_limits(limits=2, user_api="blas"):
+        MJCFLoader().load(suite_path("humanoid"))
+        after = blas_threads()
+    assert seen and all(threads == {1} for threads in seen), seen
+    assert after == {2}

@@ -7,10 +7,12 @@ docs/mapping.md#solver-iterations.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from .. import mj
 from ..drive import DofDrive
@@ -110,9 +112,23 @@ def largest_radii(model: mujoco.MjModel, controller: Controller, mapping: Mappin
     return largest
 
 
+@lru_cache(maxsize=1)
+def _blas() -> ThreadpoolController:
+    return ThreadpoolController()  # the BLAS libraries loaded (numpy's, loaded before the loader)
+
+
+def one_blas_thread():
+    """A block in which numpy's BLAS runs on one thread. The radii's matrices are a tree's DoFs wide: a threaded
+    BLAS on busy shared cores waits for its other threads far longer than it computes, and one thread gives the
+    same numbers (tests/test_loader_solver.py::test_the_radii_run_on_one_blas_thread)."""
+    return _blas().limit(limits=1, user_api="blas")
+
+
 def tune_iterations(articulations, model: mujoco.MjModel, controller: Controller, mapping: Mapping, notes) -> None:
     """Raise each articulation's position iterations to what its drives need (never lowers them)."""
-    for art, radius in largest_radii(model, controller, mapping).items():
+    with one_blas_thread():
+        radii = largest_radii(model, controller, mapping)
+    for art, radius in radii.items():
         articulation = articulations[art]
         needed = sweeps_needed(radius)
         articulation.solver_position_iterations = max(articulation.solver_position_iterations, needed)
