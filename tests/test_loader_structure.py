@@ -11,6 +11,7 @@ from support.corpus import FIXTURES, suite_path
 from support.oracle import POSE_TOLERANCE, link_pose_errors
 
 from loader import MJCFLoader, UnsupportedFeatureWarning
+from loader.build.geom import hfield_triangles
 
 
 def test_unnamed_bodies_load_with_unique_link_names(load, rng):
@@ -359,41 +360,53 @@ def test_a_frame_quaternion_the_compiler_left_unnormalized_is_a_typed_error(elem
 
 def test_a_shared_mesh_is_cooked_once(tmp_path, monkeypatch):
     """Three geoms of one mesh get their hull from one file of `loader/build/hulls.py` (cooked once), a mesh of one
-    geom is cooked from memory, a second load cooks neither from memory again, and every hull is the one PhysX
-    cooks from the mesh's vertices (101 and 50 of them: the file pads the last triangle)."""
+    geom and a height field are cooked from memory, a second load cooks none of them from memory again, and every
+    hull and triangle mesh is the one PhysX cooks from the same vertices (101 and 50 of them: the STL pads the last
+    triangle)."""
     import sapien
 
     rng = np.random.default_rng(20261125)
 
-    def cloud(n: int) -> str:
-        return " ".join(f"{x:.5f}" for x in rng.uniform(-0.05, 0.05, 3 * n))
+    def numbers(n: int, low: float = -0.05) -> str:
+        return " ".join(f"{x:.5f}" for x in rng.uniform(low, 0.05, n))
 
     path = tmp_path / "meshes.xml"
-    path.write_text(f"""<mujoco><asset><mesh name="shared" vertex="{cloud(101)}"/>
-      <mesh name="single" vertex="{cloud(50)}"/></asset>
-      <worldbody><body pos="0 0 1"><freejoint/><geom type="mesh" mesh="shared"/>
+    path.write_text(f"""<mujoco><asset><mesh name="shared" vertex="{numbers(303)}"/>
+      <mesh name="single" vertex="{numbers(150)}"/>
+      <hfield name="ground" nrow="5" ncol="7" size="1 1 .2 .1" elevation="{numbers(35, 0.0)}"/></asset>
+      <worldbody><geom type="hfield" hfield="ground"/>
+        <body pos="0 0 1"><freejoint/><geom type="mesh" mesh="shared"/>
         <geom type="mesh" mesh="shared" pos=".2 0 0"/><geom type="mesh" mesh="shared" pos=".4 0 0"/>
         <geom type="mesh" mesh="single" pos=".6 0 0"/></body></worldbody></mujoco>""")
-    convex = sapien.physx.PhysxCollisionShapeConvexMesh
+    convex, triangles = sapien.physx.PhysxCollisionShapeConvexMesh, sapien.physx.PhysxCollisionShapeTriangleMesh
     sources = []
 
-    def recorded(source, scale, material):
-        sources.append(source if isinstance(source, str) else "memory")
-        return convex(source, scale, material)
+    def recorded(kind):
+        def make(*args, **kwargs):
+            sources.append(args[0] if isinstance(args[0], str) else "memory")
+            return kind(*args, **kwargs)
+        return make
 
-    monkeypatch.setattr(sapien.physx, "PhysxCollisionShapeConvexMesh", recorded)
+    monkeypatch.setattr(sapien.physx, "PhysxCollisionShapeConvexMesh", recorded(convex))
+    monkeypatch.setattr(sapien.physx, "PhysxCollisionShapeTriangleMesh", recorded(triangles))
     result = MJCFLoader().load(path)
-    assert sources[3] == "memory" and sources[0] != "memory" and sources[:3] == [sources[0]] * 3, sources
+    hulls = sources[:4]  # the body's, then the world's height field
+    assert hulls[3] == "memory" and hulls[0] != "memory" and hulls[:3] == [hulls[0]] * 3, sources
+    assert sources[4:] == ["memory"], sources
     sources.clear()
     MJCFLoader().load(path)
-    assert "memory" not in sources and len(set(sources)) == 2, sources
+    assert "memory" not in sources and len(set(sources)) == 3, sources
     model = result.model
     shapes = result.articulations[0].links[0].collision_shapes
     assert len(shapes) == 4
-    for g, shape in enumerate(shapes):
+    for g, shape in enumerate(shapes, start=1):
         mesh = int(model.geom_dataid[g])
         start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
         cooked = convex(np.ascontiguousarray(model.mesh_vert[start:start + count], np.float32), np.ones(3, np.float32),
                         shape.physical_material)
         assert np.array_equal(shape.get_vertices(), cooked.get_vertices())
         assert np.array_equal(shape.get_triangles(), cooked.get_triangles())
+    ground = result.actors[0].components[-1].collision_shapes[0]
+    cooked = triangles(*hfield_triangles(model, 0), np.ones(3, np.float32), ground.physical_material)
+    assert np.array_equal(ground.get_vertices(), cooked.get_vertices())
+    assert np.array_equal(ground.get_triangles(), cooked.get_triangles())

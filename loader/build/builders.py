@@ -40,10 +40,12 @@ def make_shape(plan: ShapePlan, dynamic: bool) -> sapien.physx.PhysxCollisionSha
         shape = sapien.physx.PhysxCollisionShapePlane(material=material)
     elif plan.kind == "convex":
         shape = hulls.convex_shape(plan.vertices, plan.scale, material, plan.mesh_key, plan.shared)
+    elif plan.kind == "triangles" and not dynamic:
+        shape = hulls.triangle_shape(plan.vertices, plan.triangles, np.ones(3, np.float32), material)
     elif plan.kind == "triangles":
         shape = sapien.physx.PhysxCollisionShapeTriangleMesh(
             np.ascontiguousarray(plan.vertices, np.float32), np.ascontiguousarray(plan.triangles, np.uint32),
-            np.ones(3, np.float32), material, sdf=dynamic,
+            np.ones(3, np.float32), material, sdf=True,
         )
     else:
         raise ValueError(f"unknown shape kind {plan.kind!r}")

@@ -1,15 +1,17 @@
-"""Convex hulls cooked once per vertex set.
+"""Collision meshes cooked once per vertex set.
 
-PhysX cooks a convex hull from the vertices every time SAPIEN makes a convex shape from vertices, and SAPIEN 3.0.3
-makes a convex shape only from vertices or from a file: no shape from another shape's cooked mesh. From a file,
-though, it cooks once and keeps the hull for every later shape of that file. So a vertex set met a second time (a
-mesh several geoms share, or one a later load in this process meets again) is written once to a file of this
-process, and its shapes come from that file: cooked on first use, shared after, like MuJoCo's own mesh cache. A
-vertex set met once is cooked from memory (a file's first use costs about half as much again).
+PhysX cooks a convex hull (or a triangle mesh) from the vertices every time SAPIEN makes a shape from vertices, and
+SAPIEN 3.0.3 makes such a shape only from vertices or from a file: no shape from another shape's cooked mesh. From
+a file, though, it cooks once and keeps the mesh for every later shape of that file. So a vertex set met a second
+time (a mesh several geoms share, or one a later load in this process meets again) is written once to a file of
+this process, and its shapes come from that file: cooked on first use, shared after, like MuJoCo's own mesh cache.
+A vertex set met once is cooked from memory (a file's first use costs about half as much again).
 
-The file is binary STL: the same float32 vertices in the same order (its triangles are consecutive vertices, the
-last one padded with the last vertex, a duplicate PhysX drops before it builds the hull), so the hull is the one
-PhysX cooks from memory, vertex for vertex (tests/test_loader_structure.py::test_a_shared_mesh_is_cooked_once).
+A hull's file is binary STL: the same float32 vertices in the same order (its triangles are consecutive vertices,
+the last one padded with the last vertex, a duplicate PhysX drops before it builds the hull); a triangle mesh's
+(a height field's) is binary PLY with the same vertices and triangles, each vertex led by a byte SAPIEN's reader
+skips (it takes whitespace bytes right after the header for padding). Either way the mesh is the one PhysX cooks
+from memory, vertex for vertex (tests/test_loader_structure.py::test_a_shared_mesh_is_cooked_once).
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ import sapien
 
 _STL_HEADER = bytes(80)  # a binary STL's header: anything but a leading "solid" (which would mean ASCII)
 _FACET = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+_PLY_VERTEX = np.dtype([("lead", "u1"), ("xyz", "<f4", 3)])
+_PLY_FACE = np.dtype([("count", "u1"), ("corners", "<i4", 3)])
 
 _seen: set[str] = set()  # vertex sets cooked from memory in this process
 _files: dict[str, str] = {}  # vertex set -> its file (SAPIEN keeps the hull it cooked from it)
@@ -59,28 +63,58 @@ def convex_shape(vertices: np.ndarray, scale: np.ndarray, material: sapien.physx
     scale = np.asarray(scale, np.float32)
     mesh_key = mesh_key or key(vertices)
     if shared or mesh_key in _seen or mesh_key in _files:
-        return sapien.physx.PhysxCollisionShapeConvexMesh(_file(mesh_key, vertices), scale, material)
+        return sapien.physx.PhysxCollisionShapeConvexMesh(_file(mesh_key, vertices, None), scale, material)
     shape = sapien.physx.PhysxCollisionShapeConvexMesh(vertices, scale, material)
     _seen.add(mesh_key)
     return shape
 
 
-def _file(mesh_key: str, vertices: np.ndarray) -> str:
-    """The vertex set's file, written where it is not there yet (SAPIEN looks a file up by its path, and needs it
-    present even for a hull it keeps)."""
+def triangle_shape(vertices: np.ndarray, triangles: np.ndarray, scale: np.ndarray,
+                   material: sapien.physx.PhysxMaterial) -> sapien.physx.PhysxCollisionShapeTriangleMesh:
+    """A triangle mesh shape without an SDF (a static one): from its file where met before in this process, else
+    cooked from memory."""
+    vertices = np.ascontiguousarray(vertices, np.float32)
+    triangles = np.ascontiguousarray(triangles, np.uint32)
+    scale = np.asarray(scale, np.float32)
+    mesh_key = f"{key(vertices)}-{key(triangles.view(np.float32))}"
+    if mesh_key in _seen or mesh_key in _files:
+        return sapien.physx.PhysxCollisionShapeTriangleMesh(_file(mesh_key, vertices, triangles), scale, material)
+    shape = sapien.physx.PhysxCollisionShapeTriangleMesh(vertices, triangles, scale, material)
+    _seen.add(mesh_key)
+    return shape
+
+
+def _file(mesh_key: str, vertices: np.ndarray, triangles: np.ndarray | None) -> str:
+    """The mesh's file (a hull's without `triangles`), written where it is not there yet (SAPIEN looks a file up by
+    its path, and needs it present even for a mesh it keeps)."""
     path = _files.get(mesh_key)
     if path is not None and os.path.isfile(path):
         return path
-    path = os.path.join(_hull_folder(), f"{mesh_key}.stl")
-    padded = np.concatenate([vertices, np.repeat(vertices[-1:], -len(vertices) % 3, axis=0)])
-    facets = np.zeros(len(padded) // 3, _FACET)
-    facets["corners"] = padded.reshape(-1, 3, 3)
+    path = os.path.join(_hull_folder(), f"{mesh_key}.{'stl' if triangles is None else 'ply'}")
     partial = f"{path}.{os.getpid()}.part"
     with open(partial, "wb") as out:
-        out.write(_STL_HEADER + np.uint32(len(facets)).astype("<u4").tobytes() + facets.tobytes())
+        out.write(_stl(vertices) if triangles is None else _ply(vertices, triangles))
     os.replace(partial, path)
     _files[mesh_key] = path
     return path
+
+
+def _stl(vertices: np.ndarray) -> bytes:
+    padded = np.concatenate([vertices, np.repeat(vertices[-1:], -len(vertices) % 3, axis=0)])
+    facets = np.zeros(len(padded) // 3, _FACET)
+    facets["corners"] = padded.reshape(-1, 3, 3)
+    return _STL_HEADER + np.uint32(len(facets)).astype("<u4").tobytes() + facets.tobytes()
+
+
+def _ply(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
+    points = np.zeros(len(vertices), _PLY_VERTEX)
+    points["lead"], points["xyz"] = 1, vertices
+    faces = np.zeros(len(triangles), _PLY_FACE)
+    faces["count"], faces["corners"] = 3, triangles
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\nproperty uchar lead\n"
+              f"property float x\nproperty float y\nproperty float z\nelement face {len(faces)}\n"
+              "property list uchar int vertex_indices\nend_header\n")
+    return header.encode() + points.tobytes() + faces.tobytes()
 
 
 def _hull_folder() -> str:
