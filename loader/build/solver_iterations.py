@@ -7,7 +7,6 @@ docs/mapping.md#solver-iterations.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -112,16 +111,16 @@ def largest_radii(model: mujoco.MjModel, controller: Controller, mapping: Mappin
     return largest
 
 
-@lru_cache(maxsize=1)
-def _blas() -> ThreadpoolController:
-    return ThreadpoolController()  # the BLAS libraries loaded (numpy's, loaded before the loader)
+# the BLAS libraries loaded (numpy's, loaded before the loader), found once per process: the search walks every
+# loaded library, which would cost a small model's first load more than MuJoCo's compile of it
+_BLAS = ThreadpoolController()
 
 
 def one_blas_thread():
     """A block in which numpy's BLAS runs on one thread. The radii's matrices are a tree's DoFs wide: a threaded
     BLAS on busy shared cores waits for its other threads far longer than it computes, and one thread gives the
     same numbers (tests/test_loader_solver.py::test_the_radii_run_on_one_blas_thread)."""
-    return _blas().limit(limits=1, user_api="blas")
+    return _BLAS.limit(limits=1, user_api="blas")
 
 
 def tune_iterations(articulations, model: mujoco.MjModel, controller: Controller, mapping: Mapping, notes) -> None:
