@@ -69,7 +69,10 @@ def test_a_reference_to_a_moved_or_renamed_test_is_found():
 
 def test_a_loader_import_beyond_its_core_dependencies_is_found():
     files = {"loader/a.py": "import os\nimport numpy as np\nfrom sapien import physx\nfrom . import b\n",
-             "loader/b.py": "def f():\n    import rerun\n    from tqdm import tqdm\n"}
+             "loader/b.py": "def f():\n    import rerun\n    from tqdm import tqdm\n",
+             "loader/c.py": "try:\n    import threadpoolctl\nexcept ImportError:\n    threadpoolctl = None\n"
+                            "try:\n    import torch\nexcept ValueError:\n    pass\n"}
     assert house.foreign_imports(files) == [
         "loader/b.py:2: imports rerun, which the loader's install does not have",
-        "loader/b.py:3: imports tqdm, which the loader's install does not have"]
+        "loader/b.py:3: imports tqdm, which the loader's install does not have",
+        "loader/c.py:6: imports torch, which the loader's install does not have"]  # not guarded by ImportError

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-CORE = {"mujoco", "sapien", "numpy", "threadpoolctl"}  # what `loader` imports (tests/support/house.py checks the imports)
+CORE = {"mujoco", "sapien", "numpy"}  # what `loader` imports (tests/support/house.py checks the imports)
 
 
 @pytest.fixture(scope="module")

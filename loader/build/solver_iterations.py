@@ -6,12 +6,12 @@ docs/mapping.md#solver-iterations.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
 from .. import mj
 from ..drive import DofDrive
@@ -111,16 +111,25 @@ def largest_radii(model: mujoco.MjModel, controller: Controller, mapping: Mappin
     return largest
 
 
-# the BLAS libraries loaded (numpy's, loaded before the loader), found once per process: the search walks every
-# loaded library, which would cost a small model's first load more than MuJoCo's compile of it
-_BLAS = ThreadpoolController()
+def _blas():
+    """The BLAS libraries loaded (numpy's, loaded before the loader), found once per process, through threadpoolctl
+    where it is installed (the `harness` extra; the loader's own install does without it)."""
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    return ThreadpoolController()
+
+
+_BLAS = _blas()
 
 
 def one_blas_thread():
     """A block in which numpy's BLAS runs on one thread. The radii's matrices are a tree's DoFs wide: a threaded
     BLAS on busy shared cores waits for its other threads far longer than it computes, and one thread gives the
-    same numbers (tests/test_loader_solver.py::test_the_radii_run_on_one_blas_thread)."""
-    return _BLAS.limit(limits=1, user_api="blas")
+    same numbers (tests/test_loader_solver.py::test_the_radii_run_on_one_blas_thread). Without threadpoolctl the
+    BLAS keeps its threads."""
+    return _BLAS.limit(limits=1, user_api="blas") if _BLAS is not None else contextlib.nullcontext()
 
 
 def tune_iterations(articulations, model: mujoco.MjModel, controller: Controller, mapping: Mapping, notes) -> None:

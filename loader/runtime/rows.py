@@ -189,12 +189,10 @@ class RowTerm:
             data.act[:] = step.act
         data.qfrc_applied[:] = 0.0 if step.qfrc_applied is None else step.qfrc_applied
 
-    def forget(self) -> None:
-        """A state set from outside: the next solve starts without a warm start, as in a new `MjData`."""
+    def forget(self) -> None:  # a state set from outside: the next solve starts cold, as in a new MjData
         self.data.qacc_warmstart[:] = 0.0
 
-    def set_active(self, equality: int, active: bool) -> None:
-        """MuJoCo's `eq_active` of a joint or tendon coupling."""
+    def set_active(self, equality: int, active: bool) -> None:  # MuJoCo's eq_active of a joint or tendon coupling
         self.data.eq_active[equality] = int(active)
 
     def clear_of(self, step: Step) -> None:

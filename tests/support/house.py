@@ -5,7 +5,8 @@
 - no class over `MAX_CLASS_LINES` lines in `loader/`;
 - no module reading another object's private (`_name`) attribute;
 - `loader/` imports nothing beyond the standard library and its core dependencies (`CORE`), but for
-  `loader/maniskill/`, which may import what the `maniskill` extra installs (`MANISKILL`);
+  `loader/maniskill/`, which may import what the `maniskill` extra installs (`MANISKILL`), and an optional import
+  guarded by `except ImportError`;
 - every relative link in README.md and docs/*.md resolves (file and `#anchor`), every `tests/<file>.py::<test>`
   they or the source name exists, and README.md stays under `MAX_README_LINES` lines.
 
@@ -23,7 +24,7 @@ E_NOTATION = re.compile(r"(?<![\w.])\d+(?:\.\d+)?[eE][-+]?\d+\b")
 MAX_CLASS_LINES = 120
 MAX_README_LINES = 120
 PACKAGES = ("loader", "conformance")
-CORE = ("mujoco", "sapien", "numpy", "threadpoolctl")  # the loader's install: everything else is an extra
+CORE = ("mujoco", "sapien", "numpy")  # the loader's install: everything else is an extra
 MANISKILL = ("loader/maniskill/", ("mani_skill", "torch", "gymnasium"))  # the one module the `maniskill` extra adds
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 TEST_REFERENCE = re.compile(r"(tests/[\w/]+\.py)::(\w+)")
@@ -170,14 +171,24 @@ def foreign_imports(files: dict[str, str], allowed=CORE) -> list[str]:
     project's own packages."""
     out = []
     for path, text in files.items():
-        for node in ast.walk(ast.parse(text)):
+        tree = ast.parse(text)
+        optional = {id(node) for guard in ast.walk(tree) if isinstance(guard, ast.Try) and _catches_import_error(guard)
+                    for statement in guard.body for node in ast.walk(statement)}  # used where installed
+        for node in ast.walk(tree):
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
                 [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
+            if id(node) in optional:
+                continue
             for name in names:
                 top = name.split(".")[0]
                 if top not in sys.stdlib_module_names and top not in allowed and top not in PACKAGES:
                     out.append(f"{path}:{node.lineno}: imports {top}, which the loader's install does not have")
     return out
+
+
+def _catches_import_error(guard: ast.Try) -> bool:
+    return any(isinstance(h.type, ast.Name) and h.type.id in ("ImportError", "ModuleNotFoundError")
+               for h in guard.handlers)
 
 
 def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
