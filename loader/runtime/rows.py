@@ -29,6 +29,7 @@ MAPPED_JOINTS = ("hinge", "slide")
 JOINT_ROWS = tuple(int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}")) for name in (
     "LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON",
     "EQUALITY"))  # the copy's equality rows: joint and tendon couplings
+JOINT_ROW = np.isin(np.arange(len(mujoco.mjtConstraint.__members__)), JOINT_ROWS)  # per row type: a joint-space row
 
 
 @dataclass(frozen=True)
@@ -170,7 +171,7 @@ class RowTerm:
     def joint_rows(self) -> np.ndarray:
         """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
         PhysX's to apply), as MuJoCo's step integrates it (`integrated.py`)."""
-        rows = np.isin(self.data.efc_type[:self.data.nefc], JOINT_ROWS)
+        rows = JOINT_ROW[self.data.efc_type[:self.data.nefc]]
         return integrated_force(self.lent.model, self.data, rows, self.accelerated, self.contacts)
 
     def mirror_state(self, step: Step) -> None:
