@@ -48,19 +48,21 @@ def _without(momentum) -> None:
 
 
 def _explicit_damping(momentum) -> None:
-    momentum.law.damping[:] = 0.0
+    for _, implicit, *_ in momentum.law.roots.values():
+        implicit[:] = 0.0
 
 
 def _no_armature(momentum) -> None:
-    for armature, *_ in momentum.law.roots.values():
-        armature[:] = 0.0
+    for _, _, shift, _, rotational, _ in momentum.law.roots.values():
+        shift[:6, :6] = 0.0  # the free joint's DoFs lead its tree's: no -A there
+        rotational[:] = 0.0
 
 
 def _legs_left_in_place(momentum) -> None:
     """The legs take MuJoCo's end velocity but stay where PhysX's velocity moved them."""
     law = momentum.law
 
-    def velocities_only(art, index, qvel1, physx):
+    def velocities_only(art, index, change, qvel1):
         dofadr, sapien = law.scalars[index]
         v = np.asarray(art.get_qvel(), np.float64)
         v[sapien] = qvel1[dofadr]

@@ -59,13 +59,20 @@ class FreeJointLaw:
         self.dense = np.zeros((model.nv, model.nv))
         self.centres = centres(model)
         self.scalars = {a: (dofadr, dofs) for a, _, dofadr, dofs in scalar_joints(mapping)}
-        self.roots = {}
-        for root in roots:
-            dofs = root.dofs
-            own = (dofs >= root.dofadr) & (dofs < root.dofadr + 6)
-            self.roots[root.articulation] = (np.where(own, model.dof_armature[dofs], 0.0),
-                                             np.where(own, model.dof_damping[dofs], 0.0),
-                                             np.where(own, 0.0, self.damping[dofs]))
+        self.roots = {root.articulation: self._plan(root) for root in roots}
+
+    def _plan(self, root) -> tuple:
+        """Per root, what its step reuses: the tree's block of the mass matrix (`np.ix_`), dt D (added to it on the
+        left), -A + dt D_j (on the right), the free joint's damping B and rotational armature, and where the tree's
+        hinges and slides sit among its DoFs."""
+        model, dofs, dt = self.model, root.dofs, self.timestep
+        own = (dofs >= root.dofadr) & (dofs < root.dofadr + 6)
+        armature = np.where(own, model.dof_armature[dofs], 0.0)
+        joints = np.where(own, 0.0, self.damping[dofs])
+        scalars = self.scalars.get(root.articulation)
+        where = np.searchsorted(dofs, scalars[0]) if scalars is not None else None
+        return (np.ix_(dofs, dofs), dt * np.diag(self.damping[dofs]), np.diag(dt * joints - armature),
+                np.where(own, model.dof_damping[dofs], 0.0), np.diag(armature[3:6]), where)
 
     def correct(self, data: mujoco.MjData, roots: list, qvel0: np.ndarray, qvel1: np.ndarray, articulations) -> None:
         """Turn `qvel1` (PhysX's end, MuJoCo's layout) into MuJoCo's on each of `roots`' trees, from `data` at the
@@ -76,30 +83,30 @@ class FreeJointLaw:
         mujoco.mj_crb(model, data)  # the mass matrix at q0 (kinematics and centre-of-mass positions are there)
         mujoco.mj_fullM(model, data, self.dense)
         for root in roots:
-            armature, damping, joints = self.roots[root.articulation]
+            block, implicit, shift, damping, rotational, where = self.roots[root.articulation]
             dofs = root.dofs
-            mass = self.dense[np.ix_(dofs, dofs)]
-            lhs = mass + dt * np.diag(self.damping[dofs])
+            mass = self.dense[block]
+            lhs = mass + implicit
             if self.gyroscopic and root.tree.size == 1:
                 body = root.body
-                inertia = mass[3:, 3:] - np.diag(armature[3:])  # about the origin, in the body frame
+                inertia = mass[3:, 3:] - rotational  # about the origin, in the body frame
                 rotation = quat_to_mat(data.xquat[body])
                 omega = qvel0[root.dofadr + 3:root.dofadr + 6]
                 lhs[:6, :6] -= dt * gyroscopic_derivative(float(model.body_mass[body]), self.centres[body],
                                                           rotation, inertia, omega)
-            change = qvel1[dofs] - qvel0[dofs]
-            rhs = (mass - np.diag(armature) + dt * np.diag(joints)) @ change - dt * damping * qvel0[dofs]
-            physx = qvel1[dofs]
-            qvel1[dofs] = qvel0[dofs] + np.linalg.solve(lhs, rhs)
-            if dofs.size > 6 and root.articulation in self.scalars:  # PhysX moved them by dt times its velocity
-                self._joints(articulations[root.articulation], root.articulation, qvel1, dict(zip(dofs, physx)))
+            start, physx = qvel0[dofs], qvel1[dofs]
+            rhs = (mass + shift) @ (physx - start) - dt * damping * start
+            end = start + np.linalg.solve(lhs, rhs)
+            qvel1[dofs] = end
+            if where is not None:  # PhysX moved the tree's hinges and slides by dt times its velocity
+                self._joints(articulations[root.articulation], root.articulation, end[where] - physx[where], qvel1)
 
-    def _joints(self, art, index: int, qvel1: np.ndarray, physx: dict) -> None:
+    def _joints(self, art, index: int, change: np.ndarray, qvel1: np.ndarray) -> None:
         """The articulation's hinges and slides at MuJoCo's end velocity, moved as MuJoCo's position update
-        moves them (PhysX's by dt times its own)."""
+        moves them (PhysX's by dt times its own; `change`: MuJoCo's velocity less PhysX's)."""
         dofadr, sapien = self.scalars[index]
         q, v = (np.asarray(x, np.float64) for x in (art.get_qpos(), art.get_qvel()))
-        q[sapien] += self.timestep * (qvel1[dofadr] - np.array([physx[d] for d in dofadr]))
+        q[sapien] += self.timestep * change
         v[sapien] = qvel1[dofadr]
         art.set_qpos(q.astype(np.float32))
         art.set_qvel(v.astype(np.float32))
