@@ -6,13 +6,21 @@ one element of each kind per class), small meshes, and a body/frame tree whose e
 error parity. `broken_documents()` adds one deliberate mistake from a list MuJoCo is known to reject.
 `kinematic_trees()` draws class-free chains with random orientations and joint axes.
 
-Every number is drawn as a small integer and written as a short decimal, and every optional attribute is left
-out when its draw shrinks to 0, so shrunk counterexamples are short, readable files.
+Few, large draws: the tree's shape (how many classes, bodies, joints, geoms, children) is drawn as small
+integers, which hypothesis shrinks by deleting what follows them; everything one element decides (which optional
+attributes it writes, and their values) is read from a few drawn byte strings (`_Reader`), one decision at a
+time, uniformly as before: hypothesis draws small integer ranges uniformly, and booleans and `one_of` branches
+fairly. A decision of n outcomes reads one byte when n divides 256 and otherwise two or three (a bias below 0.4 %),
+and outcome 0 is what the old draw shrank to: an attribute left out, a number closest to 0 (or to its range's
+nearest end), the first of a list. So shrunk counterexamples stay short, readable files, and every number is
+still a small integer written as a short decimal.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
+from itertools import product
 
 from hypothesis import strategies as st
 
@@ -24,48 +32,153 @@ SEGMENT_TYPES = ("capsule", "cylinder")  # size needs 1 number with fromto; box/
 SHORTCUTS = ("motor", "position", "velocity", "general")
 EULERSEQS = ("xyz", "XYZ", "zyx", "ZYX", "xzy", "XZY", "zxz", "ZXZ", "yxz", "xYz")
 
-
-def _dec(lo: int, hi: int, scale: float) -> st.SearchStrategy[str]:
-    """A decimal `i * scale` for integer i in [lo, hi], written short."""
-    return st.integers(lo, hi).map(lambda i: f"{i * scale:.6g}")
+_MORE = 16  # bytes drawn when an element's first draw runs out
 
 
-def _vec(n: int, lo: int, hi: int, scale: float) -> st.SearchStrategy[str]:
-    return st.lists(_dec(lo, hi, scale), min_size=n, max_size=n).map(" ".join)
+@cache
+def _chunks(size: int) -> st.SearchStrategy[bytes]:
+    return st.binary(min_size=size, max_size=size)
+# Lengths 1, 2, 3 of `st.lists(min_size=1, max_size=3)` in thousandths: hypothesis continues such a list with
+# p = 0.617 (an average length of 2)
+_ONE_TO_THREE = (383, 236 + 383)
 
 
-SIZE = _dec(2, 30, 0.01)  # 0.02 .. 0.3 m
-POS = _vec(3, -30, 30, 0.01)
-DIRECTION = st.tuples(*[st.integers(-2, 2)] * 3).filter(any).map(lambda v: " ".join(map(str, v)))
-QUAT = st.tuples(*[st.integers(-3, 3)] * 4).filter(any).map(lambda v: " ".join(map(str, v)))
+@cache
+def _ordered(lo: int, hi: int) -> tuple[int, ...]:
+    """The integers of [lo, hi] in hypothesis's shrink order: 0 (or the nearer end) first, then 1, -1, 2, ..."""
+    target = min(max(0, lo), hi)
+    return tuple(sorted(range(lo, hi + 1), key=lambda v: (abs(v - target), v < target)))
 
 
-def angle(unit: str, lo_deg: int = -180, hi_deg: int = 180) -> st.SearchStrategy[str]:
-    """An angle in the compiler's unit (degrees as integers, radians with two decimals)."""
-    if unit == "radian":
-        return _dec(round(lo_deg * 3.14159 / 180 * 100), round(hi_deg * 3.14159 / 180 * 100), 0.01)
-    return st.integers(lo_deg, hi_deg).map(str)
+def _nonzero(values: tuple[int, ...], n: int) -> tuple[tuple[int, ...], ...]:
+    """Integer n-vectors over `values` (in shrink order) with some component nonzero, simplest first."""
+    rank = {v: i for i, v in enumerate(values)}
+    vectors = [v for v in product(values, repeat=n) if any(v)]
+    return tuple(sorted(vectors, key=lambda v: (sum(rank[c] for c in v), [rank[c] for c in v])))
 
 
-def orientation(unit: str) -> st.SearchStrategy[Attrs]:
-    """No rotation or one of the alternative orientation forms MJCF accepts on bodies and frames."""
-    a = angle(unit)
-    return st.one_of(
-        st.just({}),
-        st.tuples(a, a, a).map(lambda t: {"euler": " ".join(t)}),
-        st.tuples(DIRECTION, a).map(lambda t: {"axisangle": f"{t[0]} {t[1]}"}),
-        QUAT.map(lambda q: {"quat": q}),
-        st.tuples(DIRECTION, DIRECTION).filter(lambda t: _independent(t[0], t[1]))
-        .map(lambda t: {"xyaxes": f"{t[0]} {t[1]}"}),
-        DIRECTION.map(lambda d: {"zaxis": d}),
-    )
+DIRECTIONS = _nonzero(_ordered(-2, 2), 3)  # the 124 axes of components -2..2
+QUATS = _nonzero(_ordered(-3, 3), 4)
 
 
-def _independent(a: str, b: str) -> bool:
-    x = [int(v) for v in a.split()]
-    y = [int(v) for v in b.split()]
+def _independent(x: tuple[int, ...], y: tuple[int, ...]) -> bool:
     cross = (x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0])
     return any(cross)
+
+
+XYAXES = tuple((x, y) for x in DIRECTIONS for y in DIRECTIONS if _independent(x, y))
+
+
+def _ints(v: tuple[int, ...]) -> str:
+    return " ".join(map(str, v))
+
+
+class _Reader:
+    """One element's decisions, read from drawn byte strings: `first` bytes (what nine in ten elements of its
+    kind need, so one draw), then `_MORE` at a time.
+
+    `below(n)` is uniform over range(n) and 0 when its bytes are 0, which is where hypothesis shrinks them."""
+
+    def __init__(self, draw, first: int):
+        self._draw = draw
+        self._bytes = b""
+        self._at = 0
+        self._next = first
+
+    def _byte(self) -> int:
+        if self._at == len(self._bytes):
+            self._bytes, self._at, self._next = self._draw(_chunks(self._next)), 0, _MORE
+        self._at += 1
+        return self._bytes[self._at - 1]
+
+    def below(self, n: int) -> int:
+        if n <= 1:
+            return 0
+        if 256 % n == 0:
+            return self._byte() * n >> 8
+        width = 2 if n <= 256 else 3
+        word = 0
+        for _ in range(width):
+            word = word << 8 | self._byte()
+        return word * n >> (8 * width)
+
+    def coin(self) -> bool:
+        """`st.booleans()`."""
+        return self.below(2) == 1
+
+    def one_in(self, n: int) -> bool:
+        """`st.integers(0, n - 1) == n - 1`."""
+        return self.below(n) == n - 1
+
+    def pick(self, options):
+        """`st.sampled_from(options)`."""
+        return options[self.below(len(options))]
+
+    def integer(self, lo: int, hi: int) -> int:
+        """`st.integers(lo, hi)`."""
+        return self.pick(_ordered(lo, hi))
+
+    def dec(self, lo: int, hi: int, scale: float) -> str:
+        """A decimal `i * scale` for integer i in [lo, hi], written short."""
+        return f"{self.integer(lo, hi) * scale:.6g}"
+
+    def vec(self, n: int, lo: int, hi: int, scale: float) -> str:
+        return " ".join(self.dec(lo, hi, scale) for _ in range(n))
+
+    def one_to_three(self) -> int:
+        """The length of `st.lists(min_size=1, max_size=3)`."""
+        u = self.below(1000)
+        return 1 if u < _ONE_TO_THREE[0] else 2 if u < _ONE_TO_THREE[1] else 3
+
+    def size(self) -> str:
+        return self.dec(2, 30, 0.01)  # 0.02 .. 0.3 m
+
+    def sizes(self, full: bool) -> str:
+        return " ".join(self.size() for _ in range(3 if full else self.one_to_three()))
+
+    def pos(self) -> str:
+        return self.vec(3, -30, 30, 0.01)
+
+    def rgba(self) -> str:
+        return self.vec(4, 0, 10, 0.1)
+
+    def direction(self) -> str:
+        return _ints(self.pick(DIRECTIONS))
+
+    def angle(self, unit: str, lo_deg: int = -180, hi_deg: int = 180) -> str:
+        """An angle in the compiler's unit (degrees as integers, radians with two decimals)."""
+        if unit == "radian":
+            return self.dec(round(lo_deg * 3.14159 / 180 * 100), round(hi_deg * 3.14159 / 180 * 100), 0.01)
+        return str(self.integer(lo_deg, hi_deg))
+
+    def euler_or_axisangle(self, unit: str) -> Attrs:
+        if self.coin():
+            direction = self.direction()
+            return {"axisangle": f"{direction} {self.angle(unit)}"}
+        return {"euler": " ".join(self.angle(unit) for _ in range(3))}
+
+    def orientation(self, unit: str) -> Attrs:
+        """No rotation or one of the alternative orientation forms MJCF accepts on bodies and frames."""
+        form = self.below(6)
+        if form == 0:
+            return {}
+        if form == 1:
+            return {"euler": " ".join(self.angle(unit) for _ in range(3))}
+        if form == 2:
+            direction = self.direction()
+            return {"axisangle": f"{direction} {self.angle(unit)}"}
+        if form == 3:
+            return {"quat": _ints(self.pick(QUATS))}
+        if form == 4:
+            x, y = self.pick(XYAXES)
+            return {"xyaxes": f"{_ints(x)} {_ints(y)}"}
+        return {"zaxis": self.direction()}
+
+    def fromto(self) -> str:
+        ends = [self.integer(-20, 20) for _ in range(6)]
+        if ends[:3] == ends[3:]:  # a zero-length segment (1 in 68921): the old draw was filtered out and redrawn
+            ends[5] = ends[5] + 1 if ends[5] < 20 else ends[5] - 1
+        return " ".join(f"{i * 0.01:.6g}" for i in ends)
 
 
 @dataclass
@@ -79,57 +192,62 @@ class _Context:
     counters: dict[str, int] = field(default_factory=dict)
     joints: list[str] = field(default_factory=list)
     main_size: bool = False  # main sets a full size vector, so partial sizes on elements stay valid
+    made: dict = field(default_factory=dict)
 
     def name(self, kind: str) -> str:
         n = self.counters.get(kind, 0)
         self.counters[kind] = n + 1
         return f"{kind}{n}"
 
-
-def _optional(draw, attrs: Attrs, key: str, strategy, p: bool | None = None) -> None:
-    if p if p is not None else draw(st.booleans()):
-        attrs[key] = draw(strategy)
+    def strategy(self, make, *args) -> st.SearchStrategy:
+        """`make(self, *args)`, made once per document: hypothesis checks a new strategy on its first draw."""
+        key = (make, *args)
+        if key not in self.made:
+            self.made[key] = make(self, *args)
+        return self.made[key]
 
 
 @st.composite
 def geom_attrs(draw, ctx: _Context, in_default: bool, world: bool = False) -> Attrs:
     """Geom attributes: type, full or partial size, pose (pos + orientation or fromto), contact bits,
     group, rgba, mass or density, friction, material, mesh."""
+    r = _Reader(draw, 48)
     attrs: Attrs = {}
     kinds = list(PRIMITIVES) + (["mesh"] if ctx.meshes else []) + (["plane"] if world else [])
-    if draw(st.booleans()):
-        attrs["type"] = draw(st.sampled_from(kinds))
+    if r.coin():
+        attrs["type"] = r.pick(kinds)
     kind = attrs.get("type")
-    if kind == "mesh" or (kind is None and ctx.meshes and draw(st.integers(0, 4)) == 4):
-        attrs["mesh"] = draw(st.sampled_from(ctx.meshes))  # without type: a primitive fitted to the mesh
-    if draw(st.booleans()) or not (in_default or ctx.main_size):
-        full = not (in_default or ctx.main_size)
-        attrs["size"] = " ".join(draw(st.lists(SIZE, min_size=3 if full else 1, max_size=3)))
-    rare = 5 if in_default else 1  # a default pos clashes with every fromto of the class's geoms
-    if draw(st.integers(0, rare)) == rare:
-        attrs["pos"] = draw(POS)
-    if kind in FROMTO_TYPES and draw(st.integers(0, 3)) == 3:
+    if kind == "mesh" or (kind is None and ctx.meshes and r.one_in(5)):
+        attrs["mesh"] = r.pick(ctx.meshes)  # without type: a primitive fitted to the mesh
+    if r.coin() or not (in_default or ctx.main_size):
+        attrs["size"] = r.sizes(full=not (in_default or ctx.main_size))
+    rare = 6 if in_default else 2  # a default pos clashes with every fromto of the class's geoms
+    if r.one_in(rare):
+        attrs["pos"] = r.pos()
+    if kind in FROMTO_TYPES and r.one_in(4):
         attrs.pop("pos", None)
-        attrs["fromto"] = draw(_vec(6, -20, 20, 0.01).filter(lambda v: v.split()[:3] != v.split()[3:]))
-    elif draw(st.integers(0, 2)) == 2:
-        a = angle(ctx.unit)
-        attrs.update(draw(st.one_of(st.tuples(a, a, a).map(lambda t: {"euler": " ".join(t)}),
-                                    st.tuples(DIRECTION, a).map(lambda t: {"axisangle": f"{t[0]} {t[1]}"}))))
-    _optional(draw, attrs, "contype", st.integers(0, 3).map(str))
-    _optional(draw, attrs, "conaffinity", st.integers(0, 3).map(str))
-    _optional(draw, attrs, "group", st.integers(0, 5).map(str))
-    _optional(draw, attrs, "rgba", _vec(4, 0, 10, 0.1))
-    mass = draw(st.sampled_from(["", "mass", "density"]))
+        attrs["fromto"] = r.fromto()
+    elif r.one_in(3):
+        attrs.update(r.euler_or_axisangle(ctx.unit))
+    if r.coin():
+        attrs["contype"] = str(r.integer(0, 3))
+    if r.coin():
+        attrs["conaffinity"] = str(r.integer(0, 3))
+    if r.coin():
+        attrs["group"] = str(r.integer(0, 5))
+    if r.coin():
+        attrs["rgba"] = r.rgba()
+    mass = r.pick(("", "mass", "density"))
     if mass == "mass":
-        attrs["mass"] = draw(_dec(1, 50, 0.1))
+        attrs["mass"] = r.dec(1, 50, 0.1)
     elif mass == "density":
-        attrs["density"] = draw(_dec(1, 20, 100.0))
-    _optional(draw, attrs, "friction", st.lists(_dec(1, 20, 0.1), min_size=1, max_size=3).map(" ".join))
-    if ctx.materials:
-        _optional(draw, attrs, "material", st.sampled_from(ctx.materials))
-    if not in_default:
-        _optional(draw, attrs, "class", st.sampled_from(["main", *ctx.classes]), p=bool(ctx.classes)
-                  and draw(st.booleans()))
+        attrs["density"] = r.dec(1, 20, 100.0)
+    if r.coin():
+        attrs["friction"] = r.vec(r.one_to_three(), 1, 20, 0.1)
+    if ctx.materials and r.coin():
+        attrs["material"] = r.pick(ctx.materials)
+    if not in_default and ctx.classes and r.coin():
+        attrs["class"] = r.pick(["main", *ctx.classes])
     return attrs
 
 
@@ -137,103 +255,131 @@ def geom_attrs(draw, ctx: _Context, in_default: bool, world: bool = False) -> At
 def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
     """Joint attributes: type, axis, range, limited, damping, armature, ref, stiffness, springref,
     frictionloss."""
+    r = _Reader(draw, 22)
     attrs: Attrs = {}
-    _optional(draw, attrs, "type", st.sampled_from(["hinge", "hinge", "slide", "ball"]))
-    _optional(draw, attrs, "axis", DIRECTION)
-    if draw(st.booleans()):
+    if r.coin():
+        attrs["type"] = r.pick(("hinge", "hinge", "slide", "ball"))
+    if r.coin():
+        attrs["axis"] = r.direction()
+    if r.coin():
         if attrs.get("type") == "ball":
-            attrs["range"] = f"0 {draw(angle(ctx.unit, 10, 170))}"
+            attrs["range"] = f"0 {r.angle(ctx.unit, 10, 170)}"
         else:
-            lo = draw(st.one_of(st.just(0), st.integers(-170, -10)))  # 0 also suits a ball from a class
-            hi = draw(st.integers(10, 170))
+            lo = r.integer(-170, -10) if r.coin() else 0  # 0 also suits a ball from a class
+            hi = r.integer(10, 170)
             attrs["range"] = (f"{lo} {hi}" if ctx.unit == "degree"
                               else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}")
-    limited = ["true", "false", "auto"] if "range" in attrs else ["false", "auto"]
-    _optional(draw, attrs, "limited", st.sampled_from(limited), p=draw(st.integers(0, 3)) == 3)
+    if r.one_in(4):
+        attrs["limited"] = r.pick(("true", "false", "auto") if "range" in attrs else ("false", "auto"))
     # elements write damping/armature less often than classes: most values then come from a default class
-    sparse = None if in_default else draw(st.integers(0, 3)) == 3
-    _optional(draw, attrs, "damping", _dec(0, 20, 0.05), p=sparse)
-    _optional(draw, attrs, "armature", _dec(0, 20, 0.01), p=sparse)
-    _optional(draw, attrs, "ref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
-    _optional(draw, attrs, "stiffness", _dec(0, 20, 0.5), p=draw(st.integers(0, 3)) == 3)
-    _optional(draw, attrs, "springref", angle(ctx.unit, -30, 30), p=draw(st.integers(0, 3)) == 3)
-    _optional(draw, attrs, "frictionloss", _dec(0, 10, 0.01), p=draw(st.integers(0, 7)) == 7)
-    _element_class(draw, attrs, ctx, in_default)
+    sparse = None if in_default else r.one_in(4)
+    if r.coin() if sparse is None else sparse:
+        attrs["damping"] = r.dec(0, 20, 0.05)
+    if r.coin() if sparse is None else sparse:
+        attrs["armature"] = r.dec(0, 20, 0.01)
+    if r.one_in(4):
+        attrs["ref"] = r.angle(ctx.unit, -30, 30)
+    if r.one_in(4):
+        attrs["stiffness"] = r.dec(0, 20, 0.5)
+    if r.one_in(4):
+        attrs["springref"] = r.angle(ctx.unit, -30, 30)
+    if r.one_in(8):
+        attrs["frictionloss"] = r.dec(0, 10, 0.01)
+    _element_class(r, attrs, ctx, in_default)
     return attrs
 
 
-def _element_class(draw, attrs: Attrs, ctx: _Context, in_default: bool) -> None:
+def _element_class(r: _Reader, attrs: Attrs, ctx: _Context, in_default: bool) -> None:
     """Half the elements outside defaults name a class (main or a declared one)."""
-    if not in_default and ctx.classes and draw(st.booleans()):
-        attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
+    if not in_default and ctx.classes and r.coin():
+        attrs["class"] = r.pick(["main", *ctx.classes])
 
 
 @st.composite
 def site_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
+    r = _Reader(draw, 28)
     attrs: Attrs = {}
-    _optional(draw, attrs, "type", st.sampled_from(PRIMITIVES))
-    _optional(draw, attrs, "size", st.lists(SIZE, min_size=1, max_size=3).map(" ".join))
-    _optional(draw, attrs, "pos", POS)
-    _optional(draw, attrs, "rgba", _vec(4, 0, 10, 0.1))
-    _optional(draw, attrs, "group", st.integers(0, 5).map(str))
-    _element_class(draw, attrs, ctx, in_default)
+    if r.coin():
+        attrs["type"] = r.pick(PRIMITIVES)
+    if r.coin():
+        attrs["size"] = r.sizes(full=False)
+    if r.coin():
+        attrs["pos"] = r.pos()
+    if r.coin():
+        attrs["rgba"] = r.rgba()
+    if r.coin():
+        attrs["group"] = str(r.integer(0, 5))
+    _element_class(r, attrs, ctx, in_default)
+    return attrs
+
+
+def _actuator_attrs(r: _Reader, tag: str) -> Attrs:
+    """Attributes of one actuator shortcut (motor, position, velocity, general)."""
+    attrs: Attrs = {}
+    if r.coin():
+        attrs["gear"] = r.dec(1, 30, 0.5)
+    if r.coin():
+        lo, hi = r.integer(-30, -1), r.integer(1, 30)
+        attrs["ctrlrange"] = f"{lo / 10:g} {hi / 10:g}"
+    if r.one_in(4):
+        f = r.integer(1, 50)
+        attrs["forcerange"] = f"-{f} {f}"
+    if tag == "position":
+        if r.coin():
+            attrs["kp"] = r.dec(1, 100, 1.0)
+        if r.coin():
+            attrs["kv"] = r.dec(0, 20, 0.5)
+    elif tag == "velocity":
+        if r.coin():
+            attrs["kv"] = r.dec(1, 20, 0.5)
+    elif tag == "general":
+        if r.coin():
+            attrs["gainprm"] = r.dec(1, 100, 1.0)
+        if r.coin():
+            kp, kv = r.dec(0, 100, 1.0), r.dec(0, 20, 0.5)
+            attrs["biasprm"] = f"0 -{kp} -{kv}"
+            attrs["biastype"] = "affine"
+        if r.one_in(4):  # activation dynamics: the gain multiplies the activation
+            attrs["dyntype"] = r.pick(("filter", "filterexact", "integrator"))
+            if attrs["dyntype"] != "integrator":
+                attrs["dynprm"] = r.dec(1, 20, 0.01)
+            if r.coin():
+                attrs["actearly"] = r.pick(("true", "false"))
     return attrs
 
 
 @st.composite
 def actuator_attrs(draw, ctx: _Context, tag: str) -> Attrs:
     """Attributes of one actuator shortcut (motor, position, velocity, general)."""
-    attrs: Attrs = {}
-    _optional(draw, attrs, "gear", _dec(1, 30, 0.5))
-    if draw(st.booleans()):
-        lo, hi = draw(st.integers(-30, -1)), draw(st.integers(1, 30))
-        attrs["ctrlrange"] = f"{lo / 10:g} {hi / 10:g}"
-    _optional(draw, attrs, "forcerange", st.integers(1, 50).map(lambda f: f"-{f} {f}"),
-              p=draw(st.integers(0, 3)) == 3)
-    if tag == "position":
-        _optional(draw, attrs, "kp", _dec(1, 100, 1.0))
-        _optional(draw, attrs, "kv", _dec(0, 20, 0.5))
-    elif tag == "velocity":
-        _optional(draw, attrs, "kv", _dec(1, 20, 0.5))
-    elif tag == "general":
-        if draw(st.booleans()):
-            attrs["gainprm"] = draw(_dec(1, 100, 1.0))
-        if draw(st.booleans()):
-            kp, kv = draw(_dec(0, 100, 1.0)), draw(_dec(0, 20, 0.5))
-            attrs["biasprm"] = f"0 -{kp} -{kv}"
-            attrs["biastype"] = "affine"
-        if draw(st.integers(0, 3)) == 3:  # activation dynamics: the gain multiplies the activation
-            attrs["dyntype"] = draw(st.sampled_from(["filter", "filterexact", "integrator"]))
-            if attrs["dyntype"] != "integrator":
-                attrs["dynprm"] = draw(_dec(1, 20, 0.01))
-            _optional(draw, attrs, "actearly", st.sampled_from(["true", "false"]))
-    return attrs
+    return _actuator_attrs(_Reader(draw, 16), tag)
 
 
 @st.composite
 def default_class(draw, ctx: _Context, name: str | None, depth: int) -> DefaultClass:
     cls = DefaultClass(name)
-    if draw(st.booleans()) or name is None:
-        cls.geom = draw(geom_attrs(ctx, in_default=True))
+    r = _Reader(draw, 26)
+    has_geom, has_joint, has_site, has_mesh = r.coin() or name is None, r.coin(), r.one_in(3), r.one_in(3)
+    if has_geom:
+        cls.geom = draw(ctx.strategy(geom_attrs, True))
         if name is None:  # a full size in main keeps most documents valid (partial sizes come below)
-            cls.geom["size"] = " ".join(draw(st.lists(SIZE, min_size=3, max_size=3)))
-    if draw(st.booleans()):
-        cls.joint = draw(joint_attrs(ctx, in_default=True))
-    if draw(st.integers(0, 2)) == 2:
-        cls.site = draw(site_attrs(ctx, in_default=True))
-    if draw(st.integers(0, 2)) == 2:
-        cls.mesh = {"scale": draw(_vec(3, 5, 30, 0.1))}
-    if name is None and ctx.materials and draw(st.integers(0, 3)) == 3:
-        cls.material = {"rgba": draw(_vec(4, 0, 10, 0.1)), "specular": draw(_dec(0, 10, 0.1))}
-    if draw(st.booleans()):
-        tag = draw(st.sampled_from(SHORTCUTS))
-        cls.actuator = (tag, draw(actuator_attrs(ctx, tag)))
+            cls.geom["size"] = r.sizes(full=True)
+    if has_joint:
+        cls.joint = draw(ctx.strategy(joint_attrs, True))
+    if has_site:
+        cls.site = draw(ctx.strategy(site_attrs, True))
+    if has_mesh:
+        cls.mesh = {"scale": r.vec(3, 5, 30, 0.1)}
+    if name is None and ctx.materials and r.one_in(4):
+        cls.material = {"rgba": r.rgba(), "specular": r.dec(0, 10, 0.1)}
+    if r.coin():
+        tag = r.pick(SHORTCUTS)
+        cls.actuator = (tag, _actuator_attrs(r, tag))
     if depth < 3:
         for _ in range(draw(st.integers(0, 2 if depth else 3))):
             child = ctx.name("c")
             ctx.classes.append(child)
             cls.children.append(draw(default_class(ctx, child, depth + 1)))
-    cls.children_first = bool(cls.children) and draw(st.booleans())
+    cls.children_first = bool(cls.children) and r.coin()
     return cls
 
 
@@ -245,66 +391,78 @@ TETRA_FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
 @st.composite
 def mesh_asset(draw, ctx: _Context, name: str) -> MeshAsset:
     """A small closed mesh: a jittered box or a tetrahedron, off-centre so MuJoCo re-centres it."""
-    offset = [draw(st.integers(-10, 10)) * 0.01 for _ in range(3)]
-    if draw(st.booleans()):
-        half = [draw(st.integers(2, 15)) * 0.01 for _ in range(3)]
+    r = _Reader(draw, 24)
+    offset = [r.integer(-10, 10) * 0.01 for _ in range(3)]
+    if r.coin():
+        half = [r.integer(2, 15) * 0.01 for _ in range(3)]
         vertices = []
         for i in range(8):
             corner = [(1 if i >> k & 1 else -1) * half[k] for k in range(3)]
-            jitter = [draw(st.integers(-2, 2)) * 0.002 for _ in range(3)]
+            jitter = [r.integer(-2, 2) * 0.002 for _ in range(3)]
             vertices.append(tuple(c + j + o for c, j, o in zip(corner, jitter, offset)))
         faces = BOX_FACES
     else:
-        s = draw(st.integers(3, 15)) * 0.01
+        s = r.integer(3, 15) * 0.01
         base = [(0, 0, 0), (s, 0, 0), (0, s * 1.2, 0), (0, 0, s * 0.8)]
         vertices = [tuple(c + o for c, o in zip(v, offset)) for v in base]
         faces = TETRA_FACES
     attrs: Attrs = {}
-    if ctx.classes and draw(st.integers(0, 2)) == 2:
-        attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
-    if draw(st.integers(0, 3)) == 3:
-        attrs["scale"] = draw(_vec(3, 5, 20, 0.1))
+    if ctx.classes and r.one_in(3):
+        attrs["class"] = r.pick(["main", *ctx.classes])
+    if r.one_in(4):
+        attrs["scale"] = r.vec(3, 5, 20, 0.1)
     return MeshAsset(name, vertices, faces, attrs)
+
+
+_FRAME = st.integers(0, 4)  # 4: a frame (below max_depth)
+_FREE = st.integers(0, 3)  # 3: a free joint (on a top-level body)
+_NOT_FREE = st.integers(0, 2)  # joints on a body: two balls are MuJoCo's limit of 6 dofs per body
+_ONE_OR_TWO = st.integers(1, 2)
+_CHILDREN = {True: st.integers(0, 2), False: st.integers(0, 1)}  # children per body in shallow / deep trees
 
 
 @st.composite
 def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) -> Body:
     """A body (or a frame holding bodies) with joints, geoms and sites that pick classes."""
-    if draw(st.integers(0, 4)) == 4 and depth < max_depth:
+    if draw(_FRAME) == 4 and depth < max_depth:
+        r = _Reader(draw, 18)
         frame = Body("frame", {})
-        _optional(draw, frame.attrs, "pos", POS)
-        frame.attrs.update(draw(orientation(ctx.unit)))
-        if ctx.classes and draw(st.booleans()):
-            frame.attrs["childclass"] = draw(st.sampled_from(ctx.classes))
-        if draw(st.booleans()):
-            frame.elements.append(Element("geom", {"name": ctx.name("g"), **draw(geom_attrs(ctx, False))}))
-        frame.children = [draw(body_tree(ctx, depth + 1, top, max_depth))
-                          for _ in range(draw(st.integers(1, 2)))]
+        if r.coin():
+            frame.attrs["pos"] = r.pos()
+        frame.attrs.update(r.orientation(ctx.unit))
+        if ctx.classes and r.coin():
+            frame.attrs["childclass"] = r.pick(ctx.classes)
+        if r.coin():
+            frame.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
+        frame.children = [draw(ctx.strategy(body_tree, depth + 1, top, max_depth)) for _ in range(draw(_ONE_OR_TWO))]
         return frame
+    r = _Reader(draw, 18)
     body = Body("body", {"name": ctx.name("b")})
-    _optional(draw, body.attrs, "pos", POS)
-    body.attrs.update(draw(orientation(ctx.unit)))
-    if ctx.classes and draw(st.integers(0, 2)) == 2:
-        body.attrs["childclass"] = draw(st.sampled_from(["main", *ctx.classes]))
-    if top and draw(st.integers(0, 3)) == 3:
+    if r.coin():
+        body.attrs["pos"] = r.pos()
+    body.attrs.update(r.orientation(ctx.unit))
+    if ctx.classes and r.one_in(3):
+        body.attrs["childclass"] = r.pick(["main", *ctx.classes])
+    has_site = r.one_in(4)
+    if top and draw(_FREE) == 3:
         name = ctx.name("j")
-        if draw(st.booleans()):
+        if r.coin():
             body.elements.append(Element("freejoint", {"name": name}))
         else:
             body.elements.append(Element("joint", {"name": name, "type": "free",
-                                                   **_drop(draw(joint_attrs(ctx, False)), "type", "range")}))
+                                                   **_drop(draw(ctx.strategy(joint_attrs, False)), "type", "range")}))
     else:
-        for _ in range(draw(st.integers(0, 2))):  # two balls are MuJoCo's limit of 6 dofs per body
+        for _ in range(draw(_NOT_FREE)):
             name = ctx.name("j")
             ctx.joints.append(name)
-            body.elements.append(Element("joint", {"name": name, **draw(joint_attrs(ctx, False))}))
-    for _ in range(draw(st.integers(1, 2))):
-        body.elements.append(Element("geom", {"name": ctx.name("g"), **draw(geom_attrs(ctx, False))}))
-    if draw(st.integers(0, 3)) == 3:
-        body.elements.append(Element("site", {"name": ctx.name("s"), **draw(site_attrs(ctx, False))}))
+            body.elements.append(Element("joint", {"name": name, **draw(ctx.strategy(joint_attrs, False))}))
+    for _ in range(draw(_ONE_OR_TWO)):
+        body.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
+    if has_site:
+        body.elements.append(Element("site", {"name": ctx.name("s"), **draw(ctx.strategy(site_attrs, False))}))
     if depth < max_depth:
-        count = draw(st.integers(0, 2 if max_depth <= 3 else 1))
-        body.children = [draw(body_tree(ctx, depth + 1, False, max_depth)) for _ in range(count)]
+        body.children = [draw(ctx.strategy(body_tree, depth + 1, False, max_depth))
+                         for _ in range(draw(_CHILDREN[max_depth <= 3]))]
     return body
 
 
@@ -315,11 +473,32 @@ def _drop(attrs: Attrs, *keys: str) -> Attrs:
 @st.composite
 def compiler_attrs(draw) -> Attrs:
     """`<compiler angle=... eulerseq=... autolimits=...>` variations (each may be absent)."""
+    r = _Reader(draw, 8)
     attrs: Attrs = {}
-    _optional(draw, attrs, "angle", st.sampled_from(["degree", "radian"]))
-    _optional(draw, attrs, "eulerseq", st.sampled_from(EULERSEQS))
-    _optional(draw, attrs, "autolimits", st.sampled_from(["true", "false"]), p=draw(st.integers(0, 4)) == 4)
+    if r.coin():
+        attrs["angle"] = r.pick(("degree", "radian"))
+    if r.coin():
+        attrs["eulerseq"] = r.pick(EULERSEQS)
+    if r.one_in(5):
+        attrs["autolimits"] = r.pick(("true", "false"))
     return attrs
+
+
+_UP_TO_TWO = st.integers(0, 2)
+_DEFAULTS = st.integers(0, 5)  # 0: no <default> at all
+_ACTUATORS = st.integers(0, 3)
+
+
+@st.composite
+def _actuator(draw, ctx: _Context) -> tuple[str, Attrs]:
+    r = _Reader(draw, 18)
+    tag = r.pick(SHORTCUTS)
+    attrs = {"name": ctx.name("a"), "joint": r.pick(ctx.joints)}
+    if ctx.classes and r.coin():
+        attrs["class"] = r.pick(["main", *ctx.classes])
+    if r.coin():
+        attrs.update(_actuator_attrs(r, tag))
+    return tag, attrs
 
 
 @st.composite
@@ -327,27 +506,19 @@ def documents(draw, max_bodies: int = 3) -> Document:
     """A document with a default-class tree, meshes, materials, world geoms, bodies/frames and actuators."""
     compiler = draw(compiler_attrs())
     ctx = _Context(unit=compiler.get("angle", "degree"))
-    ctx.materials = [f"mat{i}" for i in range(draw(st.integers(0, 2)))]
-    ctx.meshes = [f"mesh{i}" for i in range(draw(st.integers(0, 2)))]
-    defaults = draw(default_class(ctx, None, 0)) if draw(st.integers(0, 5)) else None
+    ctx.materials = [f"mat{i}" for i in range(draw(_UP_TO_TWO))]
+    ctx.meshes = [f"mesh{i}" for i in range(draw(_UP_TO_TWO))]
+    defaults = draw(default_class(ctx, None, 0)) if draw(_DEFAULTS) else None
     ctx.main_size = defaults is not None
     meshes = [draw(mesh_asset(ctx, name)) for name in ctx.meshes]
-    materials = [{"name": name, **({"rgba": draw(_vec(4, 0, 10, 0.1))} if draw(st.booleans()) else {})}
-                 for name in ctx.materials]
-    world = [Element("geom", {"name": ctx.name("g"), **draw(geom_attrs(ctx, False, world=True))})
-             for _ in range(draw(st.integers(0, 2)))]
-    bodies = [draw(body_tree(ctx, 0, True)) for _ in range(draw(st.integers(1, max_bodies)))]
-    actuators = []
-    if ctx.joints:
-        for _ in range(draw(st.integers(0, 3))):
-            tag = draw(st.sampled_from(SHORTCUTS))
-            attrs = {"name": ctx.name("a"), "joint": draw(st.sampled_from(ctx.joints))}
-            if ctx.classes and draw(st.booleans()):
-                attrs["class"] = draw(st.sampled_from(["main", *ctx.classes]))
-            attrs.update(draw(actuator_attrs(ctx, tag)) if draw(st.booleans()) else {})
-            actuators.append((tag, attrs))
-    return Document(compiler, defaults, bool(defaults) and draw(st.integers(0, 4)) == 4, meshes, materials,
-                    world, bodies, actuators)
+    r = _Reader(draw, 12)
+    materials = [{"name": name, **({"rgba": r.rgba()} if r.coin() else {})} for name in ctx.materials]
+    split_main = bool(defaults) and r.one_in(5)
+    world = [Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False, True))})
+             for _ in range(draw(_UP_TO_TWO))]
+    bodies = [draw(ctx.strategy(body_tree, 0, True)) for _ in range(draw(st.integers(1, max_bodies)))]
+    actuators = [draw(_actuator(ctx)) for _ in range(draw(_ACTUATORS))] if ctx.joints else []
+    return Document(compiler, defaults, split_main, meshes, materials, world, bodies, actuators)
 
 
 # One mistake each, spliced into a rendered valid document: (where, text). MuJoCo rejects every one.
@@ -357,7 +528,7 @@ def kinematic_trees(draw, max_depth: int = 6) -> Document:
     form, random joint axes and types, frames, and compiler angle / eulerseq variations."""
     compiler = draw(compiler_attrs())
     ctx = _Context(unit=compiler.get("angle", "degree"))
-    bodies = [draw(body_tree(ctx, 0, True, max_depth)) for _ in range(draw(st.integers(1, 2)))]
+    bodies = [draw(ctx.strategy(body_tree, 0, True, max_depth)) for _ in range(draw(st.integers(1, 2)))]
     return Document(compiler, bodies=bodies)
 
 
