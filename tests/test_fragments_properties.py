@@ -128,3 +128,27 @@ def test_a_loader_that_keeps_the_hard_limit_on_frictional_joints_is_caught(monke
 
     caught()
     assert any(line.startswith(("dynamics tier", "actuated tier")) for line in found), found
+
+
+def test_checked_documents_leave_no_files_and_never_share_a_name():
+    """Documents are written into one scratch folder per process: each under a name of its own (MuJoCo caches
+    meshes by file name), and its files are gone once it is checked."""
+    from conformance.fragments import Body, Document, Element, MeshAsset, check_document
+    from conformance.fragments.properties import _scratch
+    from conformance.fragments.strategies import TETRA_FACES
+
+    def tetra(size: float) -> Document:
+        mesh = MeshAsset("m", [(0, 0, 0), (size, 0, 0), (0, size, 0), (0, 0, size)], TETRA_FACES)
+        body = Body("body", {"name": "b"}, [Element("joint", {"name": "j"}),
+                                            Element("geom", {"name": "g", "type": "mesh", "mesh": "m"})])
+        return Document(meshes=[mesh], bodies=[body])
+
+    paths = []
+    for size in (0.1, 0.3):
+        outcome = check_document(tetra(size))
+        assert outcome.compiled and not outcome.failures, outcome.failures
+        assert not outcome.path.exists()
+        paths.append(outcome.path)
+    folder, _ = _scratch()
+    assert paths[0].parent == paths[1].parent == folder and paths[0] != paths[1]
+    assert list(folder.iterdir()) == []
