@@ -72,8 +72,8 @@ def bench(session: nox.Session) -> None:
 @nox.session
 def fuzz(session: nox.Session) -> None:
     """Generated MJCF fragments against MuJoCo, many examples, hypothesis database kept in .hypothesis/fragments;
-    `nox -s fuzz -- --examples 5000` sets the total; prints examples per second at the end. Shrunk
-    counterexamples are written to corpus/regressions/."""
+    `nox -s fuzz -- --examples 5000` sets the total, `--workers N` the processes sharing it (default 2); prints
+    examples per second and the CPU time at the end. Shrunk counterexamples are written to corpus/regressions/."""
     install(session, "harness", "menagerie", "test")
     session.run("python", "-m", "conformance.fragments", *session.posargs)
 

@@ -4,4 +4,5 @@ import sys
 
 from .fuzz import main
 
-sys.exit(main())
+if __name__ == "__main__":  # worker processes import this module again (multiprocessing's spawn)
+    sys.exit(main())

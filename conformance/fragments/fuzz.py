@@ -2,15 +2,22 @@
 
 Profiles: "ci" is derandomized and bounded (inside the normal test suite); "fuzz" draws many examples and keeps
 hypothesis's example database between runs (`.hypothesis/fragments`), so failures found once are replayed
-first next time.
+first next time. The fuzz command deals every property's examples out over worker processes (`--workers`, default
+2), each with its own random seed: they share the example database (hypothesis writes it atomically) and save
+shrunk counterexamples under a hash of their content, so two workers never clobber each other's files.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import multiprocessing
+import os
+import resource
 import time
+import traceback
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from hypothesis import HealthCheck, Phase, example, given, settings
@@ -104,23 +111,80 @@ def split(examples: int, names: list[str]) -> dict[str, int]:
     return {n: max(1, round(examples * SHARES[n] / total)) for n in names}
 
 
-def run(examples: int, names: list[str], database: Path = DATABASE) -> float:
-    """Run `examples` in total over the properties; returns examples per second (and prints the summary)."""
-    tally = Tally()
-    count = 0
-    start = time.perf_counter()
-    for name, share in split(examples, names).items():
-        before = sum(tally[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo"))
+def divide(shares: dict[str, int], workers: int) -> list[dict[str, int]]:
+    """Each property's share dealt out over `workers` processes (the first ones take the remainders); a worker
+    left without examples of a property does not run it."""
+    plans: list[dict[str, int]] = [{} for _ in range(workers)]
+    for name, share in shares.items():
+        for w, plan in enumerate(plans):
+            count = share // workers + (1 if w < share % workers else 0)
+            if count:
+                plan[name] = count
+    return [plan for plan in plans if plan]
+
+
+def _examples(tally: Tally) -> int:
+    return sum(tally[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo"))
+
+
+def run_shares(plan: dict[str, int], database: Path = DATABASE, tally: Tally | None = None) -> Tally:
+    """Run each property of `plan` for its number of examples, in this process; a failing property raises
+    (after hypothesis shrank it and saved the counterexample)."""
+    tally = Tally() if tally is None else tally
+    for name, share in plan.items():
+        before = _examples(tally)
         t0 = time.perf_counter()
         hypothesis_test(name, fuzz_settings(share, database), tally=tally)()
-        done = sum(tally[k] for k in ("compiled by MuJoCo", "rejected by MuJoCo")) - before
-        count += done
-        log.info("%s: %d examples in %.1f s", name, done, time.perf_counter() - t0)
+        log.info("%s: %d examples in %.1f s", name, _examples(tally) - before, time.perf_counter() - t0)
+    return tally
+
+
+def _worker(plan: dict[str, int], database: Path) -> tuple[Tally, str | None]:
+    """`run_shares` in a worker process: its tally and, when a property failed, the error as text (hypothesis
+    has printed the falsifying example; the shrunk document is saved under its content's hash, so workers that
+    find the same one write the same file)."""
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    tally = Tally()
+    try:
+        run_shares(plan, database, tally)
+    except Exception as error:  # noqa: BLE001 - reported by the parent, which fails the run
+        return tally, "".join(traceback.format_exception(error))
+    return tally, None
+
+
+def _children_cpu() -> float:
+    """CPU seconds of this process's finished child processes (the workers)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run(examples: int, names: list[str], database: Path = DATABASE, workers: int = 1) -> float:
+    """Run `examples` in total over the properties, in `workers` processes (each a share of every property, with
+    its own random seed, one example database); returns examples per second (and prints the summary). A failing
+    property fails the run: at once with one worker, after the other workers finish with more."""
+    shares = split(examples, names)
+    start = time.perf_counter()
+    cpu = time.process_time() + _children_cpu()
+    if workers <= 1:
+        tally, errors = run_shares(shares, database), []
+    else:
+        plans = divide(shares, workers)
+        context = multiprocessing.get_context("spawn")  # a fresh interpreter: no PhysX or MuJoCo state copied
+        with ProcessPoolExecutor(len(plans), mp_context=context) as pool:
+            results = list(pool.map(_worker, plans, [database] * len(plans)))
+        tally, errors = Tally(), [error for _, error in results if error]
+        for part, _ in results:
+            tally.update(part)
     elapsed = time.perf_counter() - start
+    cpu = time.process_time() + _children_cpu() - cpu
+    count = _examples(tally)
     rate = count / elapsed if elapsed else 0.0
     for key, value in sorted(tally.items()):
         print(f"  {key}: {value}")
-    print(f"fuzz: {count} examples in {elapsed:.1f} s = {rate:.1f} examples/s ({', '.join(names)})")
+    print(f"fuzz: {count} examples in {elapsed:.1f} s = {rate:.1f} examples/s, {workers} worker(s), "
+          f"{cpu:.0f} CPU s ({', '.join(names)})")
+    if errors:
+        raise AssertionError("a property failed in a worker:\n" + "\n".join(errors))
     return rate
 
 
@@ -131,15 +195,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--properties", default=",".join(PROPERTIES),
                         help=f"comma-separated subset of {', '.join(PROPERTIES)}")
     parser.add_argument("--database", type=Path, default=DATABASE, help="hypothesis example database folder")
+    parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
+                        help="processes sharing the examples (default: 2, or 1 on a single core)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     names = [n.strip() for n in args.properties.split(",") if n.strip()]
     unknown = sorted(set(names) - set(PROPERTIES))
     if unknown:
         parser.error(f"unknown properties {unknown}; known: {sorted(PROPERTIES)}")
-    run(args.examples, names, args.database)
+    run(args.examples, names, args.database, args.workers)
     return 0
 
 
-__all__ = ["CI_EXAMPLES", "PROPERTIES", "STATIC_TIERS", "ci_settings", "fuzz_settings", "hypothesis_test", "main",
-           "mutation_settings", "run", "split"]
+__all__ = ["CI_EXAMPLES", "PROPERTIES", "STATIC_TIERS", "ci_settings", "divide", "fuzz_settings", "hypothesis_test",
+           "main", "mutation_settings", "run", "run_shares", "split"]

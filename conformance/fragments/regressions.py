@@ -29,10 +29,14 @@ def regression_dir() -> Path:
 
 
 def save_regression(document: Document | RawDocument, property_name: str, folder: Path | None = None) -> Path:
-    """Write `document` as `<property>-<hash>.xml` (meshes as `<property>-<hash>.<mesh>.obj`)."""
+    """Write `document` as `<property>-<hash>.xml` (meshes as `<property>-<hash>.<mesh>.obj`). The hash covers
+    the mesh files too: fuzz workers that save at once write either different names or the same bytes."""
     folder = Path(folder or regression_dir())
-    xml, _ = document.render()
-    stem = f"{property_name}-{hashlib.sha1(xml.encode()).hexdigest()[:10]}"
+    xml, files = document.render()
+    digest = hashlib.sha1(xml.encode())
+    for name, text in sorted(files.items()):
+        digest.update(f"\0{name}\0{text}".encode())
+    stem = f"{property_name}-{digest.hexdigest()[:10]}"
     path = write(document, folder, stem)
     log.warning("fragments: counterexample of %s saved as %s", property_name, path)
     return path
