@@ -33,6 +33,10 @@ SHORTCUTS = ("motor", "position", "velocity", "general")
 EULERSEQS = ("xyz", "XYZ", "zyx", "ZYX", "xzy", "XZY", "zxz", "ZXZ", "yxz", "xYz")
 
 _MORE = 16  # bytes drawn when an element's first draw runs out
+# Whether an element holds another drawn element is an integer draw of its own (not a flag): hypothesis shrinks
+# an integer by lowering it and deleting what followed it, here the inner element's draws.
+_COIN = st.integers(0, 1)
+_THIRD = st.integers(0, 2)
 
 
 @cache
@@ -73,23 +77,12 @@ def _ints(v: tuple[int, ...]) -> str:
     return " ".join(map(str, v))
 
 
-class _Reader:
-    """One element's decisions, read from drawn byte strings: `first` bytes (what nine in ten elements of its
-    kind need, so one draw), then `_MORE` at a time.
-
-    `below(n)` is uniform over range(n) and 0 when its bytes are 0, which is where hypothesis shrinks them."""
-
-    def __init__(self, draw, first: int):
-        self._draw = draw
-        self._bytes = b""
-        self._at = 0
-        self._next = first
+class _Decisions:
+    """Decisions read one at a time from bytes (`_byte`). `below(n)` is uniform over range(n) and 0 when its bytes
+    are 0, which is where hypothesis shrinks them."""
 
     def _byte(self) -> int:
-        if self._at == len(self._bytes):
-            self._bytes, self._at, self._next = self._draw(_chunks(self._next)), 0, _MORE
-        self._at += 1
-        return self._bytes[self._at - 1]
+        raise NotImplementedError
 
     def below(self, n: int) -> int:
         if n <= 1:
@@ -113,6 +106,47 @@ class _Reader:
     def pick(self, options):
         """`st.sampled_from(options)`."""
         return options[self.below(len(options))]
+
+
+class _Flags(_Decisions):
+    """The first bytes of an element's first draw, each decision at a fixed place: which optional attributes it
+    writes (and in which form)."""
+
+    def __init__(self, reader: _Reader, size: int):
+        self._reader, self._size, self._at = reader, size, 0
+
+    def _byte(self) -> int:
+        if self._at == self._size:
+            raise AssertionError(f"an element read more than the {self._size} flag bytes it reserved")
+        self._at += 1
+        return self._reader.head()[self._at - 1]
+
+
+class _Reader(_Decisions):
+    """One element's decisions, read from drawn byte strings. Its first draw holds `flags` bytes for `.flags`
+    (which attributes it writes) and `first` bytes of values (what nine in ten elements of its kind need, so
+    one draw); later values come `_MORE` bytes at a time. Shrinking a flag to 0 leaves an attribute out and
+    moves only the values read after it, never another flag."""
+
+    def __init__(self, draw, first: int, flags: int = 0):
+        self._draw = draw
+        self._size = flags + first
+        self._first: bytes | None = None
+        self._bytes = b""
+        self._at = flags
+        self.flags = _Flags(self, flags)
+
+    def head(self) -> bytes:
+        if self._first is None:
+            self._first = self._bytes = self._draw(_chunks(self._size))
+        return self._first
+
+    def _byte(self) -> int:
+        self.head()
+        if self._at == len(self._bytes):
+            self._bytes, self._at = self._draw(_chunks(_MORE)), 0
+        self._at += 1
+        return self._bytes[self._at - 1]
 
     def integer(self, lo: int, hi: int) -> int:
         """`st.integers(lo, hi)`."""
@@ -151,22 +185,19 @@ class _Reader:
             return self.dec(round(lo_deg * 3.14159 / 180 * 100), round(hi_deg * 3.14159 / 180 * 100), 0.01)
         return str(self.integer(lo_deg, hi_deg))
 
-    def euler_or_axisangle(self, unit: str) -> Attrs:
-        if self.coin():
+    def turn(self, unit: str, axisangle: bool) -> Attrs:
+        """Euler angles, or an axis and an angle."""
+        if axisangle:
             direction = self.direction()
             return {"axisangle": f"{direction} {self.angle(unit)}"}
         return {"euler": " ".join(self.angle(unit) for _ in range(3))}
 
-    def orientation(self, unit: str) -> Attrs:
-        """No rotation or one of the alternative orientation forms MJCF accepts on bodies and frames."""
-        form = self.below(6)
+    def orientation(self, unit: str, form: int) -> Attrs:
+        """No rotation (form 0) or one of the alternative orientation forms MJCF accepts on bodies and frames."""
         if form == 0:
             return {}
-        if form == 1:
-            return {"euler": " ".join(self.angle(unit) for _ in range(3))}
-        if form == 2:
-            direction = self.direction()
-            return {"axisangle": f"{direction} {self.angle(unit)}"}
+        if form in (1, 2):
+            return self.turn(unit, axisangle=form == 2)
         if form == 3:
             return {"quat": _ints(self.pick(QUATS))}
         if form == 4:
@@ -179,6 +210,9 @@ class _Reader:
         if ends[:3] == ends[3:]:  # a zero-length segment (1 in 68921): the old draw was filtered out and redrawn
             ends[5] = ends[5] + 1 if ends[5] < 20 else ends[5] - 1
         return " ".join(f"{i * 0.01:.6g}" for i in ends)
+
+
+_FORMS = 6  # orientation forms: none, euler, axisangle, quat, xyaxes, zaxis
 
 
 @dataclass
@@ -211,42 +245,46 @@ class _Context:
 def geom_attrs(draw, ctx: _Context, in_default: bool, world: bool = False) -> Attrs:
     """Geom attributes: type, full or partial size, pose (pos + orientation or fromto), contact bits,
     group, rgba, mass or density, friction, material, mesh."""
-    r = _Reader(draw, 48)
+    r = _Reader(draw, 34, flags=19)
+    f = r.flags
+    typed, fitted, sized = f.coin(), f.one_in(5), f.coin()
+    placed = f.one_in(6 if in_default else 2)  # a default pos clashes with every fromto of the class's geoms
+    segment, turned, axisangle = f.one_in(4), f.one_in(3), f.coin()
+    contype, conaffinity, group, rgba = f.coin(), f.coin(), f.coin(), f.coin()
+    mass, friction, material, named_class = f.pick(("", "mass", "density")), f.coin(), f.coin(), f.coin()
     attrs: Attrs = {}
     kinds = list(PRIMITIVES) + (["mesh"] if ctx.meshes else []) + (["plane"] if world else [])
-    if r.coin():
+    if typed:
         attrs["type"] = r.pick(kinds)
     kind = attrs.get("type")
-    if kind == "mesh" or (kind is None and ctx.meshes and r.one_in(5)):
+    if kind == "mesh" or (kind is None and ctx.meshes and fitted):
         attrs["mesh"] = r.pick(ctx.meshes)  # without type: a primitive fitted to the mesh
-    if r.coin() or not (in_default or ctx.main_size):
+    if sized or not (in_default or ctx.main_size):
         attrs["size"] = r.sizes(full=not (in_default or ctx.main_size))
-    rare = 6 if in_default else 2  # a default pos clashes with every fromto of the class's geoms
-    if r.one_in(rare):
+    if placed:
         attrs["pos"] = r.pos()
-    if kind in FROMTO_TYPES and r.one_in(4):
+    if kind in FROMTO_TYPES and segment:
         attrs.pop("pos", None)
         attrs["fromto"] = r.fromto()
-    elif r.one_in(3):
-        attrs.update(r.euler_or_axisangle(ctx.unit))
-    if r.coin():
+    elif turned:
+        attrs.update(r.turn(ctx.unit, axisangle))
+    if contype:
         attrs["contype"] = str(r.integer(0, 3))
-    if r.coin():
+    if conaffinity:
         attrs["conaffinity"] = str(r.integer(0, 3))
-    if r.coin():
+    if group:
         attrs["group"] = str(r.integer(0, 5))
-    if r.coin():
+    if rgba:
         attrs["rgba"] = r.rgba()
-    mass = r.pick(("", "mass", "density"))
     if mass == "mass":
         attrs["mass"] = r.dec(1, 50, 0.1)
     elif mass == "density":
         attrs["density"] = r.dec(1, 20, 100.0)
-    if r.coin():
+    if friction:
         attrs["friction"] = r.vec(r.one_to_three(), 1, 20, 0.1)
-    if ctx.materials and r.coin():
+    if ctx.materials and material:
         attrs["material"] = r.pick(ctx.materials)
-    if not in_default and ctx.classes and r.coin():
+    if not in_default and ctx.classes and named_class:
         attrs["class"] = r.pick(["main", *ctx.classes])
     return attrs
 
@@ -255,95 +293,109 @@ def geom_attrs(draw, ctx: _Context, in_default: bool, world: bool = False) -> At
 def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
     """Joint attributes: type, axis, range, limited, damping, armature, ref, stiffness, springref,
     frictionloss."""
-    r = _Reader(draw, 22)
+    r = _Reader(draw, 12, flags=13)
+    f = r.flags
+    typed, axis, ranged, below_zero, limited = f.coin(), f.coin(), f.coin(), f.coin(), f.one_in(4)
+    # elements write damping/armature less often than classes: most values then come from a default class
+    sparse, damping, armature = f.one_in(4), f.coin(), f.coin()
+    if not in_default:
+        damping = armature = sparse
+    ref, stiffness, springref, frictionloss = f.one_in(4), f.one_in(4), f.one_in(4), f.one_in(8)
+    named_class = f.coin()
     attrs: Attrs = {}
-    if r.coin():
+    if typed:
         attrs["type"] = r.pick(("hinge", "hinge", "slide", "ball"))
-    if r.coin():
+    if axis:
         attrs["axis"] = r.direction()
-    if r.coin():
+    if ranged:
         if attrs.get("type") == "ball":
             attrs["range"] = f"0 {r.angle(ctx.unit, 10, 170)}"
         else:
-            lo = r.integer(-170, -10) if r.coin() else 0  # 0 also suits a ball from a class
+            lo = r.integer(-170, -10) if below_zero else 0  # 0 also suits a ball from a class
             hi = r.integer(10, 170)
             attrs["range"] = (f"{lo} {hi}" if ctx.unit == "degree"
                               else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}")
-    if r.one_in(4):
+    if limited:
         attrs["limited"] = r.pick(("true", "false", "auto") if "range" in attrs else ("false", "auto"))
-    # elements write damping/armature less often than classes: most values then come from a default class
-    sparse = None if in_default else r.one_in(4)
-    if r.coin() if sparse is None else sparse:
+    if damping:
         attrs["damping"] = r.dec(0, 20, 0.05)
-    if r.coin() if sparse is None else sparse:
+    if armature:
         attrs["armature"] = r.dec(0, 20, 0.01)
-    if r.one_in(4):
+    if ref:
         attrs["ref"] = r.angle(ctx.unit, -30, 30)
-    if r.one_in(4):
+    if stiffness:
         attrs["stiffness"] = r.dec(0, 20, 0.5)
-    if r.one_in(4):
+    if springref:
         attrs["springref"] = r.angle(ctx.unit, -30, 30)
-    if r.one_in(8):
+    if frictionloss:
         attrs["frictionloss"] = r.dec(0, 10, 0.01)
-    _element_class(r, attrs, ctx, in_default)
+    _element_class(r, named_class, attrs, ctx, in_default)
     return attrs
 
 
-def _element_class(r: _Reader, attrs: Attrs, ctx: _Context, in_default: bool) -> None:
+def _element_class(r: _Reader, named: bool, attrs: Attrs, ctx: _Context, in_default: bool) -> None:
     """Half the elements outside defaults name a class (main or a declared one)."""
-    if not in_default and ctx.classes and r.coin():
+    if not in_default and ctx.classes and named:
         attrs["class"] = r.pick(["main", *ctx.classes])
 
 
 @st.composite
 def site_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
-    r = _Reader(draw, 28)
+    r = _Reader(draw, 21, flags=6)
+    f = r.flags
+    typed, sized, placed, rgba, group, named_class = (f.coin() for _ in range(6))
     attrs: Attrs = {}
-    if r.coin():
+    if typed:
         attrs["type"] = r.pick(PRIMITIVES)
-    if r.coin():
+    if sized:
         attrs["size"] = r.sizes(full=False)
-    if r.coin():
+    if placed:
         attrs["pos"] = r.pos()
-    if r.coin():
+    if rgba:
         attrs["rgba"] = r.rgba()
-    if r.coin():
+    if group:
         attrs["group"] = str(r.integer(0, 5))
-    _element_class(r, attrs, ctx, in_default)
+    _element_class(r, named_class, attrs, ctx, in_default)
     return attrs
 
 
-def _actuator_attrs(r: _Reader, tag: str) -> Attrs:
-    """Attributes of one actuator shortcut (motor, position, velocity, general)."""
+_ACTUATOR_FLAGS = 7  # flag bytes `_actuator_attrs` reads: keep them the last an element reads
+
+
+def _actuator_attrs(f: _Flags, r: _Reader, tag: str) -> Attrs:
+    """Attributes of one actuator shortcut (motor, position, velocity, general): flags from `f`, values from `r`."""
+    gear, ctrlrange, forcerange = f.coin(), f.coin(), f.one_in(4)
     attrs: Attrs = {}
-    if r.coin():
+    if gear:
         attrs["gear"] = r.dec(1, 30, 0.5)
-    if r.coin():
+    if ctrlrange:
         lo, hi = r.integer(-30, -1), r.integer(1, 30)
         attrs["ctrlrange"] = f"{lo / 10:g} {hi / 10:g}"
-    if r.one_in(4):
-        f = r.integer(1, 50)
-        attrs["forcerange"] = f"-{f} {f}"
+    if forcerange:
+        force = r.integer(1, 50)
+        attrs["forcerange"] = f"-{force} {force}"
     if tag == "position":
-        if r.coin():
+        kp, kv = f.coin(), f.coin()
+        if kp:
             attrs["kp"] = r.dec(1, 100, 1.0)
-        if r.coin():
+        if kv:
             attrs["kv"] = r.dec(0, 20, 0.5)
     elif tag == "velocity":
-        if r.coin():
+        if f.coin():
             attrs["kv"] = r.dec(1, 20, 0.5)
     elif tag == "general":
-        if r.coin():
+        gain, bias, dynamics, actearly = f.coin(), f.coin(), f.one_in(4), f.coin()
+        if gain:
             attrs["gainprm"] = r.dec(1, 100, 1.0)
-        if r.coin():
+        if bias:
             kp, kv = r.dec(0, 100, 1.0), r.dec(0, 20, 0.5)
             attrs["biasprm"] = f"0 -{kp} -{kv}"
             attrs["biastype"] = "affine"
-        if r.one_in(4):  # activation dynamics: the gain multiplies the activation
+        if dynamics:  # activation dynamics: the gain multiplies the activation
             attrs["dyntype"] = r.pick(("filter", "filterexact", "integrator"))
             if attrs["dyntype"] != "integrator":
                 attrs["dynprm"] = r.dec(1, 20, 0.01)
-            if r.coin():
+            if actearly:
                 attrs["actearly"] = r.pick(("true", "false"))
     return attrs
 
@@ -351,35 +403,37 @@ def _actuator_attrs(r: _Reader, tag: str) -> Attrs:
 @st.composite
 def actuator_attrs(draw, ctx: _Context, tag: str) -> Attrs:
     """Attributes of one actuator shortcut (motor, position, velocity, general)."""
-    return _actuator_attrs(_Reader(draw, 16), tag)
+    r = _Reader(draw, 10, flags=_ACTUATOR_FLAGS)
+    return _actuator_attrs(r.flags, r, tag)
 
 
 @st.composite
 def default_class(draw, ctx: _Context, name: str | None, depth: int) -> DefaultClass:
     cls = DefaultClass(name)
-    r = _Reader(draw, 26)
-    has_geom, has_joint, has_site, has_mesh = r.coin() or name is None, r.coin(), r.one_in(3), r.one_in(3)
-    if has_geom:
+    r = _Reader(draw, 15, flags=5 + _ACTUATOR_FLAGS)
+    f = r.flags
+    mesh, material, actuator, children_first = f.one_in(3), f.one_in(4), f.coin(), f.coin()
+    if draw(_COIN) or name is None:
         cls.geom = draw(ctx.strategy(geom_attrs, True))
         if name is None:  # a full size in main keeps most documents valid (partial sizes come below)
             cls.geom["size"] = r.sizes(full=True)
-    if has_joint:
+    if draw(_COIN):
         cls.joint = draw(ctx.strategy(joint_attrs, True))
-    if has_site:
+    if draw(_THIRD) == 2:
         cls.site = draw(ctx.strategy(site_attrs, True))
-    if has_mesh:
+    if mesh:
         cls.mesh = {"scale": r.vec(3, 5, 30, 0.1)}
-    if name is None and ctx.materials and r.one_in(4):
+    if name is None and ctx.materials and material:
         cls.material = {"rgba": r.rgba(), "specular": r.dec(0, 10, 0.1)}
-    if r.coin():
+    if actuator:
         tag = r.pick(SHORTCUTS)
-        cls.actuator = (tag, _actuator_attrs(r, tag))
+        cls.actuator = (tag, _actuator_attrs(f, r, tag))
     if depth < 3:
         for _ in range(draw(st.integers(0, 2 if depth else 3))):
             child = ctx.name("c")
             ctx.classes.append(child)
             cls.children.append(draw(default_class(ctx, child, depth + 1)))
-    cls.children_first = bool(cls.children) and r.coin()
+    cls.children_first = bool(cls.children) and children_first
     return cls
 
 
@@ -391,9 +445,10 @@ TETRA_FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
 @st.composite
 def mesh_asset(draw, ctx: _Context, name: str) -> MeshAsset:
     """A small closed mesh: a jittered box or a tetrahedron, off-centre so MuJoCo re-centres it."""
-    r = _Reader(draw, 24)
+    r = _Reader(draw, 64, flags=4)
+    box, named_class, scaled = r.flags.coin(), r.flags.one_in(3), r.flags.one_in(4)
     offset = [r.integer(-10, 10) * 0.01 for _ in range(3)]
-    if r.coin():
+    if box:
         half = [r.integer(2, 15) * 0.01 for _ in range(3)]
         vertices = []
         for i in range(8):
@@ -402,19 +457,20 @@ def mesh_asset(draw, ctx: _Context, name: str) -> MeshAsset:
             vertices.append(tuple(c + j + o for c, j, o in zip(corner, jitter, offset)))
         faces = BOX_FACES
     else:
-        s = r.integer(3, 15) * 0.01
-        base = [(0, 0, 0), (s, 0, 0), (0, s * 1.2, 0), (0, 0, s * 0.8)]
+        size = r.integer(3, 15) * 0.01
+        base = [(0, 0, 0), (size, 0, 0), (0, size * 1.2, 0), (0, 0, size * 0.8)]
         vertices = [tuple(c + o for c, o in zip(v, offset)) for v in base]
         faces = TETRA_FACES
     attrs: Attrs = {}
-    if ctx.classes and r.one_in(3):
+    if ctx.classes and named_class:
         attrs["class"] = r.pick(["main", *ctx.classes])
-    if r.one_in(4):
+    if scaled:
         attrs["scale"] = r.vec(3, 5, 20, 0.1)
     return MeshAsset(name, vertices, faces, attrs)
 
 
 _FRAME = st.integers(0, 4)  # 4: a frame (below max_depth)
+_SITE = st.integers(0, 3)  # 3: a site on a body
 _FREE = st.integers(0, 3)  # 3: a free joint (on a top-level body)
 _NOT_FREE = st.integers(0, 2)  # joints on a body: two balls are MuJoCo's limit of 6 dofs per body
 _ONE_OR_TWO = st.integers(1, 2)
@@ -425,28 +481,29 @@ _CHILDREN = {True: st.integers(0, 2), False: st.integers(0, 1)}  # children per 
 def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) -> Body:
     """A body (or a frame holding bodies) with joints, geoms and sites that pick classes."""
     if draw(_FRAME) == 4 and depth < max_depth:
-        r = _Reader(draw, 18)
+        r = _Reader(draw, 12, flags=4)
+        placed, form, childclass = r.flags.coin(), r.flags.below(_FORMS), r.flags.coin()
         frame = Body("frame", {})
-        if r.coin():
+        if placed:
             frame.attrs["pos"] = r.pos()
-        frame.attrs.update(r.orientation(ctx.unit))
-        if ctx.classes and r.coin():
+        frame.attrs.update(r.orientation(ctx.unit, form))
+        if ctx.classes and childclass:
             frame.attrs["childclass"] = r.pick(ctx.classes)
-        if r.coin():
+        if draw(_COIN):
             frame.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
         frame.children = [draw(ctx.strategy(body_tree, depth + 1, top, max_depth)) for _ in range(draw(_ONE_OR_TWO))]
         return frame
-    r = _Reader(draw, 18)
+    r = _Reader(draw, 12, flags=5)
+    placed, form, childclass = r.flags.coin(), r.flags.below(_FORMS), r.flags.one_in(3)
     body = Body("body", {"name": ctx.name("b")})
-    if r.coin():
+    if placed:
         body.attrs["pos"] = r.pos()
-    body.attrs.update(r.orientation(ctx.unit))
-    if ctx.classes and r.one_in(3):
+    body.attrs.update(r.orientation(ctx.unit, form))
+    if ctx.classes and childclass:
         body.attrs["childclass"] = r.pick(["main", *ctx.classes])
-    has_site = r.one_in(4)
     if top and draw(_FREE) == 3:
         name = ctx.name("j")
-        if r.coin():
+        if draw(_COIN):
             body.elements.append(Element("freejoint", {"name": name}))
         else:
             body.elements.append(Element("joint", {"name": name, "type": "free",
@@ -458,7 +515,7 @@ def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) ->
             body.elements.append(Element("joint", {"name": name, **draw(ctx.strategy(joint_attrs, False))}))
     for _ in range(draw(_ONE_OR_TWO)):
         body.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
-    if has_site:
+    if draw(_SITE) == 3:
         body.elements.append(Element("site", {"name": ctx.name("s"), **draw(ctx.strategy(site_attrs, False))}))
     if depth < max_depth:
         body.children = [draw(ctx.strategy(body_tree, depth + 1, False, max_depth))
@@ -473,13 +530,14 @@ def _drop(attrs: Attrs, *keys: str) -> Attrs:
 @st.composite
 def compiler_attrs(draw) -> Attrs:
     """`<compiler angle=... eulerseq=... autolimits=...>` variations (each may be absent)."""
-    r = _Reader(draw, 8)
+    r = _Reader(draw, 4, flags=4)
+    angle, eulerseq, autolimits = r.flags.coin(), r.flags.coin(), r.flags.one_in(5)
     attrs: Attrs = {}
-    if r.coin():
+    if angle:
         attrs["angle"] = r.pick(("degree", "radian"))
-    if r.coin():
+    if eulerseq:
         attrs["eulerseq"] = r.pick(EULERSEQS)
-    if r.one_in(5):
+    if autolimits:
         attrs["autolimits"] = r.pick(("true", "false"))
     return attrs
 
@@ -491,13 +549,14 @@ _ACTUATORS = st.integers(0, 3)
 
 @st.composite
 def _actuator(draw, ctx: _Context) -> tuple[str, Attrs]:
-    r = _Reader(draw, 18)
+    r = _Reader(draw, 12, flags=2 + _ACTUATOR_FLAGS)
+    named_class, written = r.flags.coin(), r.flags.coin()
     tag = r.pick(SHORTCUTS)
     attrs = {"name": ctx.name("a"), "joint": r.pick(ctx.joints)}
-    if ctx.classes and r.coin():
+    if ctx.classes and named_class:
         attrs["class"] = r.pick(["main", *ctx.classes])
-    if r.coin():
-        attrs.update(_actuator_attrs(r, tag))
+    if written:
+        attrs.update(_actuator_attrs(r.flags, r, tag))
     return tag, attrs
 
 
@@ -511,14 +570,14 @@ def documents(draw, max_bodies: int = 3) -> Document:
     defaults = draw(default_class(ctx, None, 0)) if draw(_DEFAULTS) else None
     ctx.main_size = defaults is not None
     meshes = [draw(mesh_asset(ctx, name)) for name in ctx.meshes]
-    r = _Reader(draw, 12)
-    materials = [{"name": name, **({"rgba": r.rgba()} if r.coin() else {})} for name in ctx.materials]
-    split_main = bool(defaults) and r.one_in(5)
+    r = _Reader(draw, 8, flags=4)
+    split_main, coloured = r.flags.one_in(5), [r.flags.coin() for _ in ctx.materials]
+    materials = [{"name": name, **({"rgba": r.rgba()} if rgba else {})} for name, rgba in zip(ctx.materials, coloured)]
     world = [Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False, True))})
              for _ in range(draw(_UP_TO_TWO))]
     bodies = [draw(ctx.strategy(body_tree, 0, True)) for _ in range(draw(st.integers(1, max_bodies)))]
     actuators = [draw(_actuator(ctx)) for _ in range(draw(_ACTUATORS))] if ctx.joints else []
-    return Document(compiler, defaults, split_main, meshes, materials, world, bodies, actuators)
+    return Document(compiler, defaults, bool(defaults) and split_main, meshes, materials, world, bodies, actuators)
 
 
 # One mistake each, spliced into a rendered valid document: (where, text). MuJoCo rejects every one.
