@@ -6,14 +6,15 @@ one element of each kind per class), small meshes, and a body/frame tree whose e
 error parity. `broken_documents()` adds one deliberate mistake from a list MuJoCo is known to reject.
 `kinematic_trees()` draws class-free chains with random orientations and joint axes.
 
-Few, large draws: the tree's shape (how many classes, bodies, joints, geoms, children) is drawn as small
-integers, which hypothesis shrinks by deleting what follows them; everything one element decides (which optional
-attributes it writes, and their values) is read from a few drawn byte strings (`_Reader`), one decision at a
-time, uniformly as before: hypothesis draws small integer ranges uniformly, and booleans and `one_of` branches
-fairly. A decision of n outcomes reads one byte when n divides 256 and otherwise two or three (a bias below 0.4 %),
-and outcome 0 is what the old draw shrank to: an attribute left out, a number closest to 0 (or to its range's
-nearest end), the first of a list. So shrunk counterexamples stay short, readable files, and every number is
-still a small integer written as a short decimal.
+Few, large draws: the tree's shape (how many classes, bodies, joints, geoms, children, and whether an element
+holds another one) is drawn as small integers, which hypothesis shrinks by deleting what follows them; everything
+else one element decides is read from one or two drawn byte strings (`_Reader`): first its flags (which optional
+attributes it writes), each at a fixed place, then the values of those it writes. Decisions are uniform as
+before (hypothesis draws small integer ranges uniformly, booleans and `one_of` branches fairly): one of n outcomes
+reads one byte when n divides 256 and otherwise two or three (a bias below 0.4 %), and outcome 0 is what the old
+draw shrank to: an attribute left out, a number closest to 0 (or to its range's nearest end), the first of a
+list. So shrunk counterexamples stay short, readable files, and every number is still a small integer written as
+a short decimal.
 """
 
 from __future__ import annotations
