@@ -7,14 +7,14 @@ error parity. `broken_documents()` adds one deliberate mistake from a list MuJoC
 `kinematic_trees()` draws class-free chains with random orientations and joint axes.
 
 Few, large draws: the tree's shape (how many classes, bodies, joints, geoms, children, and whether an element
-holds another one) is drawn as small integers, which hypothesis shrinks by deleting what follows them; everything
-else one element decides is read from one or two drawn byte strings (`_Reader`): first its flags (which optional
-attributes it writes), each at a fixed place, then the values of those it writes. Decisions are uniform as
-before (hypothesis draws small integer ranges uniformly, booleans and `one_of` branches fairly): one of n outcomes
-reads one byte when n divides 256 and otherwise two or three (a bias below 0.4 %), and outcome 0 is what the old
-draw shrank to: an attribute left out, a number closest to 0 (or to its range's nearest end), the first of a
-list. So shrunk counterexamples stay short, readable files, and every number is still a small integer written as
-a short decimal.
+holds another one) is drawn as small integers and booleans, which hypothesis shrinks by deleting what follows
+them; everything else one element decides is read from one or two drawn byte strings (`_Reader`): first its
+flags (which optional attributes it writes), each at a fixed place, then the values of those it writes.
+Decisions are uniform as before (hypothesis draws small integer ranges uniformly, booleans and `one_of` branches
+fairly): one of n outcomes reads one byte when n divides 256 and otherwise two or three (a bias below 0.4 %), and
+outcome 0 is what the old draw shrank to: an attribute left out, a number closest to 0 (or to its range's nearest
+end), the first of a list. So shrunk counterexamples stay short, readable files, and every number is still a
+small integer written as a short decimal.
 """
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ SHORTCUTS = ("motor", "position", "velocity", "general")
 EULERSEQS = ("xyz", "XYZ", "zyx", "ZYX", "xzy", "XZY", "zxz", "ZXZ", "yxz", "xYz")
 
 _MORE = 16  # bytes drawn when an element's first draw runs out
-# Whether an element holds another drawn element is an integer draw of its own (not a flag): hypothesis shrinks
-# an integer by lowering it and deleting what followed it, here the inner element's draws.
-_COIN = st.integers(0, 1)
+# Whether an element holds another drawn element is a draw of its own (not a flag), as before the byte strings:
+# hypothesis shrinks it to "no" and deletes what followed it, here the inner element's draws.
+_COIN = st.booleans()
 _THIRD = st.integers(0, 2)
 
 
