@@ -65,6 +65,46 @@ def test_a_model_that_blows_up_only_with_its_actuators_on_is_no_reference(integr
     assert (reason is not None and reason.startswith("MuJoCo itself is unstable on the model")) is unstable, reason
 
 
+@pytest.mark.parametrize("factor, unstable", [(3.8, False), (4.2, True)])
+def test_an_explicit_servo_stiffness_past_the_step_s_region_is_no_reference(factor, unstable):
+    """A position servo's kp on a 1 kg slide at dt 0.01 under implicitfast (which takes kv implicitly, kp not):
+    dt^2 kp / m past 4 makes MuJoCo's own step ring up (on a robot whose inertia changes with its pose, slowly
+    enough to pass its stability run). The oracle is MuJoCo's run, not the formula: its swing grows only past 4."""
+    import mujoco
+
+    from conformance.fragments.properties import explicit_stiffness_unstable
+
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><option timestep="0.01" integrator="implicitfast"/><worldbody><body><joint name="s" type="slide"/>'
+        f'<geom size="0.05" mass="1"/></body></worldbody><actuator><position joint="s" kp="{factor * 1e4}"/>'
+        '</actuator></mujoco>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    assert (explicit_stiffness_unstable(model, data, actuated=True) is not None) is unstable
+    assert explicit_stiffness_unstable(model, data, actuated=False) is None  # no spring on the joint itself
+    data.qpos[0] = 0.01
+    swing = 0.0
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+        swing = max(swing, abs(float(data.qpos[0])))
+    assert (swing > 0.1) is unstable, swing  # 0.046 at 3.8 (the step's ellipse, not growth), 3e5 at 4.2
+
+
+@pytest.mark.parametrize("factor, unstable", [(3.8, False), (4.2, True)])
+def test_a_joint_spring_past_the_step_s_region_makes_the_passive_run_no_reference(factor, unstable):
+    """The same region for a joint's own spring (a fuzz find: a 2 cm sphere on a 5.5 N m/rad hinge spring, 4.1),
+    judged before the stability run, which a slow ring-up outlasts."""
+    import mujoco
+
+    from conformance.fragments.properties import mujoco_ill_posed
+
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><option timestep="0.01"/><worldbody><body><joint name="s" type="slide" stiffness="{factor * 1e4}"/>'
+        '<geom size="0.05" mass="1"/></body></worldbody></mujoco>')
+    reason = mujoco_ill_posed(model, 5)  # five steps: too few for the ring-up to blow up
+    assert (reason is not None and "explicit stiffness" not in reason and "unstable" in reason) is unstable, reason
+
+
 @pytest.mark.parametrize("factor, unstable", [(1.9, False), (2.1, True)])
 def test_an_explicit_servo_damping_past_eulers_region_is_no_reference(factor, unstable):
     """A position servo's kv on a 1 kg slide at dt 0.01: Euler integrates it explicitly, and dt kv / m past 2

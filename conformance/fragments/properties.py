@@ -178,6 +178,42 @@ def explicit_damping_unstable(model: mujoco.MjModel, data: mujoco.MjData) -> str
     return None
 
 
+# dt^2 kp / M beyond which an explicit spring's semi-implicit step grows (omega dt > 2; RK4: omega dt > 2.83)
+EXPLICIT_STIFFNESS_REGION = {int(mujoco.mjtIntegrator.mjINT_RK4): 8.0}
+EXPLICIT_STIFFNESS_DEFAULT = 4.0  # Euler, implicit and implicitfast: no integrator takes kp implicitly
+
+
+def explicit_stiffness_unstable(model: mujoco.MjModel, data: mujoco.MjData, actuated: bool) -> str | None:
+    """A joint's stiffness past the stability region of MuJoCo's step: dt^2 K / M, K the joint's spring plus
+    (`actuated`) its position servos' kp gear^2, M its effective inertia (1 / (M^-1)_dd at the start). Every
+    integrator takes stiffness explicitly; past the region MuJoCo rings the joint up a little more every step
+    (fuzz finds: a 2 cm sphere on a 5.5 N m/rad spring, 4.1; a gripper's wrist servo, 4.16)."""
+    region = EXPLICIT_STIFFNESS_REGION.get(int(model.opt.integrator), EXPLICIT_STIFFNESS_DEFAULT)
+    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    stiffness = np.zeros(model.nv)
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) in scalar:
+            stiffness[int(model.jnt_dofadr[j])] += float(model.jnt_stiffness[j])
+    for a in range(model.nu if actuated else 0):
+        joint = int(model.actuator_trnid[a, 0])
+        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT) and \
+                int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE) and \
+                int(model.jnt_type[joint]) in scalar:
+            kp = -float(model.actuator_biasprm[a, 1]) * float(model.actuator_gear[a, 0]) ** 2
+            stiffness[int(model.jnt_dofadr[joint])] += max(kp, 0.0)
+    if not stiffness.any():
+        return None
+    inverse = np.zeros((model.nv, model.nv))
+    mujoco.mj_solveM(model, data, inverse, np.eye(model.nv))
+    factor = model.opt.timestep ** 2 * stiffness * np.diag(inverse)
+    dof = int(np.argmax(factor))
+    if factor[dof] > region:
+        return (f"MuJoCo itself is unstable{' with its actuators on' if actuated else ' on the model'} (an explicit "
+                f"stiffness past the integrator's stability region: dof {dof}, dt^2 K/M = {factor[dof]:.3g} > "
+                f"{region:g})")
+    return None
+
+
 def actuated_ill_posed(model: mujoco.MjModel) -> str | None:
     """Why MuJoCo's run with its actuators on is no reference though its passive run is (None when it is)."""
     from ..reference import matched
@@ -185,7 +221,7 @@ def actuated_ill_posed(model: mujoco.MjModel) -> str | None:
     ref, _ = matched(model, contact=False, actuation=True)
     data = mujoco.MjData(ref)
     mujoco.mj_forward(ref, data)
-    return explicit_damping_unstable(ref, data)
+    return explicit_damping_unstable(ref, data) or explicit_stiffness_unstable(ref, data, actuated=True)
 
 
 def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
@@ -198,6 +234,8 @@ def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
     mujoco.mj_forward(ref, data)
     if redundant_dofs(ref, data):  # two slides on one axis: MuJoCo need not warn
         return "redundant DoFs (two joints move a body the same way): no unique acceleration to compare"
+    if (springy := explicit_stiffness_unstable(ref, data, actuated=False)) is not None:
+        return springy.split(" (")[0]  # tallied with the blow-ups
     for _ in range(steps):
         mujoco.mj_step(ref, data)
     if data.warning[int(mujoco.mjtWarning.mjWARN_INERTIA)].number:
@@ -298,7 +336,8 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
             names += [tier for tier in DYNAMIC_TIERS if tier in TIERS]
             if "actuated" in names and (unstable := actuated_ill_posed(model)):
                 names.remove("actuated")
-                skipped.append(f"actuated: {unstable.split(' (')[0]} (explicit velocity gain)")  # tallied alike
+                gain = unstable.split("an explicit ")[1].split(" past")[0]  # velocity gain or stiffness
+                skipped.append(f"actuated: {unstable.split(' (')[0]} (explicit {gain})")  # tallied alike
     for name in names:
         try:
             report = TIERS[name](result, model, seed, tol)
