@@ -259,6 +259,8 @@ def reference_run(result, model: mujoco.MjModel, seed: int, tolerances: Toleranc
     ref, matched, removal = reference_model(result, model, contact=contact)
     steps = tolerances.horizon_steps(tier, ref.opt.timestep)
     qpos0, qvel0, start = reference.initial_state(model)
+    if not contact:
+        qpos0, qvel0 = sapien_side.held_start(result, qpos0, qvel0)
     run, scale, left = gentle_run(ref, qpos0, qvel0, steps, seed, tolerances, smooth=not contact)
     if run.unstable(ref):
         return skipped(tier, run.unstable(ref))

@@ -52,6 +52,7 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     dt = ref.opt.timestep
     steps = tolerances.horizon_steps("dynamics", dt)
     qpos0, qvel0, start = reference.initial_state(model)
+    qpos0, qvel0 = sapien_side.held_start(result, qpos0, qvel0)
     limit = tolerances.setting("chaos", "amplification_limit")
     perturbation = tolerances.setting("chaos", "perturbation")
     torque = commands.random_torque(ref, qpos0, steps, seed, tolerances.setting("dynamics", "torque_accel"))
