@@ -65,6 +65,19 @@ def test_a_model_that_blows_up_only_with_its_actuators_on_is_no_reference(integr
     assert (reason is not None and reason.startswith("MuJoCo itself is unstable on the model")) is unstable, reason
 
 
+def _slide(option: str, joint: str, actuator: str):
+    """A 1 kg slide at dt 0.01 (`option`, `joint`: extra attributes; `actuator`: its actuators), at rest after
+    mj_forward: (model, data)."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><option timestep="0.01"{option}/><worldbody><body><joint name="s" type="slide"{joint}/>'
+        f'<geom size="0.05" mass="1"/></body></worldbody><actuator>{actuator}</actuator></mujoco>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
 @pytest.mark.parametrize("factor, unstable", [(3.8, False), (4.2, True)])
 def test_an_explicit_servo_stiffness_past_the_step_s_region_is_no_reference(factor, unstable):
     """A position servo's kp on a 1 kg slide at dt 0.01 under implicitfast (which takes kv implicitly, kp not):
@@ -74,12 +87,7 @@ def test_an_explicit_servo_stiffness_past_the_step_s_region_is_no_reference(fact
 
     from conformance.fragments.properties import explicit_stiffness_unstable
 
-    model = mujoco.MjModel.from_xml_string(
-        f'<mujoco><option timestep="0.01" integrator="implicitfast"/><worldbody><body><joint name="s" type="slide"/>'
-        f'<geom size="0.05" mass="1"/></body></worldbody><actuator><position joint="s" kp="{factor * 1e4}"/>'
-        '</actuator></mujoco>')
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    model, data = _slide(' integrator="implicitfast"', "", f'<position joint="s" kp="{factor * 1e4}"/>')
     assert (explicit_stiffness_unstable(model, data, actuated=True) is not None) is unstable
     assert explicit_stiffness_unstable(model, data, actuated=False) is None  # no spring on the joint itself
     data.qpos[0] = 0.01
@@ -94,13 +102,9 @@ def test_an_explicit_servo_stiffness_past_the_step_s_region_is_no_reference(fact
 def test_a_joint_spring_past_the_step_s_region_makes_the_passive_run_no_reference(factor, unstable):
     """The same region for a joint's own spring (a fuzz find: a 2 cm sphere on a 5.5 N m/rad hinge spring, 4.1),
     judged before the stability run, which a slow ring-up outlasts."""
-    import mujoco
-
     from conformance.fragments.properties import mujoco_ill_posed
 
-    model = mujoco.MjModel.from_xml_string(
-        f'<mujoco><option timestep="0.01"/><worldbody><body><joint name="s" type="slide" stiffness="{factor * 1e4}"/>'
-        '<geom size="0.05" mass="1"/></body></worldbody></mujoco>')
+    model, _ = _slide("", f' stiffness="{factor * 1e4}"', "")
     reason = mujoco_ill_posed(model, 5)  # five steps: too few for the ring-up to blow up
     assert (reason is not None and "explicit stiffness" not in reason and "unstable" in reason) is unstable, reason
 
@@ -109,16 +113,9 @@ def test_a_joint_spring_past_the_step_s_region_makes_the_passive_run_no_referenc
 def test_an_explicit_servo_damping_past_eulers_region_is_no_reference(factor, unstable):
     """A position servo's kv on a 1 kg slide at dt 0.01: Euler integrates it explicitly, and dt kv / m past 2
     grows the slide's speed every step, which MuJoCo flags only at 1e10 (a fuzz find: 27 on a light hinge)."""
-    import mujoco
-
     from conformance.fragments.properties import explicit_damping_unstable
 
-    model = mujoco.MjModel.from_xml_string(
-        f'<mujoco><option timestep="0.01"/><worldbody><body><joint name="s" type="slide"/>'
-        f'<geom size="0.05" mass="1"/></body></worldbody><actuator><position joint="s" kp="1" kv="{factor * 100}"/>'
-        '</actuator></mujoco>')
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
+    model, data = _slide("", "", f'<position joint="s" kp="1" kv="{factor * 100}"/>')
     assert (explicit_damping_unstable(model, data) is not None) is unstable
 
 
