@@ -41,6 +41,12 @@ def disabled(model: mujoco.MjModel, *flags: str) -> bool:
     return bool(model.opt.disableflags & bits)
 
 
+def explicit_damping(model: mujoco.MjModel) -> bool:
+    """Whether MuJoCo takes joint damping explicitly: Euler with `eulerdamp` disabled. Euler otherwise and the
+    implicit integrators take it implicitly (and RK4, which the loader simulates as Euler)."""
+    return int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and disabled(model, "eulerdamp")
+
+
 _AT_QPOS0: ContextVar[tuple[mujoco.MjModel, mujoco.MjData] | None] = ContextVar("at_qpos0", default=None)
 
 

@@ -65,7 +65,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
         notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
                    "scales with the joint reaction force, MuJoCo's is a constant torque")
     if jtype == FREE:
-        if stiffness > 0:  # damping and armature: `runtime/momentum.py`
+        if stiffness > 0:  # damping and armature: `runtime/free_joint.py`
             notes.drop("joint", name, f"free joint stiffness {stiffness:g} dropped: a PhysX floating root has no "
                        "joint to carry it")
         return []

@@ -80,7 +80,7 @@ class Mapping:
     jnt_qposadr: np.ndarray = field(repr=False, default=None)
     jnt_dofadr: np.ndarray = field(repr=False, default=None)
     jnt_bodyid: np.ndarray = field(repr=False, default=None)
-    body_ipos: np.ndarray = field(repr=False, default=None)
+    centres: np.ndarray = field(repr=False, default=None)  # each body's link's centre of mass (`tree.centres`)
     nq: int = 0
     nv: int = 0
 
@@ -138,7 +138,7 @@ class Mapping:
         """A floating root's MuJoCo free-joint qpos (7) and qvel (6) into PhysX's root pose and velocities."""
         rotation = quat_to_mat(qpos7[3:])
         omega_world = rotation @ qvel6[3:]
-        v_com = qvel6[:3] + cross3(omega_world, rotation @ self.body_ipos[body])
+        v_com = qvel6[:3] + cross3(omega_world, rotation @ self.centres[body])
         art.set_root_pose(sapien.Pose(qpos7[:3], qpos7[3:] / np.linalg.norm(qpos7[3:])))
         art.set_root_linear_velocity(v_com.astype(np.float32))
         art.set_root_angular_velocity(omega_world.astype(np.float32))
@@ -162,7 +162,7 @@ class Mapping:
             jtype = int(self.jnt_type[j])
             if jtype == FREE:
                 qpos[adr : adr + 7], qvel[dof : dof + 6] = root_state(articulations[a],
-                                                                      self.body_ipos[int(self.jnt_bodyid[j])])
+                                                                      self.centres[int(self.jnt_bodyid[j])])
             elif jtype == BALL:
                 angles = q[a][list(target.dofs)]
                 qpos[adr : adr + 4] = quat_from_euler_xyz(angles)

@@ -34,8 +34,8 @@ from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
 from .tendons import IMPLICIT, TendonTerm, map_tendons
 
-EULER = int(mujoco.mjtIntegrator.mjINT_EULER)
-STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp", "equalities")
+STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp",
+          "equalities")
 
 
 class Controller:
@@ -206,8 +206,7 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
     connects = [link.soft for link in equalities if link.soft is not None and link.kind == "D6 joint"]
-    explicit_damping = int(model.opt.integrator) == EULER and mj.disabled(model, "eulerdamp")
-    terms = [actuators, StiffnessTerm(explicit_damping), DriveWriter(passive, dof_inertia(model, mapping))]
+    terms = [actuators, StiffnessTerm(mj.explicit_damping(model)), DriveWriter(passive, dof_inertia(model, mapping))]
     terms += [TendonTerm(tendons)] if tendons else []
     terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []

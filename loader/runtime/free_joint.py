@@ -18,17 +18,15 @@ import numpy as np
 
 from .. import mj
 from ..build.mapping import Mapping, scalar_joints
-from ..build.tree import centres
 from ..frames import quat_to_mat
-
-IMPLICIT_GYRO = (int(mujoco.mjtIntegrator.mjINT_IMPLICIT), int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
+from .tendons import IMPLICIT
 
 
 def differs(model: mujoco.MjModel, joint: int, tree: np.ndarray) -> bool:
     """Whether MuJoCo's step adds to free joint `joint` (of `tree`'s root) what PhysX's does not."""
     dof = int(model.jnt_dofadr[joint])
     own = model.dof_damping[dof:dof + 6].any() or model.dof_armature[dof:dof + 6].any()
-    return bool(own or (tree.size == 1 and int(model.opt.integrator) in IMPLICIT_GYRO))
+    return bool(own or (tree.size == 1 and int(model.opt.integrator) in IMPLICIT))
 
 
 def skew(a: np.ndarray) -> np.ndarray:
@@ -41,7 +39,8 @@ def gyroscopic_derivative(mass: float, com: np.ndarray, rotation: np.ndarray, in
     velocity in the world, the body-frame angular velocity omega): f = -(m R (w x (w x c)), w x I_o w), c the centre
     of mass and I_o the inertia about the origin, both in the body frame. It does not depend on the linear part."""
     derivative = np.zeros((6, 6))
-    derivative[:3, 3:] = -mass * rotation @ (np.outer(omega, com) + (omega @ com) * np.eye(3) - 2.0 * np.outer(com, omega))
+    arm = np.outer(omega, com) + (omega @ com) * np.eye(3) - 2.0 * np.outer(com, omega)  # d(w x (w x c))/dw
+    derivative[:3, 3:] = -mass * rotation @ arm
     derivative[3:, 3:] = skew(inertia @ omega) - skew(omega) @ inertia
     return derivative
 
@@ -52,12 +51,10 @@ class FreeJointLaw:
 
     def __init__(self, model: mujoco.MjModel, mapping: Mapping, roots: list, timestep: float):
         self.model, self.timestep = model, timestep
-        integrator = int(model.opt.integrator)
-        implicit = not (integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and mj.disabled(model, "eulerdamp"))
-        self.damping = model.dof_damping * implicit  # MuJoCo's implicit damping D, per DoF
-        self.gyroscopic = integrator in IMPLICIT_GYRO
+        self.damping = model.dof_damping * (not mj.explicit_damping(model))  # MuJoCo's implicit damping D, per DoF
+        self.gyroscopic = int(model.opt.integrator) in IMPLICIT
         self.dense = np.zeros((model.nv, model.nv))
-        self.centres = centres(model)
+        self.centres = mapping.centres
         self.scalars = {a: (dofadr, dofs) for a, _, dofadr, dofs in scalar_joints(mapping)}
         self.roots = {root.articulation: self._plan(root) for root in roots}
 

@@ -15,7 +15,6 @@ import numpy as np
 from .. import mj
 from ..build.joint import FREE
 from ..build.mapping import Mapping
-from ..build.tree import centres
 from ..frames import cross3
 
 EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
@@ -24,8 +23,7 @@ EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjI
 def accelerated(model: mujoco.MjModel) -> bool:
     """Whether MuJoCo's step integrates the solver's qacc (not an acceleration solved from the forces)."""
     integrator = int(model.opt.integrator)
-    implicit_damping = bool(np.any(model.dof_damping)) and not mj.disabled(model, "eulerdamp")
-    return integrator == RK4 or (integrator == EULER and not implicit_damping)
+    return integrator == RK4 or (integrator == EULER and (mj.explicit_damping(model) or not np.any(model.dof_damping)))
 
 
 def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray, qacc: bool,
@@ -54,13 +52,12 @@ class RootPush:
     step): none from a converged solve, whose joint rows leave a free joint alone."""
 
     def __init__(self, model: mujoco.MjModel, mapping: Mapping):
-        centre = centres(model)
         self.roots = []  # (articulation, link, body, dof address, centre of mass in the body frame)
         for j, target in enumerate(mapping.joints):
             if int(model.jnt_type[j]) == FREE:
                 body = int(model.jnt_bodyid[j])
                 self.roots.append((target.articulation, mapping.bodies[body].link, body, int(model.jnt_dofadr[j]),
-                                   centre[body]))
+                                   mapping.centres[body]))
         self.applied: list = []  # this step's wrenches (articulation, centre of mass, force, torque), world
 
     def __call__(self, data: mujoco.MjData, force: np.ndarray, links: list) -> None:

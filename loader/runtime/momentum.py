@@ -10,8 +10,9 @@ matrix. Where the links turn relative to each other within a step, the roots end
 `Momentum.settle` recovers MuJoCo's root velocity after a physics step: it solves
 A(q0) v1 = (P', L) - dt (dA/dt) v0 for the root's part of v1, with P' PhysX's end linear momentum, L the start's
 angular momentum plus dt T scaled to PhysX's end size, and the joint part PhysX's; it writes the root pose MuJoCo's
-position update gives. A tree a contact pushed in the step keeps PhysX's L: SAPIEN reports a contact's normal impulse
-only, so the torque of friction is unknown (tests/test_loader_momentum.py::test_a_tree_a_contact_turns_keeps_physxs_angular_momentum).
+position update gives. A tree a contact pushed in the step keeps PhysX's L: SAPIEN reports a contact's normal
+impulse only, so the torque of friction is unknown
+(tests/test_loader_momentum.py::test_a_tree_a_contact_turns_keeps_physxs_angular_momentum).
 It acts only where the joints moved exactly as PhysX's position update moves them (position by timestep x
 velocity): not after a `set_state`, where contacts corrected positions, or on a second read.
 (tests/test_loader_momentum.py::test_a_free_robot_kicked_by_its_joints_keeps_mujocos_root_velocity)
@@ -25,14 +26,12 @@ import mujoco
 import numpy as np
 
 from .. import mj
+from ..build.joint import BALL, FREE
 from ..build.mapping import Mapping
-from ..build.tree import centres
 from ..errors import Notes
 from ..frames import cross3, quat_to_mat
 from .free_joint import FreeJointLaw, differs
 
-FREE = int(mujoco.mjtJoint.mjJNT_FREE)
-BALL = int(mujoco.mjtJoint.mjJNT_BALL)
 DRIFT_STEP = 1e-6  # rad or m moved along v for the forward difference of A
 ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
@@ -61,8 +60,8 @@ def advanced(qpos7: np.ndarray, qvel6: np.ndarray, dt: float) -> np.ndarray:
 
 def angular(kept: np.ndarray, carried: np.ndarray) -> np.ndarray:
     """The angular momentum the step carried: PhysX keeps its size and loses its direction (it rescales an
-    uncorrected intermediate's); `carried` is the start's plus dt times the known external torque (contacts'
-    torques, unknown here, change only the direction)."""
+    uncorrected intermediate's); `carried` is the start's plus dt times the external torque, all of it known where
+    no contact pushed the tree (`touching`)."""
     size, norm = float(np.linalg.norm(kept)), float(np.linalg.norm(carried))
     return carried * (size / norm) if norm > 0.0 else kept
 
@@ -164,7 +163,7 @@ class Momentum:
             if root not in stepped:
                 continue
             drift = (ahead[i] - started[i]) / eps  # (dA/dt) v0, a forward difference along v0
-            if touching(self.links[root.articulation], contacts):  # contacts' torques (friction unseen) turn it: PhysX's direction
+            if touching(self.links[root.articulation], contacts):  # friction's torque unseen: PhysX's L
                 k = kept[i]
             else:
                 carried = started[i][3:] + dt * external_torque(self.data, root, self.gravity, wrenches)
@@ -216,6 +215,7 @@ def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, 
     or several bodies, with a free joint law (`free_joint.differs`), or a lone body whose spin turns under its own
     inertia (principal moments not all equal, or the centre of mass off the origin)."""
     roots = []
+    centres = mapping.centres
     for j, target in enumerate(mapping.joints):
         if int(model.jnt_type[j]) != FREE:
             continue
@@ -223,8 +223,8 @@ def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, 
         tree = np.flatnonzero(model.body_rootid == body)
         damped = differs(model, j, tree)
         inertia = model.body_inertia[body]
-        spinning = tree.size > 1 or np.any(centres(model)[body]) or not np.allclose(inertia, inertia.mean(),
-                                                                                    rtol=ISOTROPIC, atol=0.0)
+        spinning = tree.size > 1 or np.any(centres[body]) or not np.allclose(inertia, inertia.mean(),
+                                                                            rtol=ISOTROPIC, atol=0.0)
         if articulations[target.articulation].dof == 0 and not damped and not spinning:
             continue
         dofs = np.flatnonzero(np.isin(model.dof_bodyid, tree))
