@@ -154,24 +154,38 @@ def redundant_dofs(model: mujoco.MjModel, data: mujoco.MjData) -> bool:
 EXPLICIT_DAMPING_REGION = {int(mujoco.mjtIntegrator.mjINT_EULER): 2.0, int(mujoco.mjtIntegrator.mjINT_RK4): 2.785}
 
 
+def joint_servos(model: mujoco.MjModel) -> list[tuple[int, int, float]]:
+    """(actuator, DoF, gear^2) of each affine-bias actuator on a hinge or slide: the servos whose kp and kv MuJoCo
+    may take explicitly."""
+    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    out = []
+    for a in range(model.nu):
+        joint = int(model.actuator_trnid[a, 0])
+        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT) and \
+                int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE) and \
+                int(model.jnt_type[joint]) in scalar:
+            out.append((a, int(model.jnt_dofadr[joint]), float(model.actuator_gear[a, 0]) ** 2))
+    return out
+
+
+def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """(M^-1)_dd per DoF at `data`'s state: 1 / each joint's effective inertia."""
+    inverse = np.zeros((model.nv, model.nv))
+    mujoco.mj_solveM(model, data, inverse, np.eye(model.nv))
+    return np.diag(inverse)
+
+
 def explicit_damping_unstable(model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
     """An actuator velocity gain MuJoCo integrates explicitly that is past its integrator's stability region on
     the joint it drives: dt kv gear^2 / M (M: the joint's effective inertia, 1 / (M^-1)_dd at the start). MuJoCo
     then grows the joint's speed by that factor minus one every step, and warns only at 1e10."""
     region = EXPLICIT_DAMPING_REGION.get(int(model.opt.integrator))
-    if region is None or not model.nu:
+    servos = joint_servos(model) if region is not None else []
+    if not servos:
         return None
-    inverse = np.zeros((model.nv, model.nv))
-    mujoco.mj_solveM(model, data, inverse, np.eye(model.nv))
-    for a in range(model.nu):
-        joint = int(model.actuator_trnid[a, 0])
-        if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT) or \
-                int(model.actuator_biastype[a]) != int(mujoco.mjtBias.mjBIAS_AFFINE) or \
-                int(model.jnt_type[joint]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            continue
-        dof = int(model.jnt_dofadr[joint])
-        damping = -float(model.actuator_biasprm[a, 2]) * float(model.actuator_gear[a, 0]) ** 2
-        factor = model.opt.timestep * damping * inverse[dof, dof]
+    inverse = inverse_inertia(model, data)
+    for a, dof, gear2 in servos:
+        factor = model.opt.timestep * -float(model.actuator_biasprm[a, 2]) * gear2 * inverse[dof]
         if factor > region:
             return (f"MuJoCo itself is unstable with its actuators on (an explicit velocity gain past the "
                     f"integrator's stability region: actuator {a}, dt kv/M = {factor:.3g} > {region:g})")
@@ -187,25 +201,18 @@ def explicit_stiffness_unstable(model: mujoco.MjModel, data: mujoco.MjData, actu
     """A joint's stiffness past the stability region of MuJoCo's step: dt^2 K / M, K the joint's spring plus
     (`actuated`) its position servos' kp gear^2, M its effective inertia (1 / (M^-1)_dd at the start). Every
     integrator takes stiffness explicitly; past the region MuJoCo rings the joint up a little more every step
-    (fuzz finds: a 2 cm sphere on a 5.5 N m/rad spring, 4.1; a gripper's wrist servo, 4.16)."""
+    (tests/test_fragments_properties.py::test_an_explicit_servo_stiffness_past_the_step_s_region_is_no_reference)."""
     region = EXPLICIT_STIFFNESS_REGION.get(int(model.opt.integrator), EXPLICIT_STIFFNESS_DEFAULT)
     scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     stiffness = np.zeros(model.nv)
     for j in range(model.njnt):
         if int(model.jnt_type[j]) in scalar:
             stiffness[int(model.jnt_dofadr[j])] += float(model.jnt_stiffness[j])
-    for a in range(model.nu if actuated else 0):
-        joint = int(model.actuator_trnid[a, 0])
-        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT) and \
-                int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE) and \
-                int(model.jnt_type[joint]) in scalar:
-            kp = -float(model.actuator_biasprm[a, 1]) * float(model.actuator_gear[a, 0]) ** 2
-            stiffness[int(model.jnt_dofadr[joint])] += max(kp, 0.0)
+    for a, dof, gear2 in joint_servos(model) if actuated else []:
+        stiffness[dof] += max(-float(model.actuator_biasprm[a, 1]) * gear2, 0.0)
     if not stiffness.any():
         return None
-    inverse = np.zeros((model.nv, model.nv))
-    mujoco.mj_solveM(model, data, inverse, np.eye(model.nv))
-    factor = model.opt.timestep ** 2 * stiffness * np.diag(inverse)
+    factor = model.opt.timestep ** 2 * stiffness * inverse_inertia(model, data)
     dof = int(np.argmax(factor))
     if factor[dof] > region:
         return (f"MuJoCo itself is unstable{' with its actuators on' if actuated else ' on the model'} (an explicit "
