@@ -75,9 +75,9 @@ def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
 
 
 # Rotations carrying +X onto a coordinate axis whose quaternions float32 holds exactly (120 degree turns about a cube
-# diagonal; -X is the half turn about Z below): the shortest rotation onto +Y or +Z has components sqrt(1/2), which float32 rounds,
-# tilting the joint's axis by 6e-8 rad. Under gravity that tilt turns a light body on a vertical hinge (dm_control
-# swimmer's 10 g head spun up at 7e-5 rad/s^2 from rest, where MuJoCo's stays still).
+# diagonal; -X is the half turn about Z below): the shortest rotation onto +Y or +Z has components sqrt(1/2), which
+# float32 rounds, tilting the joint's axis. Under gravity that tilt turns a light body on a vertical hinge, where
+# MuJoCo's stays still (tests/test_loader_joints.py::test_a_light_body_on_a_vertical_hinge_stays_at_rest_under_gravity).
 EXACT_X_TO = {
     (0, 1, 0): (0.5, 0.5, 0.5, 0.5), (0, -1, 0): (0.5, 0.5, -0.5, -0.5),
     (0, 0, 1): (0.5, 0.5, -0.5, 0.5), (0, 0, -1): (0.5, 0.5, 0.5, -0.5),

@@ -13,8 +13,8 @@ from .. import mj
 from ..errors import MJCFError
 
 # any other number: PhysX multiplies gains, gears, commands and inertias together in float32 (largest 3.4e38), so a
-# factor beyond this overflows one step's product (gear 1e30: a NaN state at step 0; the largest real value in the
-# full corpus is a joint damping of 1e11)
+# factor beyond this overflows one step's product, far above any real robot's
+# (tests/test_loader_errors.py::test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element)
 MAGNITUDE = 1e15
 REACH = 1e7  # m: positions and sizes beyond this are nonsense for a robot, and float32 resolves only metres there
 MAX_TIMESTEP = 1.0  # s: PhysX integrates float32 states over it; no robot is simulated in steps longer than this
