@@ -155,8 +155,7 @@ def one_step_qvel(result, ref: mujoco.MjModel, run: reference.Rollout, every: in
     1e-5 rad/s of rounding). Also the first sampled step whose SAPIEN state left what MuJoCo's run allows."""
     out, floors, states, sampled = [], [], [], []
     for t in range(0, run.ctrl.shape[0], every):
-        sapien_side.set_state(result, run.qpos[t], run.qvel[t], run.act[t])
-        q0, v0 = sapien_side.get_state(result)
+        q0, v0 = sapien_side.held_start(result, run.qpos[t], run.qvel[t], run.act[t])
         _, ref_v1 = reference.step_from(ref, q0, v0, act=run.act[t], ctrl=run.ctrl[t])
         result.set_ctrl(run.ctrl[t])
         result.scene.step()

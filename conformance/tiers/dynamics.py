@@ -25,8 +25,7 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
     dt = ref.opt.timestep
     qacc, qvel, qpos, states, sampled = [], [], [], [], []
     for t in range(0, run.command.shape[0], every):
-        sapien_side.set_state(result, run.qpos[t], run.qvel[t])
-        q0, v0 = sapien_side.get_state(result)  # what SAPIEN holds after float32 rounding: MuJoCo starts there too
+        q0, v0 = sapien_side.held_start(result, run.qpos[t], run.qvel[t])
         ref_q1, ref_v1 = reference.step_from(ref, q0, v0, qfrc=run.command[t])
         sapien_side.apply_generalized_force(result, run.command[t])
         result.scene.step()
