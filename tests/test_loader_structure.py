@@ -56,7 +56,8 @@ def test_fix_root_link_false_lets_a_jointless_root_float(tmp_path):
 
 SPATIAL_SPRING = """<mujoco><worldbody><site name="top" pos="0 0 1"/><body><joint name="a" axis="0 1 0"/>
   <geom size=".1" pos=".2 0 0"/><site name="tip" pos=".4 0 0"/></body></worldbody>
-  <tendon><spatial name="rope" stiffness="5"><site site="top"/><site site="tip"/></spatial></tendon></mujoco>"""
+  <tendon><spatial name="rope" stiffness="5" armature="0.1"><site site="top"/><site site="tip"/></spatial>
+  </tendon></mujoco>"""
 
 
 CYLINDERS = SPATIAL_SPRING.replace('<geom size=".1" pos=".2 0 0"/>', "".join(
@@ -68,7 +69,7 @@ def test_unsupported_features_are_listed_and_warned_once_per_kind(tmp_path):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = MJCFLoader().load(tmp_path / "rope.xml")
-    assert ("tendon", "rope") in {(entry.kind, entry.name) for entry in result.unsupported}  # a spatial spring
+    assert ("tendon", "rope") in {(entry.kind, entry.name) for entry in result.unsupported}  # its armature
     ours = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
     kinds = {("unsupported", e.kind) for e in result.unsupported} | {("approximated", e.kind)
                                                                       for e in result.approximations}

@@ -30,6 +30,7 @@ from .gravcomp import map_gravcomp
 from .momentum import plan_momentum
 from .rows import plan_rows
 from .slides import SlideTerm, map_slides
+from .spatial_tendons import plan_spatial
 from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
 from .tendons import IMPLICIT, TendonTerm, map_tendons
@@ -202,12 +203,13 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
                      notes, [link.soft for link in rowed if link.soft is not None], timestep)
     activation = Activation(model, timestep=timestep) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
     tendons = map_tendons(model, mapping, notes)
+    spatial = plan_spatial(model, mapping, notes, int(model.opt.integrator) in IMPLICIT)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
     connects = [link.soft for link in equalities if link.soft is not None and link.kind == "D6 joint"]
     terms = [actuators, StiffnessTerm(mj.explicit_damping(model)), DriveWriter(passive, dof_inertia(model, mapping))]
-    terms += [TendonTerm(tendons)] if tendons else []
+    terms += [TendonTerm(tendons, spatial)] if tendons or spatial is not None else []
     terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []
     terms += [term for term in (fluid, gravcomp) if term is not None]

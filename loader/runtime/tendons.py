@@ -19,9 +19,10 @@ def tendon_state(terms, q: list[np.ndarray], v: list[np.ndarray]) -> tuple[float
 @dataclass(frozen=True)
 class PassiveTendon:
     """A fixed tendon's spring (dead band `low`..`high`) and damper as MuJoCo applies them, over (articulation,
-    dof, coefficient) terms: the force J^T f from the state, explicit, written by `set_ctrl` every step. Under
-    MuJoCo's implicit integrators the damper's diagonal D c_i^2 is implicit (`set_ctrl` adds it to the joints'
-    drives) and `forces` adds D c_i^2 qdot_i back, so that the step equals MuJoCo's."""
+    dof, coefficient) terms: the force J^T f from the state, explicit, written by `set_ctrl` every step. MuJoCo's
+    implicitfast holds the damper's whole D J^T J implicitly; a drive holds one DoF, so the diagonal D c_i^2 joins
+    the joints' drives, `forces` adds D c_i^2 qdot_i back, and the off-diagonal part stays explicit (exact for a
+    tendon over one joint; `COUPLED_DAMPING` notes the others)."""
 
     name: str
     terms: tuple[tuple[int, int, float], ...]
@@ -42,21 +43,20 @@ class PassiveTendon:
 
 
 IMPLICIT = (int(mujoco.mjtIntegrator.mjINT_IMPLICIT), int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
+COUPLED_DAMPING = ("damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
+                   "b J^T J; the off-diagonal part is explicit)")
 
 
 def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
-    """Passive tendon properties: a fixed tendon's spring and damper, applied as MuJoCo does. MuJoCo's implicit
-    and implicitfast integrators treat a tendon's damping implicitly through its diagonal D c_i^2 only, Euler
-    explicitly; a PhysX fixed tendon would be implicit in the whole D J J^T and in its spring
+    """Passive tendon properties: a fixed tendon's spring and damper, applied as MuJoCo does (`PassiveTendon`;
+    Euler takes the damper explicitly). A PhysX fixed tendon would be implicit in its spring too
     (tests/test_loader_passive.py::test_a_passive_fixed_tendon_matches_mujoco)."""
     out = []
     for t in range(model.ntendon):
         name = mj.name(model, "tendon", t)
         terms = fixed_tendon_terms(model, t)
         if not terms:
-            if model.tendon_stiffness[t] or model.tendon_damping[t]:
-                notes.drop("tendon", name, "spatial tendon's spring and damper not mapped")
-            continue
+            continue  # a spatial tendon (`spatial_tendons.py`)
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
         stiffness = float(model.tendon_stiffness[t]) if not mj.disabled(model, "spring") else 0.0
@@ -71,6 +71,8 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
                 break
             mapped.append((target.articulation, target.dofs[0], coefficient))
         else:
+            if damping and len(mapped) > 1 and int(model.opt.integrator) in IMPLICIT:
+                notes.approximate("tendon", name, COUPLED_DAMPING)
             low, high = (float(x) for x in model.tendon_lengthspring[t])
             out.append(PassiveTendon(name, tuple(mapped), stiffness, damping, low, high))
     return out
@@ -78,15 +80,17 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
 
 class TendonTerm:
     """The passive fixed tendons' forces every step, as arrays over their terms (per term its tendon `owner`,
-    joint position `flat`, drive column and coefficient); under implicit integrators their dampers' diagonal joins
-    the drives (`Step.implicit_extra`)."""
+    joint position `flat`, drive column and coefficient), and the spatial ones' (`spatial`); under implicit
+    integrators their dampers' diagonal joins the drives (`Step.implicit_extra`)."""
 
     name = "tendons"
 
-    def __init__(self, tendons: list[PassiveTendon]):
-        self.tendons = tendons
+    def __init__(self, tendons: list[PassiveTendon], spatial=None):
+        self.tendons, self.spatial = tendons, spatial
 
     def compile(self, layout) -> None:
+        if self.spatial is not None:
+            self.spatial.compile(layout)
         rows = [(k, (art, dof), c) for k, t in enumerate(self.tendons) for art, dof, c in t.terms]
         self.owner = np.array([k for k, _, _ in rows], dtype=int)
         self.flat = layout.flat_of([key for _, key, _ in rows])
@@ -99,7 +103,11 @@ class TendonTerm:
         self.unique = len(set(self.flat.tolist())) == self.flat.size  # no DoF in two terms: no sums
 
     def contribute(self, step) -> None:
-        """`PassiveTendon.forces` for every tendon at once."""
+        """`PassiveTendon.forces` for every fixed tendon at once, then the spatial ones."""
+        if self.spatial is not None:
+            self.spatial.contribute(step)
+        if not self.tendons:
+            return
         owner, c, count = self.owner, self.coefficient, len(self.tendons)
         v = step.v[self.flat]
         length = np.bincount(owner, c * step.q[self.flat], minlength=count)
@@ -120,7 +128,7 @@ class TendonTerm:
 
     def implicit_diagonal(self) -> dict[tuple[int, int], float]:
         """The dampers' diagonal D c^2 per DoF (what joins the drives under implicit integrators)."""
-        out: dict[tuple[int, int], float] = {}
+        out: dict[tuple[int, int], float] = {} if self.spatial is None else self.spatial.implicit_diagonal()
         for tendon in self.tendons:
             for art, dof, c in tendon.terms:
                 out[(art, dof)] = out.get((art, dof), 0.0) + tendon.damping * c * c

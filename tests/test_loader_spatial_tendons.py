@@ -1,0 +1,112 @@
+"""Passive spatial tendons: a spring with a dead band and a damper along sites and a wrapping cylinder, carried as
+joint forces J^T f from MuJoCo's own length and Jacobian at SAPIEN's pose (loader/runtime/spatial_tendons.py)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from support.corpus import mjcf_file
+from support.lockstep import no_ctrl, replay
+
+from loader import MJCFLoader
+
+FINGER = """<mujoco><option timestep="0.002" gravity="0 0 -9.81" integrator="{integrator}"/>
+  <worldbody><site name="anchor" pos="-0.02 0 0.05"/>
+    <body name="proximal"><joint name="mcp" axis="0 1 0" range="-0.2 1.6" damping="0.002"/>
+      <geom type="capsule" fromto="0 0 0 0.05 0 0" size="0.008" mass="0.02"/>
+      <site name="p1" pos="0.02 0 0.01"/>
+      <body name="distal" pos="0.05 0 0"><joint name="pip" axis="0 1 0" range="0 1.7"/>
+        <geom name="pulley" type="cylinder" fromto="0 -0.005 0 0 0.005 0" size="0.006" mass="0.001"/>
+        <geom type="capsule" fromto="0 0 0 0.04 0 0" size="0.007" mass="0.015"/>
+        <site name="d1" pos="0.03 0 0.008"/><site name="side" pos="0 0 0.02"/></body></body>
+  </worldbody>
+  <tendon>
+    <spatial name="extensor" stiffness="400" springlength="0.09 0.095" damping="{damping}">
+      <site site="anchor"/><site site="p1"/><geom geom="pulley" sidesite="side"/><site site="d1"/></spatial>
+    <spatial name="short" stiffness="60" springlength="0.03"><site site="p1"/><site site="d1"/></spatial>
+  </tendon>
+  <keyframe><key qpos="0.5 0.9" qvel="2 -3"/></keyframe>
+</mujoco>"""
+
+SPATIAL_TOLERANCE = 1e-5  # rad over 1 s; measured 7e-7 (Euler), the mutations 6e-3 and more (mujoco 3.17.0,
+# sapien 3.0.3)
+IMPLICIT_DAMPING = 0.01  # N s/m on a 20 g finger: dt b J^2 / I about 1e-3
+IMPLICIT_TOLERANCE = 1e-3  # rad over 1 s with the damper's off-diagonal explicit; measured 4.6e-4, explicit 1.2e-3
+# (the error grows linearly in the damping)
+
+
+def load(tmp_path, integrator: str, damping: float = 0.0):
+    path = mjcf_file(tmp_path, FINGER.format(integrator=integrator, damping=damping), "finger.xml")
+    result = MJCFLoader().load(path)
+    return result, result.model
+
+
+def test_a_spatial_tendon_spring_matches_mujoco(tmp_path):
+    """Euler, springs only: the tendons' forces are MuJoCo's own at every step. Mutation: the tendons' term off."""
+    result, model = load(tmp_path, "Euler")
+    assert result.controller.term("tendons").spatial is not None
+    assert not [n for n in result.unsupported if "tendon" in str(n)]
+    errors = replay(result, model, no_ctrl, 1.0)
+    assert errors.max() < SPATIAL_TOLERANCE, errors.max()
+    result.controller.without("tendons")
+    assert replay(result, model, no_ctrl, 1.0).max() > 100 * SPATIAL_TOLERANCE
+
+
+def test_a_spatial_tendon_damper_under_euler_is_explicit(tmp_path, monkeypatch):
+    """Euler takes a tendon damper explicitly, so the step is exact. Mutation: its diagonal made implicit."""
+    result, model = load(tmp_path, "Euler", damping=0.05)
+    errors = replay(result, model, no_ctrl, 1.0)
+    assert errors.max() < SPATIAL_TOLERANCE, errors.max()
+    import loader.runtime.controller
+
+    monkeypatch.setattr(loader.runtime.controller, "IMPLICIT", (int(mujoco.mjtIntegrator.mjINT_EULER),))
+    other, model = load(tmp_path, "Euler", damping=0.05)
+    assert replay(other, model, no_ctrl, 1.0).max() > 10 * SPATIAL_TOLERANCE
+
+
+def test_a_spatial_tendon_damper_under_implicitfast_is_noted_and_close(tmp_path):
+    """MuJoCo's implicitfast holds the whole b J^T J implicitly, the drives its diagonal: an approximation note
+    names the tendon and 1 s stays within 1e-3 rad. Mutation: the damper left explicit."""
+    result, model = load(tmp_path, "implicitfast", damping=IMPLICIT_DAMPING)
+    assert any("extensor" in str(note) and "J^T J" in str(note) for note in result.approximations)
+    errors = replay(result, model, no_ctrl, 1.0)
+    assert errors.max() < IMPLICIT_TOLERANCE, errors.max()
+    other, model = load(tmp_path, "implicitfast", damping=IMPLICIT_DAMPING)
+    other.controller.term("tendons").spatial.implicit = False
+    other.controller.stale = True
+    assert replay(other, model, no_ctrl, 1.0).max() > 2 * errors.max()
+
+
+def test_a_spatial_tendon_over_a_free_joint_is_reported_unsupported(tmp_path):
+    """A spatial tendon whose path rides on a floating body moves a free joint: SAPIEN's joint forces cannot carry
+    it, and the loader says so."""
+    floating = FINGER.format(integrator="Euler", damping=0.0).replace(
+        '<site name="anchor" pos="-0.02 0 0.05"/>',
+        '<body name="palm" pos="0 0 1"><freejoint/><geom type="box" size=".01 .01 .01"/>'
+        '<site name="anchor" pos="-0.02 0 0.05"/></body>')
+    result = MJCFLoader().load(mjcf_file(tmp_path, floating.replace('<key qpos="0.5 0.9" qvel="2 -3"/>', ""),
+                                         "floating.xml"))
+    assert any("extensor" in str(note) and "free joint" in str(note) for note in result.unsupported)
+
+
+def test_the_tendon_jacobian_is_mujocos_dense_row(tmp_path):
+    """The term's Jacobian, rebuilt from MuJoCo's sparse ten_J, equals MuJoCo's length derivative by finite
+    differences (a wrong column map would move a tendon's force to another joint)."""
+    result, model = load(tmp_path, "Euler")
+    spatial = result.controller.term("tendons").spatial
+    data = mujoco.MjData(model)
+    data.qpos[:] = [0.3, 1.1]
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    mujoco.mj_tendon(model, data)
+    jacobian = spatial.dense(data)
+    for i in range(model.nv):
+        shifted = mujoco.MjData(model)
+        shifted.qpos[:] = data.qpos
+        shifted.qpos[i] += 1e-7
+        mujoco.mj_kinematics(model, shifted)
+        mujoco.mj_comPos(model, shifted)
+        mujoco.mj_tendon(model, shifted)
+        derivative = (shifted.ten_length - data.ten_length)[spatial.tendons] / 1e-7
+        column = list(spatial.dofs).index(i)
+        np.testing.assert_allclose(jacobian[:, column], derivative, atol=1e-5)
