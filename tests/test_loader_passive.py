@@ -31,9 +31,9 @@ TENDON_TOLERANCE = 1e-5  # rad over 1 s, measured 4.2e-7 (implicitfast), 4.0e-7 
 
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
 def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator):
-    """A tendon spring-damper over three hinges (coefficients 1, -0.5, 0.5): MuJoCo's implicit integrators treat
-    the tendon's damping implicitly through its diagonal only, Euler explicitly; the loader follows the model's
-    integrator. The mutation (the other treatment) must fail."""
+    """A tendon spring-damper over three hinges (coefficients 1, -0.5, 0.5): Euler takes the damper explicitly,
+    implicitfast its whole D J^T J implicitly, of which the drives hold the diagonal (the rest explicit, noted); the
+    loader follows the model's integrator. The mutation (the other treatment) must fail."""
     path = mjcf_file(tmp_path, PASSIVE_TENDON.format(integrator=integrator), "tendon.xml")
 
     def load():
@@ -43,6 +43,7 @@ def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator
 
     result, model = load()
     assert len(result.controller.term("tendons").tendons) == 1
+    assert any("J^T J" in str(note) for note in result.approximations) == (integrator != "Euler")
     errors = replay(result, model, no_ctrl, 1.0)
     assert errors.max() < TENDON_TOLERANCE, errors.max()
     import loader.runtime.controller

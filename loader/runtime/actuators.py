@@ -24,6 +24,7 @@ from .actuator_laws import ActuatorLaws
 from .clamps import ForceClamps
 from .dof_step import DofKey, DofLayout, Step
 from .tendon_actuators import TendonActuators
+from .tendons import COUPLED_DAMPING, IMPLICIT
 
 
 @dataclass
@@ -129,6 +130,8 @@ def plan(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive
             notes.drop("actuator", entry.name, entry.reason)
         elif terms is not None:
             term.tendon_terms[a] = terms
+            if entry.damping and len(terms) > 1 and int(model.opt.integrator) in IMPLICIT:
+                notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         else:  # a joint actuator joins its DoF's drive: gear^2 kp and kv on top of the passive terms
             key = (entry.articulation, entry.dofs[0])
             law = term.laws.setdefault(key, DofDrive(**vars(passive[key])))

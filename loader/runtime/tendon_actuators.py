@@ -1,7 +1,7 @@
 """Fixed-tendon actuators: J^T f with f MuJoCo's actuator force at the tendon's length and rate now. MuJoCo's
-implicit step holds only the diagonal of kv J^T J (none once its forcerange clamps it): that joins the drives, and
-the explicit force gets it back at the current rate
-(tests/test_loader_actuators.py::test_a_tendon_servo_matches_mujoco)."""
+implicitfast holds the whole kv J^T J implicitly (none once its forcerange clamps it); a drive holds one DoF, so the
+diagonal joins the drives, the explicit force gets it back at the current rate, and the off-diagonal part stays
+explicit (`tendons.COUPLED_DAMPING` notes it) (tests/test_loader_actuators.py::test_a_tendon_servo_matches_mujoco)."""
 
 from __future__ import annotations
 
