@@ -286,12 +286,14 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     err = reference.qpos_difference(ref, run.qpos, sp.qpos)
     # float32 holds SAPIEN's coordinates: what it cannot resolve at the size each has reached is not judged
     floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
+    tolerance = tolerances[f"actuated.rollout_qpos_{kind}"]
+    gate = gate.held(metric("whole", err, tolerance, "rad or m", floor=floor).passed)
     judged = gate.judged_steps + 1
     metrics: list[Metric] = [
         settings_metric(mismatched),
         metric("one_step_qvel", one_step, tolerances[f"actuated.one_step_qvel_{kind}"], "rad/s or m/s",
                floor=one_step_floor),
-        metric("rollout_qpos", err[:judged], tolerances[f"actuated.rollout_qpos_{kind}"], "rad or m",
+        metric("rollout_qpos", err[:judged], tolerance, "rad or m",
                floor=floor[:judged]),
     ]
     notes = removal + list(mismatched) + _ctrl_notes(scale, left, steps)
