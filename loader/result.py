@@ -54,6 +54,9 @@ class LoadResult(MuJoCoState):
         for link in self.equalities:
             if link.soft is not None:
                 link.soft.set_active(bool(self.model.eq_active0[link.soft.equality]))
+        rows = self.controller.term("rows")
+        if rows is not None:
+            rows.reset_active()
         self.mapping.set_state(self.articulations, *self.keyframe_state(key))
         self.controller.forget()
         self.set_act(None if key is None else self.model.keyframe(key).act)

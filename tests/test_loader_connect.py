@@ -349,5 +349,8 @@ def test_a_joint_coupling_switches_as_eq_active_does_in_mujoco():
     assert run(switch_sapien=True) < 1e-5
     assert run(switch_sapien=False) > 1e-3
     result = MJCFLoader().load(FIXTURE.parents[2] / "tests" / "fixtures" / "coupled_joints.xml")
+    result.set_equality_active(0, False)
+    result.reset()  # as mj_resetData: the coupling back to eq_active0 in MuJoCo's copy too
+    assert result.controller.term("rows").data.eq_active[0] == result.model.eq_active0[0] == 1
     with pytest.raises(KeyError):
         result.set_equality_active("no such equality", True)

@@ -26,21 +26,22 @@ def accelerated(model: mujoco.MjModel) -> bool:
     return integrator == RK4 or (integrator == EULER and (mj.explicit_damping(model) or not np.any(model.dof_damping)))
 
 
-def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray, qacc: bool,
-                     contacts: bool) -> np.ndarray:
+def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray, qacc: bool) -> np.ndarray:
     """The generalized force of the constraint rows `rows` (a mask over data's rows) that MuJoCo's step integrates
-    (`qacc`: it integrates the solver's qacc); the other rows are contacts, solved with them when `contacts`."""
+    (`qacc`: it integrates the solver's qacc). The other rows (contacts, while they are solved with the joint rows;
+    equalities PhysX's joints hold) were solved with them and are applied by PhysX."""
     force = np.zeros(model.nv)
     if not data.nefc:
         return force
+    whole = rows.all()
     if not qacc:
-        if not contacts:
+        if whole:
             return data.qfrc_constraint
         if rows.any():
             mujoco.mj_mulJacTVec(model, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
         return force
     mujoco.mj_mulM(model, data, force, data.qacc - data.qacc_smooth)
-    if contacts and not rows.all():
+    if not whole:
         pushed = np.zeros(model.nv)
         mujoco.mj_mulJacTVec(model, data, pushed, np.where(rows, 0.0, data.efc_force[:data.nefc]))
         force -= pushed

@@ -124,8 +124,7 @@ class RowTerm:
         self.data = mujoco.MjData(model)
         self.couplings = couplings  # the equalities MuJoCo's copy solves
         self.standby = standby or []  # the D6 joints that hold those loops after release() (runtime/equalities.py)
-        self.data.eq_active[:] = 0
-        self.data.eq_active[couplings] = model.eq_active0[couplings]
+        self.reset_active()
         self.mapping = mapping
         self.set_limits(limits)
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
@@ -171,8 +170,8 @@ class RowTerm:
     def joint_rows(self) -> np.ndarray:
         """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
         PhysX's to apply), as MuJoCo's step integrates it (`integrated.py`)."""
-        rows = JOINT_ROW[self.data.efc_type[:self.data.nefc]]
-        return integrated_force(self.lent.model, self.data, rows, self.accelerated, self.contacts)
+        return integrated_force(self.lent.model, self.data, JOINT_ROW[self.data.efc_type[:self.data.nefc]],
+                                self.accelerated)
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
@@ -195,6 +194,10 @@ class RowTerm:
 
     def set_active(self, equality: int, active: bool) -> None:  # MuJoCo's eq_active of a joint or tendon coupling
         self.data.eq_active[equality] = int(active)
+
+    def reset_active(self) -> None:  # the copy's couplings as the model starts them (eq_active0), no other equality
+        self.data.eq_active[:] = 0
+        self.data.eq_active[self.couplings] = self.lent.model.eq_active0[self.couplings]
 
     def clear_of(self, step: Step) -> None:
         """Move PhysX's limit of a joint within half a margin of it further out, so that it never acts while the
@@ -227,10 +230,7 @@ class RowTerm:
                 loop.lock(self.lent.timestep)
         self.soft = soft
 
-    def release(self, joints) -> None:
-        self.hold(joints, soft=False)
-
-    removed = release
+    release = removed = lambda self, joints: self.hold(joints, soft=False)  # PhysX's limits at MuJoCo's range
 
 
 def solve(mirror: mujoco.MjModel, data: mujoco.MjData, contacts: bool, timestep: float, depenetration: float) -> None:
