@@ -139,6 +139,13 @@ def apply_generalized_force(result, qfrc: np.ndarray) -> None:
     result.set_ctrl(None, qfrc_applied=np.asarray(qfrc, dtype=float))
 
 
+def clear_command(result, nv: int) -> None:
+    """After a run: no command left in `qf` (set_qf persists). No physics step follows, so the call does not begin
+    one (`advance=False`): link forces it added would wait in PhysX for the next run's first step, on top of that
+    step's own (tests/test_tiers_mutations.py::test_a_run_after_another_starts_with_no_link_force_left)."""
+    result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
+
+
 def contacts_enabled(result) -> bool:
     """Whether any shape can still collide (`dynamics` and `actuated` zero every shape's groups)."""
     from loader.runtime.contacts import collision_shapes

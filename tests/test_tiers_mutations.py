@@ -198,3 +198,15 @@ def test_the_maniskill_tier_catches_a_robot_built_there_without_armature(monkeyp
 
     monkeypatch.setattr(physx_settings, "apply_articulation_settings", without_armature)
     assert _tier(session, "maniskill").status in ("fail", "diverged")
+
+
+def test_a_run_after_another_starts_with_no_link_force_left(monkeypatch):
+    """The swimmer's fluid drag is a link force, which PhysX keeps until the next step. The dynamics tier's
+    rollouts follow its one-step pass, whose last call only clears the command: they pass. Mutation: that call
+    begins a physics step (`advance=True`), so its drag waits in PhysX and doubles the rollout's first."""
+    from conformance import sapien_side
+
+    assert _tier(_session("swimmer"), "dynamics").status == "pass"
+    monkeypatch.setattr(sapien_side, "clear_command",
+                        lambda result, nv: result.set_ctrl(None, qfrc_applied=np.zeros(nv)))
+    assert _tier(_session("swimmer"), "dynamics").status == "fail"

@@ -35,7 +35,7 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
         qpos.append(np.abs(reference.qpos_difference(ref, ref_q1, q1)))
         states.append((q1, v1))
         sampled.append(t + 1)
-    sapien_side.apply_generalized_force(result, np.zeros(ref.nv))
+    sapien_side.clear_command(result, ref.nv)
     found = first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt,
                              sampled) if states else None
     return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}, found

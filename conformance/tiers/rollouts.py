@@ -34,7 +34,7 @@ def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndar
     """Replay `command` (steps, nv), a generalized force per step, on SAPIEN from (qpos0, qvel0)."""
     run = sapien_side.rollout(result, qpos0, qvel0, command.shape[0],
                               lambda t, q, v: sapien_side.apply_generalized_force(result, command[t]))
-    sapien_side.apply_generalized_force(result, np.zeros(model.nv))
+    sapien_side.clear_command(result, model.nv)
     return run
 
 
