@@ -61,7 +61,7 @@ GAPS = {gap.name: gap for gap in (
     Gap("frictionloss", "joint frictionloss zeroed (its rows are MuJoCo's own, solved with the others)",
         lambda m: bool(m.dof_frictionloss.any()), _zero_frictionloss),
     Gap("equality", "equality constraints disabled (couplings and fixed-base loops are MuJoCo's own rows; "
-        "connects and welds moving a floating base are D6 joints, coupled with joint damping)",
+        "connects and welds moving a ball joint are D6 joints, coupled with joint damping)",
         lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
         _disable(FLAGS.mjDSBL_EQUALITY)),
     Gap("limits", "joint limits disabled (MuJoCo's own rows on both sides, solved with MuJoCo's contacts)",

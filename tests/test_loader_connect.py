@@ -28,8 +28,8 @@ from loader.soft_row import SoftRow, diag_approx
 
 @pytest.fixture(autouse=True)
 def d6_form(monkeypatch):
-    """These tests measure the D6 form of connects and welds, which the loader uses where a loop moves a floating
-    base. Their fixtures have fixed bases, where the loader makes MuJoCo's own rows instead
+    """These tests measure the D6 form of connects and welds, which the loader uses where a loop moves a ball
+    joint. Their fixtures have none, where the loader makes MuJoCo's own rows instead
     (tests/test_loader_couplings.py), so the D6 form is chosen here for every connect and weld."""
     import loader.build.equalities
 

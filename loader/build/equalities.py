@@ -1,7 +1,7 @@
-"""Equality constraints: joint and tendon couplings, and connects and welds that move only hinges and slides, as
-MuJoCo's own rows (`runtime/rows.py` asks MuJoCo for their force every step); other connects and welds as PhysX D6
-joints that `runtime/equalities.py` drives with MuJoCo's soft row every step. Derivation:
-docs/mapping.md#equalities.
+"""Equality constraints: joint and tendon couplings, and connects and welds that move only hinges, slides and free
+joints, as MuJoCo's own rows (`runtime/rows.py` asks MuJoCo for their force every step); connects and welds that
+move a ball joint as PhysX D6 joints that `runtime/equalities.py` drives with MuJoCo's soft row every step.
+Derivation: docs/mapping.md#equalities.
 """
 
 from __future__ import annotations
@@ -74,14 +74,16 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
 
 
 def _joint_row(model: mujoco.MjModel, mapping: Mapping, e: int) -> bool:
-    """Whether a connect or weld moves only hinges and slides (a fixed-base loop, an arm welded to a fixed or mocap
-    body): then its rows are MuJoCo's own, solved with the limits and couplings next to them, and their force is
-    joint forces. Otherwise (a floating base in the loop) it becomes a D6 joint."""
+    """Whether a connect or weld moves only hinges, slides and free joints (a fixed-base loop, an arm welded to a
+    fixed or mocap body, a floating body welded to an arm): then its rows are MuJoCo's own, solved with the limits
+    and couplings next to them, and their force is joint forces and, on a free joint, a wrench on its root link
+    (`runtime/integrated.py`). A ball joint in the loop makes it a D6 joint."""
     bodies = [int(model.eq_obj1id[e]), int(model.eq_obj2id[e])]
     if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):
         bodies = [int(model.site_bodyid[s]) for s in bodies]
     moved = mj.body_dofs(model, bodies[0]) | mj.body_dofs(model, bodies[1])
-    return bool(moved) and mapping.joint_dofs_only(model, moved)
+    return bool(moved) and all(mapping.joints[int(model.dof_jntid[d])].kind in ("hinge", "slide", "free")
+                               for d in moved)
 
 
 def _coupling(model, e, name, mapping, notes) -> EqualityLink:

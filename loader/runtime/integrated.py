@@ -50,7 +50,7 @@ def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarra
 
 class RootPush:
     """A constraint force's share on the floating roots, as a wrench on each root link (added once per physics
-    step): none from a converged solve, whose joint rows leave a free joint alone."""
+    step): a weld or connect holding a floating body, or an unconverged solve."""
 
     def __init__(self, model: mujoco.MjModel, mapping: Mapping):
         self.roots = []  # (articulation, link, body, dof address, centre of mass in the body frame)
