@@ -1,5 +1,5 @@
 """Passive spatial tendons: the spring (dead band between `lengthspring`'s ends) and damper of a tendon routed through
-sites and wrapping geoms, applied as joint forces J^T f.
+sites and wrapping geoms, applied as joint forces J^T f (a free joint's share as a wrench on its root link).
 
 A spatial tendon's length and Jacobian J (over MuJoCo's DoFs) change with the pose, so MuJoCo computes them at
 SAPIEN's state each step (`mj_kinematics`, `mj_comPos`, `mj_tendon` on a data of the loaded model) and the force
@@ -17,21 +17,27 @@ import numpy as np
 from .. import mj
 from ..build.mapping import Mapping
 from .dof_step import Step
+from .integrated import RootPush
 from .rows import scalar_state
 from .tendons import COUPLED_DAMPING
 
+CARRIED = ("hinge", "slide", "free")  # joints whose share of a tendon's force SAPIEN applies
+
 
 class SpatialTendons:
-    """The passive spatial tendons `tendons` (MuJoCo ids) over the hinge/slide DoFs `dofs` (MuJoCo's) they move,
-    SAPIEN's `keys`; `implicit`: MuJoCo's integrator holds dampers implicitly."""
+    """The passive spatial tendons `tendons` (MuJoCo ids) over the DoFs `dofs` (MuJoCo's) they move: the hinge and
+    slide ones SAPIEN's `keys` (columns `joint`), a free joint's as a wrench on its root link (`RootPush`);
+    `implicit`: MuJoCo's integrator holds dampers implicitly."""
 
-    def __init__(self, model: mujoco.MjModel, mapping: Mapping, tendons: list[int], dofs: list[int], keys: list,
-                 implicit: bool):
+    def __init__(self, model: mujoco.MjModel, mapping: Mapping, tendons: list[int], dofs: list[int], implicit: bool):
         self.model, self.mapping = model, mapping
         self.data = mujoco.MjData(model)
         self.tendons = np.array(tendons, dtype=int)
         self.dofs = np.array(dofs, dtype=int)
-        self.keys = keys
+        targets = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
+        self.joint = np.array([t.kind in ("hinge", "slide") for t in targets], dtype=bool)
+        self.keys = [(t.articulation, t.dofs[0]) for t, on in zip(targets, self.joint) if on]
+        self.push = RootPush(model, mapping) if not self.joint.all() else None  # a free joint's share
         spring, damper = not mj.disabled(model, "spring"), not mj.disabled(model, "damper")
         self.stiffness = model.tendon_stiffness[self.tendons] * spring
         self.damping = model.tendon_damping[self.tendons] * damper
@@ -42,32 +48,43 @@ class SpatialTendons:
             int(model.ten_J_rowadr[t]), int(model.ten_J_rowadr[t] + model.ten_J_rownnz[t]))]
         self.row, self.column, self.entry = (np.array(x, dtype=int) for x in zip(*entries))
 
+    applied = property(lambda self: self.push.applied if self.push is not None else ())  # root wrenches (momentum)
+
     def compile(self, layout) -> None:
         self.flat = layout.flat_of(self.keys)
         self.drive = layout.drive_of(self.keys)
         self.scalar = scalar_state(self.model, self.mapping, layout)
 
-    def jacobian(self, step: Step) -> tuple[np.ndarray, np.ndarray]:
-        """The tendons' lengths and Jacobian (tendon x the mapped DoFs) at the step's pose."""
+    def state(self, step: Step) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The tendons' lengths, Jacobian (tendon x `dofs`) and the DoFs' velocities at the step's start."""
         model, data = self.model, self.data
-        data.qpos[:] = step.q[self.scalar] if self.scalar is not None else step.mujoco_state(self.mapping)[0]
+        if self.scalar is not None:  # hinges and slides only
+            data.qpos[:], v = step.q[self.scalar], step.v[self.flat]
+        else:
+            qpos, qvel = step.mujoco_state(self.mapping)
+            data.qpos[:], v = qpos, qvel[self.dofs]
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_tendon(model, data)
-        return data.ten_length[self.tendons], self.dense(data)
+        return data.ten_length[self.tendons], self.dense(data), v
 
     def dense(self, data: mujoco.MjData) -> np.ndarray:
-        """The tendons' rows of MuJoCo's sparse ten_J, over the mapped DoFs."""
+        """The tendons' rows of MuJoCo's sparse ten_J, over `dofs`."""
         jacobian = np.zeros((len(self.tendons), len(self.dofs)))
         jacobian[self.row, self.column] = data.ten_J[self.entry]
         return jacobian
 
     def contribute(self, step: Step) -> None:
-        length, jacobian = self.jacobian(step)
-        v = step.v[self.flat]
+        length, jacobian, v = self.state(step)
         stretch = np.where(length < self.low, length - self.low, np.where(length > self.high, length - self.high, 0.0))
         pull = -self.stiffness * stretch - self.damping * (jacobian @ v)
         force = jacobian.T @ pull
+        if self.push is not None:
+            if step.advance:
+                whole = np.zeros(self.model.nv)
+                whole[self.dofs] = force
+                self.push(self.data, whole, step.layout.links)
+            force, jacobian, v = force[self.joint], jacobian[:, self.joint], v[self.joint]
         if self.implicit and not step.explicit_kv:
             diagonal = self.damping @ (jacobian * jacobian)  # b J_i^2 per DoF: the drive takes it implicitly
             force += diagonal * v
@@ -79,13 +96,13 @@ class SpatialTendons:
         """The dampers' diagonal b J_i^2 per DoF at qpos0 (what joins the drives under implicit integrators)."""
         if not self.implicit:
             return {}
-        jacobian = self.dense(mj.forward_at(self.model))
+        jacobian = self.dense(mj.forward_at(self.model))[:, self.joint]
         return dict(zip(self.keys, (self.damping @ (jacobian * jacobian)).tolist()))
 
 
 def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool) -> SpatialTendons | None:
-    """The spatial tendons with a spring or damper, where every DoF they move is a mapped hinge or slide (a tendon
-    moving a ball or free joint is noted and left out: SAPIEN's joint forces cannot carry it)."""
+    """The spatial tendons with a spring or damper whose every DoF is a mapped hinge, slide or free joint (a tendon
+    moving a ball joint is noted and left out: its force would be a ball joint torque)."""
     spring, damper = not mj.disabled(model, "spring"), not mj.disabled(model, "damper")
     tendons, dofs = [], set()
     for t in range(model.ntendon):
@@ -94,9 +111,9 @@ def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool)
         if not ((spring and model.tendon_stiffness[t]) or (damper and model.tendon_damping[t])):
             continue
         name, moved = mj.name(model, "tendon", t), tendon_columns(model, t)
-        if not mapping.joint_dofs_only(model, moved):
-            notes.drop("tendon", name, "spatial tendon's spring and damper not mapped: the tendon moves a ball or "
-                       "free joint, which takes no joint force in SAPIEN")
+        if not all(mapping.joints[int(model.dof_jntid[d])].kind in CARRIED for d in moved):
+            notes.drop("tendon", name, "spatial tendon's spring and damper not mapped: the tendon moves a ball "
+                       "joint, whose torque SAPIEN's joint forces do not take")
             continue
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
@@ -104,12 +121,7 @@ def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool)
             notes.approximate("tendon", name, COUPLED_DAMPING)
         tendons.append(t)
         dofs |= moved
-    if not tendons:
-        return None
-    order = sorted(dofs)
-    keys = [(mapping.joints[int(model.dof_jntid[d])].articulation, mapping.joints[int(model.dof_jntid[d])].dofs[0])
-            for d in order]
-    return SpatialTendons(model, mapping, tendons, order, keys, implicit)
+    return SpatialTendons(model, mapping, tendons, sorted(dofs), implicit) if tendons else None
 
 
 def tendon_columns(model: mujoco.MjModel, tendon: int) -> set[int]:

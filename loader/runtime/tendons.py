@@ -88,6 +88,8 @@ class TendonTerm:
     def __init__(self, tendons: list[PassiveTendon], spatial=None):
         self.tendons, self.spatial = tendons, spatial
 
+    applied = property(lambda self: self.spatial.applied if self.spatial is not None else ())  # root wrenches
+
     def compile(self, layout) -> None:
         if self.spatial is not None:
             self.spatial.compile(layout)
