@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from loader.build.fixed_tendons import fixed_tendon_terms
+from loader.runtime.tendon_paths import TendonPaths
 
 from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of
@@ -107,6 +108,7 @@ class ForceLaw:
         self.hi = np.where(model.actuator_forcelimited, model.actuator_forcerange[:, 1], np.inf)
         self.length = np.zeros((model.nu, model.nq))  # actuator length = length @ qpos
         self.speed = np.zeros((model.nu, model.nv))
+        self.spatial: list[tuple[int, int, float]] = []  # (actuator, tendon, gear): lengths from MuJoCo's path
         for a, actuator in enumerate(result.actuators):
             if not actuator.mapped:  # SAPIEN applies nothing for it
                 self.gain[a], self.bias[a] = 0.0, 0.0
@@ -115,17 +117,30 @@ class ForceLaw:
                 joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, actuator.joint)
                 terms = [(joint, 1.0)] if joint >= 0 else []
             elif actuator.tendon is not None:
-                terms = fixed_tendon_terms(model, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON,
-                                                                    actuator.tendon))
+                tendon = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, actuator.tendon)
+                terms = fixed_tendon_terms(model, tendon)
+                if not terms:
+                    self.spatial.append((a, tendon, actuator.gear))
             else:
                 terms = []
             for joint, coefficient in terms:
                 self.length[a, model.jnt_qposadr[joint]] += actuator.gear * coefficient
                 self.speed[a, model.jnt_dofadr[joint]] += actuator.gear * coefficient
 
+        self.paths = TendonPaths(model, result.mapping, [t for _, t, _ in self.spatial]) if self.spatial else None
+
     def __call__(self, ctrl, qpos, qvel) -> np.ndarray:
-        force = self.gain * ctrl + self.bias[:, 0] + self.bias[:, 1] * (self.length @ qpos) \
-            + self.bias[:, 2] * (self.speed @ qvel)
+        length, speed = self.length @ qpos, self.speed @ qvel
+        if self.paths is not None:  # spatial tendons: MuJoCo's length and Jacobian at this pose
+            data = self.paths.data
+            data.qpos[:] = qpos
+            for stage in (mujoco.mj_kinematics, mujoco.mj_comPos, mujoco.mj_tendon):
+                stage(self.paths.model, data)
+            jacobian = self.paths.dense(data)
+            for row, (a, tendon, gear) in enumerate(self.spatial):
+                length[a] = gear * data.ten_length[tendon]
+                speed[a] = gear * (jacobian[row] @ qvel[self.paths.dofs])
+        force = self.gain * ctrl + self.bias[:, 0] + self.bias[:, 1] * length + self.bias[:, 2] * speed
         return np.clip(force, self.lo, self.hi)
 
 

@@ -1,7 +1,7 @@
 """MuJoCo actuators as the loader maps them: one `ActuatorMap` per actuator, from the compiled model.
 
-A fixed-gain, affine-bias actuator (motor, position, velocity, general PD) on a hinge or slide joint or a fixed
-tendon is mapped exactly; other dynamics, gains, biases and transmissions are listed as unsupported. The per-step
+A fixed-gain, affine-bias actuator (motor, position, velocity, general PD) on a hinge or slide joint or a tendon
+is mapped exactly; other dynamics, gains, biases and transmissions are listed as unsupported. The per-step
 force law is `runtime/actuators.py`. Derivation: docs/mapping.md#actuators.
 """
 
@@ -14,10 +14,12 @@ import numpy as np
 
 from .. import mj
 from ..runtime.activation import MAPPED as MAPPED_DYNAMICS
+from ..runtime.tendon_paths import carried, tendon_columns
 from .fixed_tendons import fixed_tendon_terms
 from .mapping import Mapping
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
+SPATIAL: list = []  # the terms `map_actuator` gives an actuator on a spatial tendon (whose terms change with the pose)
 
 
 @dataclass(frozen=True)
@@ -97,8 +99,15 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
         return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping)), None
     if trn == int(TRN.mjTRN_TENDON):
         terms = fixed_tendon_terms(model, target)
-        if not terms:
-            return ActuatorMap(**base, mapped=False, reason="drives a spatial tendon"), None
+        if not terms:  # a spatial tendon: its path and Jacobian are MuJoCo's at every step (`runtime/tendon_paths.py`)
+            if not carried(model, mapping, target):
+                return ActuatorMap(**base, mapped=False, reason="its spatial tendon crosses a ball joint"), None
+            joints = [mapping.joints[int(model.dof_jntid[d])] for d in sorted(tendon_columns(model, target))]
+            hinges = [j for j in joints if j.kind in ("hinge", "slide")]
+            base.update(tendon=mj.name(model, "tendon", target), dofs=tuple(j.dofs[0] for j in hinges),
+                        articulation=hinges[0].articulation if hinges else None)
+            return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2),
+                               damping=float(-bias[2] * gear**2)), SPATIAL
         mapped_terms = []
         for joint_id, coefficient in terms:
             joint = mapping.joints[joint_id]

@@ -16,13 +16,14 @@ import mujoco
 import numpy as np
 
 from .. import mj
-from ..build.actuators import ActuatorMap, map_actuator
+from ..build.actuators import SPATIAL, ActuatorMap, map_actuator
 from ..build.mapping import Mapping
 from ..drive import DofDrive
 from ..errors import Notes
 from .actuator_laws import ActuatorLaws
 from .clamps import ForceClamps
 from .dof_step import DofKey, DofLayout, Step
+from .spatial_actuators import SpatialActuators
 from .tendon_actuators import TendonActuators
 from .tendons import COUPLED_DAMPING, IMPLICIT
 
@@ -40,7 +41,11 @@ class ActuatorTerm:
     tendon_terms: dict[int, list[tuple[int, int, float]]] = field(default_factory=dict)  # actuator -> (a, dof, c)
     limited: dict[DofKey, list[int]] = field(default_factory=dict)  # DoFs MuJoCo can clamp -> joint actuators
     joint_range: dict[DofKey, tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
+    spatial_tendons: dict[int, int] = field(default_factory=dict)  # actuator -> its spatial tendon
+    paths: object = None  # those tendons' paths (`tendon_paths.TendonPaths`), set by the controller's plan
     name: str = "actuators"
+
+    applied = property(lambda self: self.spatial.applied if getattr(self, "spatial", None) is not None else ())
 
     def compile(self, layout: DofLayout, passive: np.ndarray) -> None:
         """The arrays every step reads: the drive laws (rows stiffness, damping, constant, force limit), the joint
@@ -58,7 +63,12 @@ class ActuatorTerm:
         self.unique = len(set(self.drive.tolist())) == self.drive.size  # one joint actuator per DoF
         mapped = {a: terms for a, terms in self.tendon_terms.items() if self.actuators[a].mapped}
         self.tendons = TendonActuators(self.actuators, mapped, layout, self.implicit_tendon_kv) if mapped else None
-        self.idle = not len(self.joint) and self.tendons is None  # no mapped joint or tendon actuator
+        spatial = {a: t for a, t in self.spatial_tendons.items() if self.actuators[a].mapped}
+        self.spatial = SpatialActuators(self.actuators, spatial, self.paths, self.implicit_tendon_kv) \
+            if spatial and self.paths is not None else None
+        if self.spatial is not None:
+            self.spatial.compile(layout)
+        self.idle = not len(self.joint) and self.tendons is None and self.spatial is None  # nothing mapped
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
         self.kv_dofs = np.flatnonzero(self.kv)
 
@@ -80,6 +90,8 @@ class ActuatorTerm:
                 np.add.at(law[2], drive, constant)
         if self.tendons is not None:
             self.tendons.contribute(step)
+        if self.spatial is not None:
+            self.spatial.contribute(step)
         if step.explicit_kv:
             self.explicit_kv(free, step)
 
@@ -128,6 +140,10 @@ def plan(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive
         term.actuators.append(entry)
         if not entry.mapped:
             notes.drop("actuator", entry.name, entry.reason)
+        elif terms is SPATIAL:
+            term.spatial_tendons[a] = int(model.actuator_trnid[a][0])
+            if entry.damping and int(model.opt.integrator) in IMPLICIT:
+                notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         elif terms is not None:
             term.tendon_terms[a] = terms
             if entry.damping and len(terms) > 1 and int(model.opt.integrator) in IMPLICIT:

@@ -30,7 +30,7 @@ from .gravcomp import map_gravcomp
 from .momentum import plan_momentum
 from .rows import plan_rows
 from .slides import SlideTerm, map_slides
-from .spatial_tendons import plan_spatial
+from .spatial_tendons import plan_paths, plan_spatial
 from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
 from .tendons import IMPLICIT, TendonTerm, map_tendons
@@ -203,7 +203,8 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
                      notes, [link.soft for link in rowed if link.soft is not None], timestep)
     activation = Activation(model, timestep=timestep) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
     tendons = map_tendons(model, mapping, notes)
-    spatial = plan_spatial(model, mapping, notes, int(model.opt.integrator) in IMPLICIT)
+    actuators.paths = paths = plan_paths(model, mapping, list(actuators.spatial_tendons.values()))
+    spatial = plan_spatial(model, mapping, notes, int(model.opt.integrator) in IMPLICIT, paths)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
