@@ -32,7 +32,6 @@ from ..errors import Notes
 from ..frames import cross3, quat_to_mat
 from .free_joint import FreeJointLaw, differs
 
-DRIFT_STEP = 1e-6  # rad or m moved along v for the forward difference of A
 ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
 
@@ -157,12 +156,11 @@ class Momentum:
         joints_only = qvel1.copy()
         for root in self.roots:
             joints_only[root.dofadr:root.dofadr + 6] = 0.0
-        ahead, eps = self._ahead(qpos0, qvel0)
-        started, joints_part = self._momenta(qpos0, qvel0, joints_only)  # at the step's start (data stays there)
+        started, joints_part, drifts = self._momenta(qpos0, qvel0, joints_only, drift=True)  # data stays at q0
         for i, root in enumerate(self.roots):
             if root not in stepped:
                 continue
-            drift = (ahead[i] - started[i]) / eps  # (dA/dt) v0, a forward difference along v0
+            drift = drifts[i]  # (dA/dt) v0
             if touching(self.links[root.articulation], contacts):  # friction's torque unseen: PhysX's L
                 k = kept[i]
             else:
@@ -183,30 +181,29 @@ class Momentum:
                                   advanced(qpos0[adr:adr + 7], qvel1[dof:dof + 6], dt), qvel1[dof:dof + 6])
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
 
-    def _ahead(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[list[np.ndarray], float]:
-        """Per root, the momentum A(q + e v) v a small step e along v; and e (for the forward difference)."""
-        eps = DRIFT_STEP / max(1.0, float(np.abs(qvel).max(initial=0.0)))
-        ahead = np.array(qpos)
-        mujoco.mj_integratePos(self.model, ahead, qvel, eps)
-        momenta, = self._momenta(ahead, qvel)
-        return momenta, eps
-
-    def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray) -> list[list[np.ndarray]]:
+    def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray, drift: bool = False) -> list[list[np.ndarray]]:
         """Per velocity, per root: the tree's linear momentum and angular momentum about its centre of mass at
         qpos, as one 6-vector; leaves `self.data` at that pose (its `cinert` and `subtree_com` serve the composite
-        inertia)."""
+        inertia). `drift`: also, per root, (dA/dt) v of the first velocity: the rate of the momentum at zero
+        acceleration, the force MuJoCo's RNE needs at the root (`cfrc_int`, less the weight it carries)
+        (tests/test_loader_momentum.py::test_the_momentum_drift_is_the_derivative_of_a_v)."""
         model, data = self.model, self.data
         data.qpos[:] = qpos
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         out = []
-        for qvel in velocities:
+        for k, qvel in enumerate(velocities):
             data.qvel[:] = qvel
             mujoco.mj_comVel(model, data)
             mujoco.mj_subtreeVel(model, data)
             out.append([np.concatenate([data.subtree_linvel[r.body] * model.body_subtreemass[r.body],
                                         data.subtree_angmom[r.body]]) for r in self.roots])
-        return out
+            if drift and k == 0:
+                data.qacc[:] = 0.0
+                mujoco.mj_rnePostConstraint(model, data)
+                rates = [np.concatenate([data.cfrc_int[r.body][3:] + model.body_subtreemass[r.body] * self.gravity,
+                                         data.cfrc_int[r.body][:3]]) for r in self.roots]
+        return out + [rates] if drift else out
 
 
 def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float,
