@@ -108,5 +108,7 @@ def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid |
         box = tuple(float(np.sqrt(max(MJMINVAL, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
                     for i, j, k in ((0, 1, 2), (1, 0, 2), (2, 0, 1)))
         bodies.append(FluidBody(target.articulation, target.link, box))
+    if not bodies:  # no body the fluid acts on (every one massless, welded to the world or ellipsoid-shaped)
+        return None
     return Fluid(float(model.opt.density), float(model.opt.viscosity), np.asarray(model.opt.wind, np.float64),
                  tuple(bodies))
