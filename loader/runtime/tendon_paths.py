@@ -14,6 +14,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from .. import mj
 from ..build.mapping import Mapping
 from .dof_step import Step
 from .integrated import RootPush
@@ -109,7 +110,5 @@ class TendonPaths:
 
     def implicit_diagonal(self, rows: np.ndarray, damping: np.ndarray) -> dict[tuple[int, int], float]:
         """d J_i^2 per DoF at qpos0 over the tendons `rows` (what joins the drives under implicit integrators)."""
-        from .. import mj
-
         jacobian = self.dense(mj.forward_at(self.model))[np.ix_(rows, self.joint)]
         return dict(zip(self.keys, (damping @ (jacobian * jacobian)).tolist()))
