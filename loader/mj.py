@@ -111,6 +111,19 @@ def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData, dofs=None) -> tu
     return order, inverse
 
 
+def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
+    """The DoFs a tendon's length can depend on: the columns of its row of MuJoCo's sparse Jacobian, a pattern the
+    compiled model fixes (its joints' for a fixed tendon, those moving its path's sites and geoms otherwise)."""
+    start = int(model.ten_J_rowadr[tendon])
+    return {int(d) for d in model.ten_J_colind[start:start + int(model.ten_J_rownnz[tendon])]}
+
+
+def tendon_passive(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """Every tendon's stiffness and damping as MuJoCo applies them: zero where `<flag spring/damper="disable">`."""
+    return (model.tendon_stiffness * (not disabled(model, "spring")),
+            model.tendon_damping * (not disabled(model, "damper")))
+
+
 def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
     """The DoFs that move a body: its joints' and every ancestor's (none for a body fixed to the world)."""
     dofs = set()

@@ -132,13 +132,9 @@ class ForceLaw:
     def __call__(self, ctrl, qpos, qvel) -> np.ndarray:
         length, speed = self.length @ qpos, self.speed @ qvel
         if self.paths is not None:  # spatial tendons: MuJoCo's length and Jacobian at this pose
-            data = self.paths.data
-            data.qpos[:] = qpos
-            for stage in (mujoco.mj_kinematics, mujoco.mj_comPos, mujoco.mj_tendon):
-                stage(self.paths.model, data)
-            jacobian = self.paths.dense(data)
-            for row, (a, tendon, gear) in enumerate(self.spatial):
-                length[a] = gear * data.ten_length[tendon]
+            lengths, jacobian = self.paths.measure(qpos)
+            for row, (a, _, gear) in enumerate(self.spatial):
+                length[a] = gear * lengths[row]
                 speed[a] = gear * (jacobian[row] @ qvel[self.paths.dofs])
         force = self.gain * ctrl + self.bias[:, 0] + self.bias[:, 1] * length + self.bias[:, 2] * speed
         return np.clip(force, self.lo, self.hi)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import mj
 from ..runtime.activation import MAPPED as MAPPED_DYNAMICS
-from ..runtime.tendon_paths import carried, tendon_columns
+from ..runtime.tendon_paths import carried
 from .fixed_tendons import fixed_tendon_terms
 from .mapping import Mapping
 
@@ -102,7 +102,7 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
         if not terms:  # a spatial tendon: its path and Jacobian are MuJoCo's at every step (`runtime/tendon_paths.py`)
             if not carried(model, mapping, target):
                 return ActuatorMap(**base, mapped=False, reason="its spatial tendon crosses a ball joint"), None
-            joints = [mapping.joints[int(model.dof_jntid[d])] for d in sorted(tendon_columns(model, target))]
+            joints = [mapping.joints[int(model.dof_jntid[d])] for d in sorted(mj.tendon_dofs(model, target))]
             hinges = [j for j in joints if j.kind in ("hinge", "slide")]
             base.update(tendon=mj.name(model, "tendon", target), dofs=tuple(j.dofs[0] for j in hinges),
                         articulation=hinges[0].articulation if hinges else None)

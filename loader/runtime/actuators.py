@@ -141,8 +141,8 @@ def plan(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive
         if not entry.mapped:
             notes.drop("actuator", entry.name, entry.reason)
         elif terms is SPATIAL:
-            term.spatial_tendons[a] = int(model.actuator_trnid[a][0])
-            if entry.damping and int(model.opt.integrator) in IMPLICIT:
+            term.spatial_tendons[a] = tendon = int(model.actuator_trnid[a][0])
+            if entry.damping and len(mj.tendon_dofs(model, tendon)) > 1 and int(model.opt.integrator) in IMPLICIT:
                 notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         elif terms is not None:
             term.tendon_terms[a] = terms

@@ -28,8 +28,8 @@ def accelerated(model: mujoco.MjModel) -> bool:
 
 def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray, qacc: bool) -> np.ndarray:
     """The generalized force of the constraint rows `rows` (a mask over data's rows) that MuJoCo's step integrates
-    (`qacc`: it integrates the solver's qacc). The other rows (contacts, while they are solved with the joint rows;
-    equalities PhysX's joints hold) were solved with them and are applied by PhysX."""
+    (`qacc`: it integrates the solver's qacc). The other rows are contacts, solved with them while SAPIEN has
+    contacts, which PhysX applies."""
     force = np.zeros(model.nv)
     if not data.nefc:
         return force

@@ -276,21 +276,6 @@ def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
     return bool((data.contact.dist[:data.ncon] < -cap * timestep).any())
 
 
-def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
-    """The DoFs a tendon's length can depend on: its joints' (fixed), or those moving its path's sites and geoms."""
-    start, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
-    dofs = set()
-    for w in range(start, start + count):
-        kind, obj = int(model.wrap_type[w]), int(model.wrap_objid[w])
-        if kind == int(mujoco.mjtWrap.mjWRAP_JOINT):
-            dofs.add(int(model.jnt_dofadr[obj]))
-        elif kind == int(mujoco.mjtWrap.mjWRAP_SITE):
-            dofs |= mj.body_dofs(model, int(model.site_bodyid[obj]))
-        elif kind in (int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER)):
-            dofs |= mj.body_dofs(model, int(model.geom_bodyid[obj]))
-    return dofs
-
-
 def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], couplings: list[int],
               notes, standby: list | None = None, timestep: float | None = None) -> RowTerm | None:
     """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
@@ -321,7 +306,7 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
             edit("dof_frictionloss", int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1), 0.0)
     for t in range(model.ntendon):  # a tendon's DoFs, only where it has rows: finding them walks its path
         if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(
-                model, tendon_dofs(model, t)):
+                model, mj.tendon_dofs(model, t)):
             edit("tendon_limited", t, 1, 0)
             edit("tendon_frictionloss", t, 1, 0.0)
             notes.drop("tendon", mj.name(model, "tendon", t), "length limit and frictionloss not mapped: the tendon "

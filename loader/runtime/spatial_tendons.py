@@ -13,7 +13,7 @@ from .. import mj
 from ..build.mapping import Mapping
 from .dof_step import Step
 from .integrated import RootPush
-from .tendon_paths import TendonPaths, carried, is_spatial, tendon_columns
+from .tendon_paths import TendonPaths, carried, is_spatial
 from .tendons import COUPLED_DAMPING
 
 
@@ -26,9 +26,8 @@ class SpatialTendons:
         self.paths = paths
         self.rows = np.array([paths.index(t) for t in tendons], dtype=int)
         self.push = RootPush(model, paths.mapping) if paths.floating else None  # a free joint's share
-        spring, damper = not mj.disabled(model, "spring"), not mj.disabled(model, "damper")
-        self.stiffness = model.tendon_stiffness[tendons] * spring
-        self.damping = model.tendon_damping[tendons] * damper
+        stiffness, damping = mj.tendon_passive(model)
+        self.stiffness, self.damping = stiffness[tendons], damping[tendons]
         self.low, self.high = model.tendon_lengthspring[tendons].T.copy()
         self.implicit = implicit and bool(self.damping.any())  # the dampers' diagonal joins the drives
 
@@ -54,10 +53,10 @@ def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool,
                  paths: TendonPaths | None) -> SpatialTendons | None:
     """The spatial tendons with a spring or damper along `paths` (those SAPIEN can carry: `tendon_paths.carried`;
     a tendon whose path crosses a ball joint is noted and left out)."""
-    spring, damper = not mj.disabled(model, "spring"), not mj.disabled(model, "damper")
+    stiffness, damping = mj.tendon_passive(model)
     tendons = []
     for t in range(model.ntendon):
-        if not is_spatial(model, t) or not ((spring and model.tendon_stiffness[t]) or (damper and model.tendon_damping[t])):
+        if not is_spatial(model, t) or not (stiffness[t] or damping[t]):
             continue
         name = mj.name(model, "tendon", t)
         if not carried(model, mapping, t):
@@ -66,7 +65,7 @@ def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool,
             continue
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
-        if implicit and model.tendon_damping[t] and damper and len(tendon_columns(model, t)) > 1:
+        if implicit and damping[t] and len(mj.tendon_dofs(model, t)) > 1:
             notes.approximate("tendon", name, COUPLED_DAMPING)
         tendons.append(t)
     return SpatialTendons(paths, tendons, implicit) if tendons else None
@@ -75,7 +74,7 @@ def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool,
 def plan_paths(model: mujoco.MjModel, mapping: Mapping, actuated: list[int]) -> TendonPaths | None:
     """The paths of every spatial tendon SAPIEN can carry that has a spring or damper or drives an actuator
     (`actuated`, tendon ids), computed once per step for all of them."""
-    spring, damper = not mj.disabled(model, "spring"), not mj.disabled(model, "damper")
+    stiffness, damping = mj.tendon_passive(model)
     tendons = [t for t in range(model.ntendon) if is_spatial(model, t) and carried(model, mapping, t) and (
-        t in actuated or (spring and model.tendon_stiffness[t]) or (damper and model.tendon_damping[t]))]
+        t in actuated or stiffness[t] or damping[t])]
     return TendonPaths(model, mapping, tendons) if tendons else None

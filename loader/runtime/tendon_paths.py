@@ -23,15 +23,9 @@ from .rows import scalar_state
 CARRIED = ("hinge", "slide", "free")  # joints whose share of a tendon's force SAPIEN applies
 
 
-def tendon_columns(model: mujoco.MjModel, tendon: int) -> set[int]:
-    """The DoFs of a tendon's row of MuJoCo's sparse Jacobian (those its length can depend on)."""
-    start = int(model.ten_J_rowadr[tendon])
-    return {int(d) for d in model.ten_J_colind[start:start + int(model.ten_J_rownnz[tendon])]}
-
-
 def carried(model: mujoco.MjModel, mapping: Mapping, tendon: int) -> bool:
     """Whether SAPIEN can apply a force along the tendon: every DoF it moves is a mapped hinge, slide or free joint."""
-    return all(mapping.joints[int(model.dof_jntid[d])].kind in CARRIED for d in tendon_columns(model, tendon))
+    return all(mapping.joints[int(model.dof_jntid[d])].kind in CARRIED for d in mj.tendon_dofs(model, tendon))
 
 
 def is_spatial(model: mujoco.MjModel, tendon: int) -> bool:
@@ -46,7 +40,7 @@ class TendonPaths:
         self.model, self.mapping = model, mapping
         self.data = mujoco.MjData(model)
         self.tendons = np.array(tendons, dtype=int)
-        dofs = sorted(set().union(*(tendon_columns(model, t) for t in tendons)))
+        dofs = sorted(set().union(*(mj.tendon_dofs(model, t) for t in tendons)))
         self.dofs = np.array(dofs, dtype=int)
         targets = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
         self.joint = np.array([t.kind in ("hinge", "slide") for t in targets], dtype=bool)
@@ -71,18 +65,23 @@ class TendonPaths:
         """The tendons' lengths, Jacobian (tendon x `dofs`) and the DoFs' velocities at the step's start."""
         if self.last is not None and self.last[0] is step:
             return self.last[1]
-        model, data = self.model, self.data
         if self.scalar is not None:  # hinges and slides only
-            data.qpos[:], v = step.q[self.scalar], step.v[self.flat]
+            qpos, v = step.q[self.scalar], step.v[self.flat]
         else:
             qpos, qvel = step.mujoco_state(self.mapping)
-            data.qpos[:], v = qpos, qvel[self.dofs]
+            v = qvel[self.dofs]
+        found = (*self.measure(qpos), v)
+        self.last = (step, found)
+        return found
+
+    def measure(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tendons' lengths and Jacobian (tendon x `dofs`) at MuJoCo's `qpos`."""
+        model, data = self.model, self.data
+        data.qpos[:] = qpos
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_tendon(model, data)
-        found = (data.ten_length[self.tendons], self.dense(data), v)
-        self.last = (step, found)
-        return found
+        return data.ten_length[self.tendons], self.dense(data)
 
     def dense(self, data: mujoco.MjData) -> np.ndarray:
         """The tendons' rows of MuJoCo's sparse ten_J, over `dofs`."""

@@ -51,7 +51,7 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     """Passive tendon properties: a fixed tendon's spring and damper, applied as MuJoCo does (`PassiveTendon`;
     Euler takes the damper explicitly). A PhysX fixed tendon would be implicit in its spring too
     (tests/test_loader_passive.py::test_a_passive_fixed_tendon_matches_mujoco)."""
-    out = []
+    out, passive = [], mj.tendon_passive(model)
     for t in range(model.ntendon):
         name = mj.name(model, "tendon", t)
         terms = fixed_tendon_terms(model, t)
@@ -59,8 +59,7 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
             continue  # a spatial tendon (`spatial_tendons.py`)
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
-        stiffness = float(model.tendon_stiffness[t]) if not mj.disabled(model, "spring") else 0.0
-        damping = float(model.tendon_damping[t]) if not mj.disabled(model, "damper") else 0.0
+        stiffness, damping = float(passive[0][t]), float(passive[1][t])
         if stiffness == 0 and damping == 0:
             continue  # a transmission only: actuators and equalities read it
         mapped = []
