@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import mujoco
 
-from loader import mj
+from loader.model import mj
 
 from .session import quiet_load
 

@@ -26,7 +26,7 @@ import numpy as np
 import sapien
 
 from loader import has_render_device
-from loader.build.mapping import BodyLink, JointDofs
+from loader.model.mapping import BodyLink, JointDofs
 from loader.runtime import contacts
 
 NAME = "maniskill"
@@ -150,7 +150,7 @@ class FreeRoot:
 
 
 class NamedMapping:
-    """MuJoCo <-> SAPIEN by names (`bodies`, `joints`, `geoms` as `loader.build.mapping.Mapping` has them, None where
+    """MuJoCo <-> SAPIEN by names (`bodies`, `joints`, `geoms` as `loader.model.mapping.Mapping` has them, None where
     nothing matches) and the state conversion both ways. A joint SAPIEN does not carry reads back at MuJoCo's
     qpos0 and at rest; a free joint's body is placed through the root it hangs on."""
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from loader import mj
+from loader.model import mj
 
 _INT = mujoco.mjtIntegrator
 # PhysX integrates semi-implicitly with implicit drives: RK4 has no counterpart, Euler/implicitfast do.

@@ -1,11 +1,5 @@
 """Load MuJoCo MJCF models into SAPIEN, with MuJoCo's own compiler as the front end."""
 
-from .build.actuators import ActuatorMap
-from .build.camera import CameraConfig, SiteConfig
-from .build.equalities import EqualityLink
-from .build.mapping import BodyLink, GeomShape, JointDofs, Mapping
-from .build.texture import MJCFTexture
-from .build.visual import NoRenderDeviceWarning, has_render_device
 from .errors import (
                      ControlError,
                      MissingAssetError,
@@ -15,6 +9,12 @@ from .errors import (
                      UnsupportedFeatureWarning,
 )
 from .mjcf_loader import MJCFLoader
+from .model.actuators import ActuatorMap
+from .model.equalities import EqualityLink
+from .model.mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .plan.camera import CameraConfig, SiteConfig
+from .plan.texture import MJCFTexture
+from .plan.visual import NoRenderDeviceWarning, has_render_device
 from .result import LoadResult
 
 __all__ = [

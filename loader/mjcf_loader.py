@@ -13,23 +13,27 @@ import mujoco
 import numpy as np
 import sapien
 
-from . import mj
-from .build import hulls, physx_settings
-from .build.builders import MJCFActorBuilder, MJCFArticulationBuilder
-from .build.camera import CameraConfig, cameras, sites
-from .build.compile import CompiledModel, compile_mjcf
-from .build.contact import plan_collision_filter
-from .build.features import find_unmapped
-from .build.geom import collides, plan_shape
-from .build.joint import FREE, KIND
-from .build.mapping import BodyLink, GeomShape, JointDofs, Mapping
-from .build.numbers import check_numbers
-from .build.solver_iterations import tune_iterations
-from .build.texture import textures
-from .build.tree import TreePlan, plan_tree
-from .build.visual import add_visual, visuals_available
-from .errors import Notes, warn_notes
+from .errors import ControlError, Notes, warn_notes
+from .model import mj
+from .model.joints import FREE, KIND
+from .model.mapping import BodyLink, GeomShape, JointDofs, Mapping
+from .model.options import Options
+from .plan import hulls, physx_settings
+from .plan.actuators import map_actuators
+from .plan.builders import MJCFActorBuilder, MJCFArticulationBuilder
+from .plan.camera import CameraConfig, cameras, sites
+from .plan.compile import CompiledModel, compile_mjcf
+from .plan.contact import plan_collision_filter
+from .plan.equalities import map_equalities
+from .plan.features import find_unmapped
+from .plan.geom import collides, plan_shape
+from .plan.numbers import check_numbers
+from .plan.solver_iterations import tune_iterations
+from .plan.texture import textures
+from .plan.tree import TreePlan, plan_tree
+from .plan.visual import add_visual, visuals_available
 from .result import LoadResult
+from .runtime.controller import Controller
 from .runtime.controller import plan as runtime_plan
 
 
@@ -50,7 +54,7 @@ class MJCFLoader:
     `visual_groups`: geom groups that become visual shapes where a render device exists (ManiSkill's: 0 and 2).
     `fix_root_link`: trees whose root has no free joint are fixed to the world (a free joint always floats).
     `solver_iterations`: "auto" (default) raises an articulation's PhysX position iterations until its joint
-    drives converge (`build/solver_iterations.py`); a (position, velocity) pair sets them; None keeps SAPIEN's
+    drives converge (`plan/solver_iterations.py`); a (position, velocity) pair sets them; None keeps SAPIEN's
     (10, 1).
     `warn_each_note`: one UnsupportedFeatureWarning per note instead of one per kind with its count.
     """
@@ -170,21 +174,43 @@ def finish(parsed: _Parsed, scene: sapien.Scene, articulations: list, actors: li
     `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller)."""
     model = parsed.compiled.model
     mapping = _mapping(model, parsed, articulations)
-    timestep = physx_settings.scene_timestep(scene, model)
     with mj.sharing_qpos0(model, parsed.compiled.at_qpos0):
-        controller, actuators, equalities = runtime_plan(model, mapping, scene, articulations, parsed.notes, timestep)
+        maps = map_actuators(model, mapping, parsed.notes)
+        equalities = map_equalities(model, scene, articulations, mapping, parsed.notes)
+        controller = _runtime(model, scene, articulations, mapping, maps, equalities, parsed.notes)
         if solver_iterations == "auto":
-            tune_iterations(articulations, model, controller, mapping, parsed.notes)
+            connects = [link.joint for link in equalities if link.kind == "D6 joint"]
+            tune_iterations(articulations, model, controller.drive_weights(), connects, mapping, parsed.notes)
     result = LoadResult(
-        path=str(parsed.compiled.path), spec=parsed.compiled.spec, model=model, scene=scene,
+        path=str(parsed.compiled.path), spec=parsed.compiled.spec, scene=scene,
         articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
         textures=textures(parsed.compiled.spec, model), mapping=mapping,
         unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
-        actuators=actuators, equalities=equalities, controller=controller,
+        actuators=[entry for entry, _ in maps], equalities=equalities, controller=controller, replanner=replan,
     )
     warn_notes(result.path, result.unsupported, result.approximations, each=warn_each_note, stacklevel=stacklevel)
     result.reset()
     return result
+
+
+def _runtime(model: mujoco.MjModel, scene: sapien.Scene, articulations: list, mapping: Mapping, maps: list,
+             equalities: list, notes: Notes) -> Controller:
+    """The per-step terms of `model` (the runtime's own: nobody else edits it), at the scene's timestep."""
+    options = Options.of(model, physx_settings.scene_timestep(scene, model))
+    return runtime_plan(model, options, mapping, scene, articulations, maps, equalities, notes)
+
+
+def replan(result: LoadResult, model: mujoco.MjModel) -> tuple[list, Controller]:
+    """`LoadResult.replan`: the actuator maps and the per-step terms again from `model` (a copy of the caller's),
+    with what the load built (mapping, articulations, equality joints) as it is. The result's notes stay the
+    load's."""
+    old = result.controller.model
+    if (model.nq, model.nv, model.nu, model.neq, model.ntendon) != (old.nq, old.nv, old.nu, old.neq, old.ntendon):
+        raise ControlError(f"{result.path}: the edited model has other elements than the loaded one; load it again")
+    notes = Notes()
+    maps = map_actuators(model, result.mapping, notes)
+    controller = _runtime(model, result.scene, result.articulations, result.mapping, maps, result.equalities, notes)
+    return [entry for entry, _ in maps], controller
 
 
 def _mapping(model: mujoco.MjModel, parsed: _Parsed, articulations) -> Mapping:

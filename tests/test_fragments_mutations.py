@@ -11,9 +11,9 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-import loader.build.contact
-import loader.build.tree
 import loader.mjcf_loader
+import loader.plan.contact
+import loader.plan.tree
 from conformance.fragments.fuzz import hypothesis_test, mutation_settings
 
 EXAMPLES = 1000  # an upper bound: the run stops at the first failing document (about 1 in 60 draws catches
@@ -53,7 +53,7 @@ def _fails(name: str) -> str:
 
 
 def test_conaffinity_from_a_default_class_dropped_is_caught(blind, monkeypatch):
-    groups = loader.build.contact.CollisionFilter.groups
+    groups = loader.plan.contact.CollisionFilter.groups
 
     def class_blind_groups(self, model, geom):
         out = groups(self, model, geom)
@@ -61,19 +61,19 @@ def test_conaffinity_from_a_default_class_dropped_is_caught(blind, monkeypatch):
         out[1] = int(written) if written is not None else 1
         return out
 
-    monkeypatch.setattr(loader.build.contact.CollisionFilter, "groups", class_blind_groups)
+    monkeypatch.setattr(loader.plan.contact.CollisionFilter, "groups", class_blind_groups)
     message = _fails("conformance")
     assert "collision tier fails" in message and "groups" in message, message[:2000]
 
 
 def test_armature_from_a_default_class_dropped_is_caught(blind, monkeypatch):
-    plan_joint = loader.build.tree.plan_joint
+    plan_joint = loader.plan.tree.plan_joint
 
     def class_blind_plan(model, j, notes):
         written = blind.written("joint", model.joint(j).name, "armature")
         armature = float(written) if written is not None else 0.0
         return [dataclasses.replace(plan, armature=armature) for plan in plan_joint(model, j, notes)]
 
-    monkeypatch.setattr(loader.build.tree, "plan_joint", class_blind_plan)
+    monkeypatch.setattr(loader.plan.tree, "plan_joint", class_blind_plan)
     message = _fails("conformance")
     assert "dynamics tier fails" in message or "dynamics tier diverged" in message, message[:2000]

@@ -26,11 +26,37 @@ def test_an_import_cycle_is_found_even_through_a_function_local_import():
     assert house.import_cycles({**files, "pkg/b.py": "def g():\n    return 1\n"}) == []
 
 
-def test_a_class_over_the_limit_is_found():
-    body = "class Big:\n" + "    x = 1\n" * house.MAX_CLASS_LINES
-    assert house.long_classes({"loader/big.py": body}) == [
-        f"loader/big.py:1: class Big is {house.MAX_CLASS_LINES + 1} lines (at most {house.MAX_CLASS_LINES})"]
-    assert house.long_classes({"loader/big.py": body.replace("    x = 1\n", "", 1)}) == []
+def test_the_planning_half_importing_the_runtime_is_found_and_the_shared_layer_is_not():
+    files = {"loader/plan/joint.py": "from ..model import mj\nfrom ..errors import Notes\n",
+             "loader/runtime/rows.py": "from ..model.mapping import Mapping\nfrom .term import Term\n",
+             "loader/model/mj.py": "import mujoco\n", "loader/result.py": "from .plan import tree\nfrom .runtime import x\n"}
+    assert house.layering(files) == []
+    crossed = {**files, "loader/plan/joint.py": "def f():\n    from ..runtime.rows import RowTerm\n"}
+    assert house.layering(crossed) == [("loader/plan/joint.py:2: loader.plan imports loader.runtime.rows.RowTerm "
+                                       "(loader.runtime); it may import loader.model, loader.plan only")]
+    shared = {**files, "loader/model/mj.py": "from ..plan.tree import centres\n"}
+    assert house.layering(shared) == [("loader/model/mj.py:1: loader.model imports loader.plan.tree.centres "
+                                      "(loader.plan); it may import loader.model only")]
+    facade = {**files, "loader/runtime/rows.py": "from ..result import LoadResult\n"}
+    assert len(house.layering(facade)) == 1
+
+
+def test_a_folder_named_build_is_found():
+    assert house.layering({"loader/build/tree.py": ""}) == [
+        "loader/build/tree.py: a folder named build (tools take it for build output)"]
+
+
+def test_a_quoted_identifier_the_code_lacks_is_found():
+    code = {"loader/runtime/controller.py": 'STAGES = ("rows", "drives")\n\n\nclass Controller:\n'
+                                            '    def without(self, *names):\n        self.terms = names\n',
+            "loader/plan/tree.py": "def plan_tree(model):\n    return model.nbody\n"}
+    good = "`controller.without`, `plan_tree()`, `plan/tree.py`, `summary.json`, `mujoco.mj_step` and " \
+           '`controller.without("rows")`\n'
+    assert house.unresolved_identifiers({"docs/a.md": good}, code) == []
+    bad = '`controller.within`, `plan_forest()`, `plan/forest.py`, `without("limits")`\n'
+    assert house.unresolved_identifiers({"docs/a.md": bad}, code) == [
+        "docs/a.md:1: without('limits'): no such stage", "docs/a.md:1: `controller.within`: the code has no within",
+        "docs/a.md:1: `plan_forest()`: no such function or class", "docs/a.md:1: `plan/forest.py`: no such file"]
 
 
 def test_reading_another_objects_private_attribute_is_found():

@@ -21,9 +21,9 @@ from support.corpus import menagerie_root
 from support.lockstep import one_step, paired_rollout
 
 from loader import MJCFLoader
-from loader.build.solver_iterations import drive_radii
+from loader.model.soft_row import SoftRow, diag_approx
+from loader.plan.solver_iterations import drive_radii
 from loader.runtime.equalities import SoftConnect, SoftWeld
-from loader.soft_row import SoftRow, diag_approx
 
 
 @pytest.fixture(autouse=True)
@@ -31,9 +31,9 @@ def d6_form(monkeypatch):
     """These tests measure the D6 form of connects and welds, which the loader uses where a loop moves a ball
     joint. Their fixtures have none, where the loader makes MuJoCo's own rows instead
     (tests/test_loader_couplings.py), so the D6 form is chosen here for every connect and weld."""
-    import loader.build.equalities
+    import loader.plan.equalities
 
-    monkeypatch.setattr(loader.build.equalities, "_joint_row", lambda *args: False)
+    monkeypatch.setattr(loader.plan.equalities, "_joint_row", lambda *args: False)
 
 
 FIXTURE = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
@@ -168,11 +168,11 @@ def test_after_release_the_loop_stays_closed_without_set_ctrl():
 
 
 def test_the_connects_rows_count_in_the_solver_iterations():
-    """A connect's three damped rows join its articulation's Gauss-Seidel system (loader/build/solver_iterations.py)."""
+    """A connect's three damped rows join its articulation's Gauss-Seidel system (loader/plan/solver_iterations.py)."""
     result = MJCFLoader().load(FIXTURE)
-    with_rows = drive_radii(result.model, result.controller, result.mapping)
-    with result.controller.without("equalities"):
-        without = drive_radii(result.model, result.controller, result.mapping)
+    weights, joints = result.controller.drive_weights(), [e.joint for e in result.equalities if e.kind == "D6 joint"]
+    with_rows = drive_radii(result.model, weights, joints, result.mapping)
+    without = drive_radii(result.model, weights, [], result.mapping)
     assert with_rows and with_rows.get(0, 0.0) > without.get(0, 0.0)
 
 
@@ -319,7 +319,7 @@ def test_switching_a_connect_on_and_off_follows_mujocos_eq_active():
     model = spec.compile()
     data = mujoco.MjData(model)
     result = MJCFLoader().load(spec)
-    assert [(e.mapped, e.soft.active) for e in result.equalities] == [(True, False)]
+    assert [(e.mapped, result.controller.soft_joint(e.index).active) for e in result.equalities] == [(True, False)]
     worst = {"before": _rollout(result, model, data, 10)}
     data.eq_active[0] = 1
     result.set_equality_active("pin", True)
@@ -329,7 +329,7 @@ def test_switching_a_connect_on_and_off_follows_mujocos_eq_active():
     worst["after"] = _rollout(result, model, data, 200)
     assert max(worst.values()) < ROLLOUT, worst
     result.reset()
-    assert not result.equalities[0].soft.active  # back to eq_active0
+    assert not result.controller.soft_joint(0).active  # back to eq_active0
 
 
 def test_a_joint_coupling_switches_as_eq_active_does_in_mujoco():

@@ -9,7 +9,7 @@ from support.corpus import FIXTURES
 from support.oracle import collision_filter_mismatches, component_of
 
 from loader import MJCFLoader
-from loader.build.physx_settings import MAX_DEPENETRATION_VELOCITY
+from loader.model.options import MAX_DEPENETRATION_VELOCITY
 
 
 def _separation_after(result, steps: int) -> tuple[float, float]:
@@ -139,7 +139,7 @@ def test_arms_started_inside_each_other_come_apart_as_slowly_as_in_mujoco(iterat
     """Menagerie's aloha at qpos0: its two arms overlap by up to 3.5 cm over 91 contacts. MuJoCo's soft contacts
     ease them apart; PhysX's rigid ones, solved with a depenetration speed cap, fling the jammed links, and the
     harder the more position iterations it runs (an articulation runs with another's count when the scene holds
-    one that needs more, `build/solver_iterations.py`). The loader's cap keeps the arms near MuJoCo's speeds."""
+    one that needs more, `plan/solver_iterations.py`). The loader's cap keeps the arms near MuJoCo's speeds."""
     from support.corpus import menagerie_root
     from support.lockstep import paired_rollout
 

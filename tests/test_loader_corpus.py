@@ -16,7 +16,7 @@ from support.oracle import (
 )
 
 from conformance.sampling import quaternion_angle
-from loader.frames import X_TO_Z, quat_mul
+from loader.model.frames import X_TO_Z, quat_mul
 
 INERTIA_RTOL = 1e-6
 CORPUS = corpus_params()

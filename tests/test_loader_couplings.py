@@ -1,6 +1,6 @@
 """Couplings: joint equalities, finger tendons and closed linkages under the same ctrl on both sides.
 
-MuJoCo's soft joint equality rides on a PhysX tendon spring (loader/build/equalities.py), connects on D6 joints;
+MuJoCo's soft joint equality rides on a PhysX tendon spring (loader/plan/equalities.py), connects on D6 joints;
 contact is off on both sides.
 """
 
@@ -129,7 +129,7 @@ def test_after_release_a_fixed_base_loop_is_held_by_its_locked_d6():
         result.set_ctrl(None)
         result.release()
         if not lock:  # the mutation: the D6 left standing by
-            next(e for e in result.equalities if e.soft is not None).soft.stand_by()
+            result.controller.soft_joint(next(e.index for e in result.equalities if e.joint is not None)).stand_by()
         worst = 0.0
         for step in range(500):
             result.scene.step()
@@ -157,7 +157,7 @@ CARRIED_TOLERANCE = 1e-5  # rad over 1 s; measured 4.3e-7 as MuJoCo's rows, 0.30
 def test_a_floating_body_welded_to_an_arm_is_mujocos_own_row(tmp_path, monkeypatch):
     """A 5 kg pack on a free joint welded to an arm whose elbow is coupled to its shoulder: the weld is MuJoCo's row,
     solved with the coupling, its share on the pack a wrench on the pack's root link. Mutation: the D6 form."""
-    import loader.build.equalities
+    import loader.plan.equalities
 
     path = tmp_path / "pack.xml"
     path.write_text(CARRIED_PACK)
@@ -165,6 +165,6 @@ def test_a_floating_body_welded_to_an_arm_is_mujocos_own_row(tmp_path, monkeypat
     assert [e.kind for e in result.equalities] == ["MuJoCo row", "MuJoCo row"]
     errors = replay(result, model, lambda step, data: None, 1.0)
     assert errors.max() < CARRIED_TOLERANCE, errors.max()
-    monkeypatch.setattr(loader.build.equalities, "_joint_row", lambda *args: False)
+    monkeypatch.setattr(loader.plan.equalities, "_joint_row", lambda *args: False)
     d6, model = contact_free(path)
     assert replay(d6, model, lambda step, data: None, 1.0).max() > 1e3 * CARRIED_TOLERANCE

@@ -48,7 +48,7 @@ def test_a_changed_target_or_gain_reaches_physx_after_a_cached_step(monkeypatch,
         result.set_ctrl([ctrl])
         check(ctrl, 10.0)
         result.scene.step()
-    for law in result.controller.laws().values():
+    for law in result.controller.edit_laws().values():
         law.stiffness *= 2.0
     result.set_ctrl([-0.5])
     check(-0.25, 20.0)

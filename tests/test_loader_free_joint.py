@@ -39,7 +39,7 @@ def _fixture(tmp_path: Path, integrator: str | None) -> Path:
 def _worst_velocity(path: Path, mutate=None) -> float:
     result, model, data = at_keyframe(path)
     if mutate:
-        mutate(result.controller.momentum)
+        mutate(result.controller.edit("momentum"))
     return float(paired_rollout(result, model, data, STEPS).qvel.max())
 
 
@@ -138,9 +138,9 @@ def test_a_massless_root_carrying_a_heavy_child_falls_without_turning(tmp_path):
 
 def test_a_helper_mass_at_mujocos_massless_ipos_turns_the_fall(tmp_path, monkeypatch):
     """The deliberate mistake: the massless root's helper mass where MuJoCo leaves its `body_ipos`."""
-    import loader.build.mapping
-    import loader.build.tree
+    import loader.model.mapping
+    import loader.plan.tree
 
-    for module in (loader.build.tree, loader.build.mapping):
+    for module in (loader.plan.tree, loader.model.mapping):
         monkeypatch.setattr(module, "centres", lambda model: model.body_ipos.copy())
     assert _turning_after_a_fall(tmp_path) > 10 * TURNING

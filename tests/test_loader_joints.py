@@ -181,7 +181,7 @@ def test_a_light_body_on_a_vertical_hinge_stays_at_rest_under_gravity(monkeypatc
     measured 0 with the exact frame, 8.8e-6 rad with the shortest rotation's rounded sqrt(1/2) (the mutation)."""
     from support.corpus import suite_path
 
-    import loader.frames
+    import loader.model.frames
     from loader import MJCFLoader
 
     def drift() -> float:
@@ -194,5 +194,5 @@ def test_a_light_body_on_a_vertical_hinge_stays_at_rest_under_gravity(monkeypatc
         return float(last)
 
     assert drift() < 1e-9
-    monkeypatch.setattr(loader.frames, "EXACT_X_TO", {})
+    monkeypatch.setattr(loader.model.frames, "EXACT_X_TO", {})
     assert drift() > 1e-6

@@ -171,7 +171,7 @@ def test_a_joint_spun_past_a_full_turn_is_not_wrapped_into_its_far_limit(monkeyp
     """A limited hinge pushed past 2 pi (an impact in MuJoCo's own run): MuJoCo's soft limit brings it back, and
     SAPIEN's q must not wrap by 4 pi, which would put it far past the other end. Mutation: PhysX's wrapping
     "revolute" joint type (measured 3.7e-6 rad over 0.2 s; wrapped: 12.6, 4 pi)."""
-    from loader.build import joint
+    from loader.plan import joint
 
     def run() -> float:
         result = MJCFLoader().load(mujoco.MjSpec.from_string(SPUN_PAST))
@@ -185,7 +185,7 @@ def test_a_joint_spun_past_a_full_turn_is_not_wrapped_into_its_far_limit(monkeyp
                 for p in original(model, j, notes)]
 
     monkeypatch.setattr(joint, "plan_joint", wrapping)
-    from loader.build import tree
+    from loader.plan import tree
 
     monkeypatch.setattr(tree, "plan_joint", wrapping)
     assert run() > 1.0
@@ -232,7 +232,7 @@ def test_a_limit_force_on_a_light_damped_link_goes_through_the_drive(route):
 
     result, model = contact_free(FIXTURES / "light_damped_link_past_its_end.xml")
     if not route:
-        result.controller.term("drives").inertia.clear()  # the mistake: every force as qf
+        result.controller.edit("drives").inertia.clear()  # the mistake: every force as qf
     data = mujoco.MjData(model)
     error = one_step(result, model, model.key_qpos[0], np.zeros(model.nv), data=data)
     speed = float(np.abs(data.qvel).max())
@@ -304,12 +304,13 @@ LENT = """<mujoco><option timestep="0.002"/><worldbody>
 
 
 def test_the_rows_solve_with_the_loaded_model_and_leave_it_as_it_was():
-    """MuJoCo's copy for the rows is the loaded model lent for each solve (`rows.LentModel`): what the copy changes
+    """MuJoCo's copy for the rows is the runtime's model lent for each solve (`rows.LentModel`): what the copy changes
     (the ball joint's limit and friction, the unmapped actuator's gains) and the flags the solve sets are in it only
-    while MuJoCo solves, so `result.model` reads the same after steps as before them, number for number."""
+    while MuJoCo solves, so the model every other term reads stays as compiled after steps, number for number."""
     result = MJCFLoader().load(mujoco.MjSpec.from_string(LENT))
     lent = result.controller.term("rows").lent
-    assert lent.model is result.model and not lent.copied
+    runtime = result.controller.model
+    assert lent.model is runtime and not lent.copied
     assert {field for field, _, _ in lent.overrides} >= {"jnt_limited", "dof_frictionloss"}
     before = mujoco.MjModel.from_xml_string(LENT)
     for disabled in (False, True):  # the solve turns actuation off in the flags while the actuators are
@@ -318,7 +319,7 @@ def test_the_rows_solve_with_the_loaded_model_and_leave_it_as_it_was():
             result.set_ctrl(np.array([0.2, -0.1]))
             result.scene.step()
     changed = [name for name in dir(before) if isinstance(getattr(before, name), np.ndarray)
-               and not np.array_equal(getattr(before, name), getattr(result.model, name), equal_nan=True)]
+               and not np.array_equal(getattr(before, name), getattr(runtime, name), equal_nan=True)]
     assert not changed, changed
-    assert result.model.opt.disableflags == before.opt.disableflags
-    assert result.model.opt.timestep == before.opt.timestep
+    assert runtime.opt.disableflags == before.opt.disableflags
+    assert runtime.opt.timestep == before.opt.timestep

@@ -67,7 +67,7 @@ class _Dropped(list):
 
 
 def _drop_fluid_wrenches(result) -> None:
-    object.__setattr__(result.controller.term("fluid"), "applied", _Dropped())
+    result.controller.edit("fluid").wrenches = _Dropped()
 
 
 def test_drag_turning_a_robot_in_a_fluid_is_carried(tmp_path):
@@ -109,7 +109,7 @@ def _teleported_root_velocity(told: bool) -> np.ndarray:
     art.set_qpos(art.get_qpos() + np.float32(0.2))
     art.set_qvel(art.get_qvel() + np.float32(1.0))
     if told:
-        result.controller.momentum.forget()
+        result.controller.term("momentum").forget()
     result.scene.step()
     return result.get_state()[1][:6]
 

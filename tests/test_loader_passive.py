@@ -46,10 +46,10 @@ def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator
     assert any("J^T J" in str(note) for note in result.approximations) == (integrator != "Euler")
     errors = replay(result, model, no_ctrl, 1.0)
     assert errors.max() < TENDON_TOLERANCE, errors.max()
-    import loader.runtime.controller
+    import loader.model.options
 
     implicit = (int(mujoco.mjtIntegrator.mjINT_EULER),) if integrator == "Euler" else ()
-    monkeypatch.setattr(loader.runtime.controller, "IMPLICIT", implicit)  # set_ctrl reads the integrator rule there
+    monkeypatch.setattr(loader.model.options, "IMPLICIT", implicit)  # the options snapshot reads the rule there
     other, model = load()
     assert replay(other, model, no_ctrl, 1.0).max() > 10 * TENDON_TOLERANCE
 
@@ -116,9 +116,9 @@ def test_spring_and_damper_flags_are_honoured(tmp_path, monkeypatch, flags):
       </tendon></mujoco>""")
     result = MJCFLoader().load(path)
     assert replay(result, result.model, no_ctrl, 1.0).max() < SERVO_TOLERANCE
-    import loader.mj
+    import loader.model.mj
 
-    monkeypatch.setattr(loader.mj, "disabled", lambda model, *flags: False)  # the fixture sets no other flag
+    monkeypatch.setattr(loader.model.mj, "disabled", lambda model, *flags: False)  # the fixture sets no other flag
     blind = MJCFLoader().load(path)
     assert replay(blind, blind.model, no_ctrl, 1.0).max() > 10 * SERVO_TOLERANCE
 

@@ -14,7 +14,7 @@ from support.corpus import suite_path
 from support.lockstep import replay
 
 from loader import MJCFLoader, SceneMismatchWarning
-from loader.build.physx_settings import create_scene
+from loader.plan.physx_settings import create_scene
 
 # a joint spring and damper, a filtered actuator and a servo (drive terms), and a limit whose solref refsafe clamps
 SERVO = """<mujoco model="servo"><option timestep="0.01" integrator="implicitfast"/>

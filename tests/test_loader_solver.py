@@ -1,4 +1,4 @@
-"""PhysX solver iterations from the coupling of an articulation's drives (loader/build/solver_iterations.py).
+"""PhysX solver iterations from the coupling of an articulation's drives (loader/plan/solver_iterations.py).
 
 MuJoCo is the oracle: dm_control finger's two damped, motor-driven hinges couple strongly (Gauss-Seidel radius
 0.49), and SAPIEN's default 10 position iterations leave its drives unconverged. Measured over 1 s of
@@ -13,7 +13,7 @@ from support.corpus import FIXTURES, suite_path
 from support.lockstep import contact_free, replay
 
 from loader import MJCFLoader
-from loader.build.solver_iterations import drive_radii, gauss_seidel_radius, sweeps_needed
+from loader.plan.solver_iterations import drive_radii, gauss_seidel_radius, sweeps_needed
 
 ROLLOUT_TOLERANCE = 5e-6  # rad, measured 4.0e-7
 
@@ -91,8 +91,9 @@ def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at
     """Measured from the stretched keyframe over 1 s: 4.8e-7 rad at the keyframe's 41 sweeps, 4.0e-5 at qpos0's 16
     (the mutation: the rule at qpos0 alone)."""
     result, model = contact_free(FOLDING_ARM)
-    at_qpos0 = sweeps_needed(drive_radii(model, result.controller, result.mapping)[0])
-    at_key = sweeps_needed(drive_radii(model, result.controller, result.mapping, model.key_qpos[0])[0])
+    weights = result.controller.drive_weights()
+    at_qpos0 = sweeps_needed(drive_radii(model, weights, [], result.mapping)[0])
+    at_key = sweeps_needed(drive_radii(model, weights, [], result.mapping, model.key_qpos[0])[0])
     assert at_key > at_qpos0
     assert result.articulations[0].solver_position_iterations == at_key
     assert replay(result, model, _arm_ctrl, 1.0).max() < ROLLOUT_TOLERANCE
@@ -109,7 +110,7 @@ def test_the_radii_run_on_one_blas_thread(monkeypatch):
     shared cores for the same numbers."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
-    import loader.mj
+    import loader.model.mj
 
     def blas_threads() -> set[int]:
         return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
@@ -121,7 +122,7 @@ def test_the_radii_run_on_one_blas_thread(monkeypatch):
         seen.append(blas_threads())
         return pinv(*args, **kwargs)
 
-    monkeypatch.setattr(loader.mj.np.linalg, "pinv", recorded)
+    monkeypatch.setattr(loader.model.mj.np.linalg, "pinv", recorded)
     with threadpool_limits(limits=2, user_api="blas"):
         MJCFLoader().load(suite_path("humanoid"))
         after = blas_threads()

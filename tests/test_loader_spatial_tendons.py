@@ -60,9 +60,9 @@ def test_a_spatial_tendon_damper_under_euler_is_explicit(tmp_path, monkeypatch):
     result, model = load(tmp_path, "Euler", damping=0.05)
     errors = replay(result, model, no_ctrl, 1.0)
     assert errors.max() < SPATIAL_TOLERANCE, errors.max()
-    import loader.runtime.controller
+    import loader.model.options
 
-    monkeypatch.setattr(loader.runtime.controller, "IMPLICIT", (int(mujoco.mjtIntegrator.mjINT_EULER),))
+    monkeypatch.setattr(loader.model.options, "IMPLICIT", (int(mujoco.mjtIntegrator.mjINT_EULER),))
     other, model = load(tmp_path, "Euler", damping=0.05)
     assert replay(other, model, no_ctrl, 1.0).max() > 10 * SPATIAL_TOLERANCE
 
@@ -75,8 +75,7 @@ def test_a_spatial_tendon_damper_under_implicitfast_is_noted_and_close(tmp_path)
     errors = replay(result, model, no_ctrl, 1.0)
     assert errors.max() < IMPLICIT_TOLERANCE, errors.max()
     other, model = load(tmp_path, "implicitfast", damping=IMPLICIT_DAMPING)
-    other.controller.term("tendons").spatial.implicit = False
-    other.controller.stale = True
+    other.controller.edit("tendons").spatial.implicit = False
     assert replay(other, model, no_ctrl, 1.0).max() > 2 * errors.max()
 
 
@@ -103,7 +102,7 @@ def test_a_spatial_tendon_over_a_free_joint_pulls_its_root(tmp_path):
     errors = replay(result, result.model, no_ctrl, 0.5)
     assert errors.max() < FLOATING_TOLERANCE, errors.max()
     other = floating_finger(tmp_path)
-    other.controller.term("tendons").spatial.push.roots.clear()
+    other.controller.edit("tendons").spatial.push.roots.clear()
     assert replay(other, other.model, no_ctrl, 0.5).max() > 100 * FLOATING_TOLERANCE
 
 
@@ -155,7 +154,7 @@ def test_a_spatial_tendon_servo_matches_mujoco(tmp_path, monkeypatch, integrator
     """A position servo (with kv and a forcerange) on the extensor's length: MuJoCo's law along the path at every
     step, kv explicit under Euler; under implicitfast the drives hold kv's diagonal (noted). Measured 4.7e-7 (Euler)
     and 1.4e-4 rad (implicitfast); the mutation, the servo left out, 1.2."""
-    from loader.runtime.spatial_actuators import SpatialActuators
+    from loader.runtime.actuators import SpatialActuators
 
     path = mjcf_file(tmp_path, SERVO.format(integrator=integrator, damping=0.0, kv=kv), "servo.xml")
     result = MJCFLoader().load(path)

@@ -11,7 +11,7 @@ from support.corpus import FIXTURES, suite_path
 from support.oracle import POSE_TOLERANCE, link_pose_errors
 
 from loader import MJCFLoader, UnsupportedFeatureWarning
-from loader.build.geom import hfield_triangles
+from loader.plan.geom import hfield_triangles
 
 
 def test_unnamed_bodies_load_with_unique_link_names(load, rng):
@@ -193,8 +193,9 @@ def test_textures_come_from_the_compiled_model(load):
     result = load(suite_path("cartpole"))
     grid = next(t for t in result.textures if t.name == "grid")
     assert grid.type == "2d" and grid.data.ndim == 3 and grid.data.size > 0
-    # MuJoCo's own pixels, not a copy per load, and read-only so that the model's stay as compiled
-    assert np.shares_memory(grid.data, result.model.tex_data) and not grid.data.flags.writeable
+    # MuJoCo's own pixels (the compiled model's the load keeps), not a copy per load, and read-only so that the
+    # model's stay as compiled
+    assert np.shares_memory(grid.data, result.controller.model.tex_data) and not grid.data.flags.writeable
 
 
 def test_ignore_classes_skips_a_class_entirely_and_defaults_like_maniskill(tmp_path):
@@ -276,7 +277,7 @@ def test_a_joint_space_inertia_float32_cannot_resolve_is_listed(monkeypatch):
     arm gets no such note. Mutation: the check skipped."""
     import mujoco
 
-    from loader.build import features
+    from loader.plan import features
 
     def listed(xml: str) -> list:
         with warnings.catch_warnings():
@@ -298,7 +299,7 @@ def test_inertia_blocks_are_mujocos_full_matrix(name):
     """The tree blocks read from MuJoCo's sparse inertia rebuild mj_fullM's dense matrix entry for entry, and the
     per-tree pseudo-inverse is the dense one's (M is block-diagonal over trees). Mutation: a block transposed
     against the tree's DoF order, or one entry dropped, is caught by the same comparison."""
-    from loader import mj
+    from loader.model import mj
 
     model = mujoco.MjModel.from_xml_path(str(suite_path(name)))
     data = mj.forward_at(model, model.qpos0 + 0.1 * np.arange(model.nq) % 0.3)
@@ -319,7 +320,7 @@ def test_a_load_reads_one_forward_pass_at_qpos0(monkeypatch):
     """Every stage that reads MuJoCo's forward pass at qpos0 (body poses, the ill-conditioning note, the drives'
     inertia diagonal, the solver iterations) reads the one the compile made; outside a load a call makes its own.
     Mutation: a stage that makes its own pass is caught by the count of distinct passes."""
-    from loader import mj
+    from loader.model import mj
 
     made, original = [], mj.forward_at
 
@@ -360,7 +361,7 @@ def test_a_frame_quaternion_the_compiler_left_unnormalized_is_a_typed_error(elem
 
 
 def test_a_shared_mesh_is_cooked_once(tmp_path, monkeypatch):
-    """Three geoms of one mesh get their hull from one file of `loader/build/hulls.py` (cooked once), a mesh of one
+    """Three geoms of one mesh get their hull from one file of `loader/plan/hulls.py` (cooked once), a mesh of one
     geom and a height field are cooked from memory, a second load cooks none of them from memory again, and every
     hull and triangle mesh is the one PhysX cooks from the same vertices (101 and 50 of them: the STL pads the last
     triangle)."""
@@ -411,3 +412,77 @@ def test_a_shared_mesh_is_cooked_once(tmp_path, monkeypatch):
     cooked = triangles(*hfield_triangles(model, 0), np.ones(3, np.float32), ground.physical_material)
     assert np.array_equal(ground.get_vertices(), cooked.get_vertices())
     assert np.array_equal(ground.get_triangles(), cooked.get_triangles())
+
+
+DAMPED_SLIDER = """<mujoco><option timestep="0.002" gravity="0 0 -9.81"/>
+  <worldbody><body name="arm" pos="0 0 1"><joint name="hinge" axis="0 1 0" damping="0.05"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".4"/>
+    <body name="slider" pos=".3 0 0"><joint name="slide" type="slide" axis="1 0 0" damping="0.2"/>
+      <geom type="box" size=".03 .03 .03" mass=".2"/></body></body></worldbody>
+  <actuator><position name="servo" joint="hinge" kp="4" kv="0.3"/></actuator>
+</mujoco>"""
+TERM_TOLERANCE = 1e-5  # rad over 0.5 s; measured 1.7e-7 to 2.6e-7, mutations 0.18 and 0.23 (mujoco 3.17.0, sapien 3.0.3)
+PUSH = np.array([0.3, -0.5])  # N m on the hinge, N on the slide
+
+
+def _lockstep(result, model, push: np.ndarray, steps: int = 250) -> float:
+    """SAPIEN from `result`'s state and MuJoCo from the same, MuJoCo with `push` as qfrc_applied; the worst qpos
+    difference over `steps` steps of a fixed ctrl."""
+    data = mujoco.MjData(model)
+    data.qfrc_applied[:] = push
+    data.ctrl[:] = 0.4
+    result.reset()
+    worst = 0.0
+    for _ in range(steps):
+        result.set_ctrl(data.ctrl.copy())
+        mujoco.mj_step(model, data)
+        result.scene.step()
+        worst = max(worst, float(np.abs(result.get_state()[0] - data.qpos).max()))
+    return worst
+
+
+def test_a_toy_term_joins_the_controller_through_the_public_contract(tmp_path):
+    """A term of the caller's own, written against `loader.runtime.term.Term` and added with `Controller.add`:
+    a constant generalized force, as MuJoCo's qfrc_applied. The controller compiles it and runs it after the
+    actuators; `without` switches it off like any other. Mutation: the term left out (the push goes missing)."""
+    from loader.runtime.term import Term
+
+    class Push(Term):
+        name = "push"
+
+        def compile(self, compilation) -> None:
+            self.flat = compilation.layout.flat_of([(0, 0), (0, 1)])
+
+        def contribute(self, step) -> None:
+            step.force[self.flat] += PUSH
+
+    path = tmp_path / "slider.xml"
+    path.write_text(DAMPED_SLIDER)
+    result = MJCFLoader().load(path)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    result.controller.add(Push(), after="actuators")
+    assert result.controller.names.index("push") == result.controller.names.index("actuators") + 1
+    assert _lockstep(result, model, PUSH) < TERM_TOLERANCE
+    with result.controller.without("push"):
+        assert _lockstep(result, model, PUSH) > 100 * TERM_TOLERANCE
+    with pytest.raises(ValueError, match="already a stage"):
+        result.controller.add(Push(), after="rows")
+
+
+def test_model_edits_reach_the_steps_only_through_replan(tmp_path):
+    """`result.model` is the caller's copy: doubling the servo's kp and the slide's damping in it changes nothing
+    SAPIEN does until `replan()`, which then follows MuJoCo's run of the edited model. Mutation: the edit read
+    without `replan` (the loaded model's run then misses it)."""
+    path = tmp_path / "slider.xml"
+    path.write_text(DAMPED_SLIDER)
+    result = MJCFLoader().load(path)
+    loaded = mujoco.MjModel.from_xml_path(str(path))
+    edited = result.model
+    edited.actuator_gainprm[0, 0] *= 2.0
+    edited.actuator_biasprm[0, 1] *= 2.0
+    edited.dof_damping[1] *= 3.0
+    assert _lockstep(result, loaded, np.zeros(2)) < TERM_TOLERANCE  # the edit has not reached the steps
+    assert _lockstep(result, edited, np.zeros(2)) > 100 * TERM_TOLERANCE
+    result.replan()
+    assert _lockstep(result, edited, np.zeros(2)) < TERM_TOLERANCE
+    assert result.actuators[0].stiffness == pytest.approx(8.0)

@@ -212,7 +212,7 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
 def test_a_maniskill_scene_is_asked_for_rendering_through_its_sub_scenes():
     """Where a render device exists the loader asks whether the scene renders: a ManiSkill scene answers for its
     sub-scenes (it has no `get_system` of its own). A sub-scene without a render system does not render."""
-    from loader.build.visual import scene_renders
+    from loader.plan.visual import scene_renders
 
     assert scene_renders(_cpu_scene(0.002)) is False
 

@@ -103,7 +103,7 @@ def test_actuator_forces_agree_when_the_states_agree(arm):
 
 def _kp_five_percent(session) -> None:
     changed = 0
-    for drive in session.result.controller.laws().values():
+    for drive in session.result.controller.edit_laws().values():
         if drive.stiffness > 0:
             drive.stiffness *= 1.05
             changed += 1
@@ -197,13 +197,13 @@ def _spot() -> Path:
 
 
 def _flip_gears(session) -> None:
-    actuators = session.result.controller.term("actuators").actuators  # the list result.actuators shows
+    actuators = session.result.controller.edit("actuators").actuators  # the list result.actuators shows
     for i, actuator in enumerate(actuators):
         actuators[i] = dataclasses.replace(actuator, gear=-actuator.gear)
 
 
 def _halve_servo_gains(session) -> None:
-    for drive in session.result.controller.laws().values():
+    for drive in session.result.controller.edit_laws().values():
         drive.stiffness *= 0.5
 
 

@@ -180,7 +180,7 @@ def test_the_maniskill_tier_catches_a_robot_built_there_without_armature(monkeyp
     pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
     from support.corpus import menagerie_root
 
-    from loader.build import physx_settings
+    from loader.plan import physx_settings
 
     root = menagerie_root()
     if root is None or not (root / "franka_emika_panda/panda.xml").is_file():

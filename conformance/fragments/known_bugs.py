@@ -101,7 +101,7 @@ def _servo_spins_fast(result, model: mujoco.MjModel) -> bool:
 # (the drive force limit is listed as an approximation), slide_*_metres_from_its_zero.xml (joint frames onto a
 # coordinate axis are exact in float32 now, `loader/frames.py`), slide_far_from_its_zero_off_axis.xml (the one-step
 # tiers start MuJoCo from the float32 state SAPIEN holds), robot_classes-e5bbc90029.xml (a joint-space inertia
-# conditioned beyond float32 is listed by the loader, `build/features.py`); their files stay as regressions
+# conditioned beyond float32 is listed by the loader, `plan/features.py`); their files stay as regressions
 KNOWN_BUGS: list[KnownBug] = [
     KnownBug("ill_conditioned_two_hinges.xml", ("dynamics", "actuated"), _ill_conditioned),
     KnownBug("slender_rod_about_its_axis.xml", ("dynamics", "actuated"), _slender_about_a_hinge),

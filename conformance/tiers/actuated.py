@@ -28,8 +28,8 @@ from dataclasses import dataclass, fields
 import mujoco
 import numpy as np
 
-from loader.build.fixed_tendons import fixed_tendon_terms
-from loader.runtime.tendon_paths import TendonPaths
+from loader.model.mj import fixed_tendon_terms
+from loader.runtime.tendons import TendonPaths
 
 from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of

@@ -16,7 +16,7 @@ import warnings
 import mujoco
 import numpy as np
 
-from loader.build.physx_settings import matched_config
+from loader.plan.physx_settings import matched_config
 
 from ..report import TierReport, skipped
 from ..tolerances import Tolerances

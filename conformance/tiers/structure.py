@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from loader import mj
+from loader.model import mj
 
 from .. import sapien_side
 from ..reference import limits_disabled

@@ -8,8 +8,8 @@ import sapien
 from mani_skill.utils.building.actor_builder import ActorBuilder
 from mani_skill.utils.building.articulation_builder import ArticulationBuilder
 
-from ..build import physx_settings
-from ..build.builders import ShapesFromPlans, TreeOfPlannedLinks
+from ..plan import physx_settings
+from ..plan.builders import ShapesFromPlans, TreeOfPlannedLinks
 
 
 class SceneActorBuilder(ShapesFromPlans, ActorBuilder):

@@ -1,6 +1,7 @@
-"""Actuator activation dynamics: MuJoCo's `filter`, `filterexact` and `integrator` actuators, stepped as MuJoCo
-steps them (the ODE depends on ctrl alone, so the activation is MuJoCo's exactly). Muscles and user dynamics are
-not mapped. Derivation: docs/mapping.md#activation.
+"""The ctrl stage of every step: MuJoCo's `ctrl` clamped to `ctrlrange` (unless `<flag clampctrl="disable"/>`),
+and what each actuator's gain multiplies: ctrl, or the activation of MuJoCo's `filter`, `filterexact` and
+`integrator` actuators, stepped as MuJoCo steps them (the ODE depends on ctrl alone, so the activation is MuJoCo's
+exactly). Muscles and user dynamics are not mapped. Derivation: docs/mapping.md#activation.
 """
 
 from __future__ import annotations
@@ -10,11 +11,9 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from ..build.compile import MJMINVAL
-
-DYN = mujoco.mjtDyn
-MAPPED = {int(DYN.mjDYN_FILTER): "filter", int(DYN.mjDYN_FILTEREXACT): "filterexact",
-          int(DYN.mjDYN_INTEGRATOR): "integrator"}
+from ..model.actuators import DYN, MAPPED_DYNAMICS
+from ..model.mj import MJMINVAL
+from ..model.options import Options
 
 
 @dataclass
@@ -30,7 +29,7 @@ class Activation:
         self.timestep = float(m.opt.timestep if self.timestep is None else self.timestep)
         if self.act is None:
             self.act = np.zeros(m.na)
-        self.actuators = np.array([a for a in range(m.nu) if int(m.actuator_dyntype[a]) in MAPPED], dtype=int)
+        self.actuators = np.array([a for a in range(m.nu) if int(m.actuator_dyntype[a]) in MAPPED_DYNAMICS], dtype=int)
         a = self.actuators
         self.adr = m.actuator_actadr[a].astype(int)
         self.integrator = m.actuator_dyntype[a] == int(DYN.mjDYN_INTEGRATOR)
@@ -67,3 +66,27 @@ class Activation:
         """One step of the activation under this (clamped) ctrl, as MuJoCo takes it after the step."""
         if self.actuators.size:
             self.act[self.adr] = self._next(ctrl)
+
+
+class Command:
+    """The clamp bounds (-inf..inf where an actuator is not ctrllimited) and the clamp flag, planned once."""
+
+    def __init__(self, model: mujoco.MjModel, options: Options, activation: Activation | None):
+        self.nu, self.activation = model.nu, activation
+        limited = model.actuator_ctrllimited.astype(bool)
+        self.low = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+        self.high = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+        self.clamps = bool(limited.any()) and options.clamps_ctrl
+
+    def __call__(self, ctrl, actuated: bool, advance: bool):
+        """(clamped ctrl, what the gains multiply, the activation at the step's start or None); `advance` takes
+        the activation one step further (only while the actuators are on)."""
+        ctrl = np.zeros(self.nu) if ctrl is None else np.asarray(ctrl, dtype=np.float64)
+        ctrl = np.minimum(np.maximum(ctrl, self.low), self.high) if self.clamps else ctrl.copy()
+        if self.activation is None or not actuated:
+            return ctrl, ctrl, None
+        act = self.activation.act.copy()
+        inputs = self.activation.inputs(ctrl)
+        if advance:
+            self.activation.advance(ctrl)
+        return ctrl, inputs, act

@@ -4,8 +4,13 @@ force clamps and its implicit/explicit split of kv decide what stays in the driv
 MuJoCo evaluates each actuator's force at the start of the step, clamps it to its `forcerange`, clamps the joint's
 sum to the joint's `actuatorfrcrange`, and treats kv implicitly (implicitfast, implicit) only for the actuators its
 forcerange did not clamp. On a step where a clamp binds, the clamped sum becomes a generalized force and the drive
-keeps the joint's passive terms and the kv still implicit. Every law acts on arrays planned at load
-(`compile`). Derivation: docs/mapping.md#actuators.
+keeps the joint's passive terms and the kv still implicit. Tendon actuators apply J^T f with f MuJoCo's force at
+the tendon's length and rate now (a spatial tendon's along its path, `tendons.py`); implicitfast holds their whole
+kv J^T J implicitly (none once a forcerange clamps it), of which the drives take the diagonal. Every law acts on
+arrays planned at load (`compile`). Derivation: docs/mapping.md#actuators
+(tests/test_loader_actuators.py::test_clamped_actuator_forces_match_mujoco,
+tests/test_loader_actuators.py::test_a_tendon_servo_matches_mujoco,
+tests/test_loader_spatial_tendons.py::test_a_spatial_tendon_servo_matches_mujoco).
 """
 
 from __future__ import annotations
@@ -15,21 +20,198 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.actuators import SPATIAL, ActuatorMap, map_actuator
-from ..build.mapping import Mapping
-from ..drive import DofDrive
 from ..errors import Notes
-from .actuator_laws import ActuatorLaws
-from .clamps import ForceClamps
+from ..model import mj
+from ..model.actuators import SPATIAL, ActuatorMap
+from ..model.drive import DofDrive
+from ..model.mapping import Mapping
 from .dof_step import DofKey, DofLayout, Step
-from .spatial_actuators import SpatialActuators
-from .tendon_actuators import TendonActuators
-from .tendons import COUPLED_DAMPING, IMPLICIT
+from .integrated import RootPush
+from .tendons import COUPLED_DAMPING, TendonPaths
+from .term import Compilation, Term
+
+
+class ActuatorLaws:
+    """Columns of actuator parameters, one per actuator of `indices` (MuJoCo's actuator ids)."""
+
+    def __init__(self, actuators: list[ActuatorMap], indices: list[int]):
+        chosen = [actuators[a] for a in indices]
+        self.indices = np.array(indices, dtype=int)
+        self.gear = np.array([x.gear for x in chosen], dtype=np.float64)
+        self.gain = np.array([x.gain for x in chosen], dtype=np.float64)
+        self.bias = np.array([x.bias for x in chosen], dtype=np.float64).reshape(-1, 3).T.copy()
+        self.low = np.array([x.forcerange[0] if x.forcerange else -np.inf for x in chosen], dtype=np.float64)
+        self.high = np.array([x.forcerange[1] if x.forcerange else np.inf for x in chosen], dtype=np.float64)
+        self.damping = np.array([x.damping for x in chosen], dtype=np.float64)  # gear^2 kv
+
+    def __len__(self) -> int:
+        return int(self.indices.size)
+
+    def unclamped(self, inputs: np.ndarray, length: np.ndarray, velocity: np.ndarray, chosen=slice(None)):
+        """MuJoCo's force law (before gear and clamp) of the `chosen` actuators."""
+        bias = self.bias
+        return (self.gain[chosen] * inputs + bias[0][chosen] + bias[1][chosen] * length
+                + bias[2][chosen] * velocity)
+
+    def clamped(self, unclamped: np.ndarray, chosen=slice(None)) -> np.ndarray:
+        """The force clamped to forcerange (no range: unchanged)."""
+        return np.minimum(np.maximum(unclamped, self.low[chosen]), self.high[chosen])
+
+
+class ForceClamps:
+    """The DoFs MuJoCo can clamp: `member` (positions among the joint actuators) and `owner` (which clamped DoF
+    each belongs to) with the members' gear, bias and forcerange; per clamped DoF its drive column, joint position,
+    range and passive law. `single`: every clamped DoF has one actuator (no sums); `ranged`: some DoF has an
+    actuatorfrcrange."""
+
+    def __init__(self, limited: dict[DofKey, list[int]], joint_range: dict[DofKey, tuple[float, float]],
+                 joint: ActuatorLaws, layout: DofLayout, passive: np.ndarray):
+        position = {int(a): i for i, a in enumerate(joint.indices)}
+        keys = list(limited)
+        pairs = [(k, position[a]) for k, key in enumerate(keys) for a in limited[key]]
+        self.owner = np.array([k for k, _ in pairs], dtype=int)
+        self.member = np.array([i for _, i in pairs], dtype=int)
+        self.count, self.joint_count = len(keys), len(joint)
+        self.single = self.owner.size == self.count
+        self.drive, self.flat = layout.drive_of(keys), layout.flat_of(keys)
+        self.member_flat = self.flat[self.owner]
+        self.low = np.array([joint_range.get(key, (-np.inf, np.inf))[0] for key in keys], dtype=np.float64)
+        self.high = np.array([joint_range.get(key, (-np.inf, np.inf))[1] for key in keys], dtype=np.float64)
+        self.ranged = bool(joint_range)
+        member = self.member
+        self.gear, self.damping = joint.gear[member], joint.damping[member]
+        self.length_bias, self.velocity_bias = joint.bias[1][member], joint.bias[2][member]
+        self.force_low, self.force_high = joint.low[member], joint.high[member]
+        self.passive = passive[:, self.drive]
+
+    def binding(self, step: Step, affine: np.ndarray):
+        """(binding DoFs, the clamped geared sum, the implicit kv) at this state, or None when nothing binds.
+        `affine`: gain x input + bias0 of every joint actuator."""
+        gear, flat = self.gear, self.member_flat
+        unclamped = (affine[self.member] + self.length_bias * (gear * step.q[flat])
+                     + self.velocity_bias * (gear * step.v[flat]))
+        force = np.minimum(np.maximum(unclamped, self.force_low), self.force_high)
+        saturated = force != unclamped
+        total = gear * force
+        if self.single:
+            binding = saturated
+        else:
+            total = np.bincount(self.owner, total, minlength=self.count)
+            binding = np.bincount(self.owner, saturated, minlength=self.count) > 0
+        if self.ranged:
+            binding = binding | ~((self.low <= total) & (total <= self.high))
+        if not np.count_nonzero(binding):
+            return None
+        implicit = np.where(saturated | step.explicit_kv, 0.0, self.damping)
+        implicit_kv = implicit if self.single else np.bincount(self.owner, implicit, minlength=self.count)
+        return binding, np.minimum(np.maximum(total, self.low), self.high), implicit_kv
+
+    def apply(self, found, step: Step) -> np.ndarray:
+        """The binding DoFs' drives and forces; returns which joint actuators were clamped."""
+        binding, total, implicit_kv = found
+        step.regular = False
+        drive, flat, passive = self.drive[binding], self.flat[binding], self.passive[:, binding]
+        law = step.law
+        law[0, drive] = passive[0]
+        law[1, drive] = passive[1] + implicit_kv[binding]
+        law[2, drive] = passive[2]
+        law[3, drive] = np.inf
+        law[4, drive] = implicit_kv[binding] * step.v[flat]
+        step.force[flat] += total[binding]
+        clamped = np.zeros(self.joint_count, dtype=bool)
+        clamped[self.member[binding[self.owner]]] = True
+        return clamped
+
+
+class TendonActuators:
+    """The mapped tendon actuators (`laws`) and their tendons' terms: per term its actuator (`owner`), joint
+    position (`flat`), drive column and coefficient, and the implicit diagonal kv c^2 while no forcerange
+    clamps (`diagonal`)."""
+
+    def __init__(self, actuators: list[ActuatorMap], terms: dict[int, list[tuple[int, int, float]]],
+                 layout: DofLayout, implicit_kv):
+        order = list(terms)
+        self.laws = ActuatorLaws(actuators, order)
+        rows = [(k, (art, dof), c) for k, a in enumerate(order) for art, dof, c in terms[a]]
+        self.owner = np.array([k for k, _, _ in rows], dtype=int)
+        self.flat = layout.flat_of([key for _, key, _ in rows])
+        self.drive = layout.drive_of([key for _, key, _ in rows])
+        self.coefficient = np.array([c for _, _, c in rows], dtype=np.float64)
+        self.geared = self.laws.gear[self.owner] * self.coefficient  # gear c per term
+        self.implicit_kv = implicit_kv  # (damping, saturated) -> the kv MuJoCo's implicit step keeps
+        c, count = self.coefficient, len(self.laws)
+        self.diagonal = (np.zeros(count) + implicit_kv(self.laws.damping, np.zeros(count, bool)))[self.owner] * c * c
+        self.unique = len(set(self.flat.tolist())) == self.flat.size  # no DoF in two terms: no sums
+
+    def contribute(self, step: Step) -> None:
+        laws, owner, c, count = self.laws, self.owner, self.coefficient, len(self.laws)
+        q, v = step.q[self.flat], step.v[self.flat]
+        length = laws.gear * np.bincount(owner, c * q, minlength=count)
+        speed = laws.gear * np.bincount(owner, c * v, minlength=count)
+        unclamped = laws.unclamped(step.inputs[laws.indices], length, speed)
+        force = laws.clamped(unclamped)
+        saturated = force != unclamped
+        clamped = bool(np.count_nonzero(saturated))
+        if clamped:
+            step.regular = False
+        if step.explicit_kv:
+            diagonal = None  # kv explicit: nothing joins the drives
+        elif clamped:
+            diagonal = (np.zeros(count) + self.implicit_kv(laws.damping, saturated))[owner] * c * c
+        else:
+            diagonal = self.diagonal
+        term_force = self.geared * force[owner]
+        if diagonal is not None:
+            term_force += diagonal * v
+        if self.unique:
+            step.force[self.flat] += term_force
+            if diagonal is not None:
+                extra = step.law[5]
+                extra[self.drive] += diagonal
+        else:
+            np.add.at(step.force, self.flat, term_force)
+            if diagonal is not None:
+                np.add.at(step.law[5], self.drive, diagonal)
+
+
+class SpatialActuators:
+    """The mapped actuators on spatial tendons (`tendons`: actuator id -> tendon id) along `paths`."""
+
+    def __init__(self, actuators: list[ActuatorMap], tendons: dict[int, int], paths: TendonPaths, implicit_kv):
+        order = list(tendons)
+        self.laws = ActuatorLaws(actuators, order)
+        self.paths = paths
+        self.rows = np.array([paths.index(tendons[a]) for a in order], dtype=int)
+        self.push = RootPush(paths.model, paths.mapping) if paths.floating else None  # a free joint's share
+        self.implicit_kv = implicit_kv  # (damping, saturated) -> the kv MuJoCo's implicit step keeps
+        self.damped = bool(self.laws.damping.any())
+
+    @property
+    def applied(self) -> list | tuple:
+        """This step's root wrenches (the momentum term's)."""
+        return self.push.applied if self.push is not None else ()
+
+    def compile(self, layout) -> None:
+        self.paths.compile(layout)
+
+    def contribute(self, step: Step) -> None:
+        laws = self.laws
+        length, jacobian, v = self.paths.state(step)
+        jacobian = jacobian[self.rows]
+        unclamped = laws.unclamped(step.inputs[laws.indices], laws.gear * length[self.rows],
+                                   laws.gear * (jacobian @ v))
+        force = laws.clamped(unclamped)
+        saturated = force != unclamped
+        if saturated.any():
+            step.regular = False
+        implicit = None
+        if self.damped and not step.explicit_kv:
+            implicit = self.implicit_kv(laws.damping, saturated)  # gear^2 kv per actuator, none once clamped
+        self.paths.apply(step, jacobian.T @ (laws.gear * force), self.push, jacobian, v, implicit)
 
 
 @dataclass
-class ActuatorTerm:
+class ActuatorTerm(Term):
     """The mapped actuators' per-step law. `laws`: the drive law of each DoF with joint actuators (its passive
     spring-damper plus their gear^2 kp and kv), what the drive carries while no clamp binds. `compile` turns the
     plan into arrays; edits to the plan take effect at the next `compile` (the controller's, after it hands out a
@@ -42,15 +224,20 @@ class ActuatorTerm:
     limited: dict[DofKey, list[int]] = field(default_factory=dict)  # DoFs MuJoCo can clamp -> joint actuators
     joint_range: dict[DofKey, tuple[float, float]] = field(default_factory=dict)  # actuatorfrcrange
     spatial_tendons: dict[int, int] = field(default_factory=dict)  # actuator -> its spatial tendon
-    paths: object = None  # those tendons' paths (`tendon_paths.TendonPaths`), set by the controller's plan
-    name: str = "actuators"
+    paths: TendonPaths | None = None  # those tendons' paths (`tendons.TendonPaths`)
+    spatial: SpatialActuators | None = field(default=None, init=False, repr=False)  # `compile`'s
 
-    applied = property(lambda self: self.spatial.applied if getattr(self, "spatial", None) is not None else ())
+    name = "actuators"
 
-    def compile(self, layout: DofLayout, passive: np.ndarray) -> None:
+    @property
+    def applied(self) -> list | tuple:
+        return self.spatial.applied if self.spatial is not None else ()
+
+    def compile(self, compilation: Compilation) -> None:
         """The arrays every step reads: the drive laws (rows stiffness, damping, constant, force limit), the joint
         actuators (`joint`, with their drive DoF `drive` and joint position `flat`), the clamps, the tendon
         actuators."""
+        layout, passive = compilation.layout, compilation.passive
         self.base = passive.copy()
         for key, law in self.laws.items():
             self.base[:, layout.index[key]] = (law.stiffness, law.damping, law.constant, law.force_limit)
@@ -130,23 +317,21 @@ class ActuatorTerm:
         return out
 
 
-def plan(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive],
-         notes: Notes) -> tuple[ActuatorTerm, list[ActuatorMap]]:
-    """Every actuator's map (unmapped ones noted) and the term that applies the mapped ones every step."""
-    term = ActuatorTerm([], passive)
-    disabled = mj.disabled(model, "actuation")
-    for a in range(model.nu):
-        entry, terms = map_actuator(model, mapping, a, disabled)
-        term.actuators.append(entry)
+def plan_actuators(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive],
+                   maps: list[tuple[ActuatorMap, list | None]], implicit: bool, notes: Notes) -> ActuatorTerm:
+    """The term that applies the mapped actuators every step, from the plan's maps (each with its tendon's terms,
+    `SPATIAL` for a spatial tendon, None for a joint actuator); `implicit`: MuJoCo's integrator is implicit."""
+    term = ActuatorTerm([entry for entry, _ in maps], passive)
+    for a, (entry, terms) in enumerate(maps):
         if not entry.mapped:
-            notes.drop("actuator", entry.name, entry.reason)
-        elif terms is SPATIAL:
+            continue
+        if terms is SPATIAL:
             term.spatial_tendons[a] = tendon = int(model.actuator_trnid[a][0])
-            if entry.damping and len(mj.tendon_dofs(model, tendon)) > 1 and int(model.opt.integrator) in IMPLICIT:
+            if entry.damping and len(mj.tendon_dofs(model, tendon)) > 1 and implicit:
                 notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         elif terms is not None:
             term.tendon_terms[a] = terms
-            if entry.damping and len(terms) > 1 and int(model.opt.integrator) in IMPLICIT:
+            if entry.damping and len(terms) > 1 and implicit:
                 notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         else:  # a joint actuator joins its DoF's drive: gear^2 kp and kv on top of the passive terms
             key = (entry.articulation, entry.dofs[0])
@@ -158,10 +343,10 @@ def plan(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive
         if entry.mapped and entry.joint is not None:
             members.setdefault((entry.articulation, entry.dofs[0]), []).append(a)
     for j, target in enumerate(mapping.joints):  # <joint actuatorfrcrange>: MuJoCo clamps the joint's actuator sum
-        key = (target.articulation, target.dofs[0]) if target.kind in ("hinge", "slide") else None
+        key = target.drive_key
         if key in members and model.jnt_actfrclimited[j]:
             term.joint_range[key] = tuple(float(x) for x in model.jnt_actfrcrange[j])
     for key, indices in members.items():
         if key in term.joint_range or any(term.actuators[a].forcerange for a in indices):
             term.limited[key] = indices
-    return term, term.actuators
+    return term

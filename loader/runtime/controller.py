@@ -4,7 +4,8 @@ state (`momentum`: a floating root's velocity after the last step in MuJoCo's co
 velocities, link velocities) -> ctrl clamp and activation -> passive forces (`tendons`)
 -> `actuators` -> PhysX correction of explicit stiffness (`stiffness`) -> MuJoCo's limit and friction rows (`rows`)
 -> PhysX correction of turning slides (`slides`) -> write drives and qf (`drives`) -> link forces (`fluid`,
-`gravcomp`) -> equality rows (`equalities`). `without(name)` switches a term off (the public switch tests and the
+`gravcomp`) -> equality rows (`equalities`). Every term keeps the contract of `term.py`; the controller calls its
+hooks by name and knows nothing else of it. `without(name)` switches a term off (the public switch tests and the
 isolation use); `release()` hands the joints to a caller that drives them itself. Layout: docs/architecture.md.
 """
 
@@ -15,25 +16,23 @@ from contextlib import contextmanager
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.equalities import map_equalities
-from ..drive import DofDrive
-from .activation import MAPPED as MAPPED_DYNAMICS
-from .activation import Activation
-from .actuators import plan as plan_actuators
-from .command import Command
-from .dof_step import DofKey, DofLayout, Step, law_arrays, passive_laws
+from ..model.actuators import MAPPED_DYNAMICS, ActuatorMap
+from ..model.drive import DofDrive
+from ..model.equalities import EqualityLink
+from ..model.options import Options
+from .activation import Activation, Command
+from .actuators import plan_actuators
+from .dof_step import DofKey, DofLayout, Step, law_arrays, passive_laws, refresh_link_velocities
 from .drive_writer import DriveWriter, dof_inertia
-from .equalities import EqualityTerm
+from .equalities import EqualityTerm, SoftConnect, plan_equalities
 from .fluid import plan_fluid
 from .gravcomp import map_gravcomp
 from .momentum import plan_momentum
 from .rows import plan_rows
 from .slides import SlideTerm, map_slides
-from .spatial_tendons import plan_paths, plan_spatial
-from .state import refresh_link_velocities
 from .stiffness import StiffnessTerm
-from .tendons import IMPLICIT, TendonTerm, map_tendons
+from .tendons import TendonTerm, map_tendons, plan_paths, plan_spatial
+from .term import Compilation, Handover, Term
 
 STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp",
           "equalities")
@@ -41,43 +40,106 @@ STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "dr
 
 class Controller:
     """The loaded model's per-step terms, in stage order (a term absent from a model is simply not there). The terms'
-    arrays are compiled from their plans before the first `set_ctrl`, and again after `laws()` or `term()` handed
-    out something a caller may edit, or a term was switched."""
+    arrays are compiled from their plans before the first `set_ctrl`, and again after `edit()` handed one out or a
+    term was switched. `model` is the runtime's own compiled model and `options` its snapshot: an edit of the
+    user's model reaches neither (`LoadResult.replan`)."""
 
-    def __init__(self, model: mujoco.MjModel, mapping, articulations: list, passive: dict[DofKey, DofDrive],
-                 terms: list, activation: Activation | None = None, timestep: float | None = None):
-        self.model, self.mapping, self.articulations = model, mapping, articulations
-        self.timestep = float(model.opt.timestep if timestep is None else timestep)  # the scene's: one PhysX step
+    def __init__(self, model: mujoco.MjModel, options: Options, mapping, articulations: list,
+                 passive: dict[DofKey, DofDrive], terms: list[Term], activation: Activation | None = None,
+                 soft_joints: dict[int, SoftConnect] | None = None):
+        self.stages = list(STAGES)  # this controller's order (`add` extends it)
+        unknown = [term.name for term in terms if term.name not in self.stages]
+        if unknown:
+            raise ValueError(f"terms {unknown} have no stage: the stages are {', '.join(self.stages)}")
+        self.model, self.options, self.mapping, self.articulations = model, options, mapping, articulations
         self.joints = [art.active_joints for art in articulations]  # the property builds a new list per call
         self.passive = passive
         self.layout = DofLayout(articulations, list(passive))
         self.activation = activation
-        self.terms = sorted(terms, key=lambda term: STAGES.index(term.name))
-        self.off: dict[str, object] = {}  # terms switched off, by name
-        self.command = Command(model, activation)
+        self.soft_joints = soft_joints or {}  # equality id -> its D6 joint's soft law
+        self.terms = sorted(terms, key=self.order)
+        self.off: dict[str, Term] = {}  # terms switched off, by name
+        self.command = Command(model, options, activation)
         self.stale = True  # the terms' arrays need compiling (`compile`)
-        self.base, self._readers = None, None  # the step's starting law (`compile`), link readers
-        self.momentum = next((t for t in terms if t.name == "momentum"), None)  # floating roots (`settle`)
+        self.base: np.ndarray | None = None  # the step's starting law (`compile`)
+        self.running: list[Term] = []  # the terms with work (`compile`)
+        self.readers: list | None = None  # the articulations whose link velocities the terms read
+
+    @property
+    def timestep(self) -> float:
+        return self.options.timestep
 
     @property
     def names(self) -> list[str]:
         return [term.name for term in self.terms]
 
-    def term(self, name: str, on: bool = False):
-        """The named term, switched on or off (`on`: only while on), or None where the model has none."""
-        self.stale = True  # the caller may edit it
+    def order(self, term: Term) -> int:
+        return self.stages.index(term.name)
+
+    def add(self, term: Term, after: str) -> None:
+        """A term of the caller's own (a `Term` with a new `name`), run right after the stage `after`; `without`
+        and `restore` take its name like any other's. It is compiled with the others before the next
+        `set_ctrl`."""
+        if term.name in self.stages:
+            raise ValueError(f"a term named {term.name!r} is already a stage")
+        if after not in self.stages:
+            raise ValueError(f"no stage {after!r}: the stages are {', '.join(self.stages)}")
+        self.stages.insert(self.stages.index(after) + 1, term.name)
+        self.terms.append(term)
+        self.terms.sort(key=self.order)
+        self.stale, self.readers = True, None
+
+    def term(self, name: str, on: bool = False) -> Term | None:
+        """The named term to read (`on`: only while switched on), or None where the model has none. To change it,
+        use `edit`."""
         found = next((t for t in self.terms if t.name == name), None)
         return found if found is not None or on else self.off.get(name)
 
+    def edit(self, name: str) -> Term | None:
+        """The named term (on or off) for the caller to change its plan; the next `set_ctrl` compiles every term
+        again, so the change takes effect there."""
+        self.stale = True
+        return self.term(name)
+
     def laws(self) -> dict[DofKey, DofDrive]:
-        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps)."""
+        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps),
+        as copies."""
+        actuators = self.term("actuators")
+        laws = {**self.passive, **(actuators.laws if actuators is not None else {})}
+        return {key: DofDrive(**vars(law)) for key, law in laws.items()}
+
+    def edit_laws(self) -> dict[DofKey, DofDrive]:
+        """The drive laws themselves (passive, and with joint actuators), for the caller to change; the next
+        `set_ctrl` compiles them."""
+        self.stale = True
         actuators = self.term("actuators")
         return {**self.passive, **(actuators.laws if actuators is not None else {})}
 
+    def drive_weights(self) -> dict[DofKey, float]:
+        """Per drive DoF, dt (D' + dt K) of the law its PhysX drive holds while nothing clamps: D' the drive's
+        damping (`DofDrive.physx_damping`) with, under implicit integrators, the passive tendon dampers' and tendon
+        actuators' implicit diagonal. The solver iterations read it (`plan/solver_iterations.py`)."""
+        implicit, timestep = self.options.implicit, self.timestep
+        actuators, tendons = self.term("actuators", on=True), self.term("tendons", on=True)
+        tendon_kv = actuators.tendon_kv_diagonal() if implicit and actuators is not None else {}
+        passive_diagonal = tendons.implicit_diagonal() if implicit and tendons is not None else {}
+        weights = {}
+        for key, law in self.laws().items():
+            law = DofDrive(law.stiffness, law.damping + passive_diagonal.get(key, 0.0))
+            damping = law.physx_damping(timestep) + tendon_kv.get(key, 0.0)
+            weights[key] = timestep * (damping + timestep * law.stiffness)
+        return weights
+
     def compile(self) -> None:
-        """Every term's arrays from its plan (`compile_terms`)."""
-        self.base = compile_terms(self.layout, self.passive, [*self.terms, *self.off.values()])
-        self.running = [term for term in self.terms if not getattr(term, "idle", False)]  # those with work
+        """Every term's arrays from its plan, and the step's starting law (`Step.law`): the passive laws, no
+        via-damping force, implicit extra or offset."""
+        laws = law_arrays([self.passive[key] for key in self.layout.keys])
+        every = [*self.terms, *self.off.values()]
+        compilation = Compilation(self.layout, laws, frozenset(term.name for term in every))
+        for term in every:
+            term.compile(compilation)
+        self.base = np.concatenate([laws, np.zeros((3, laws.shape[1]))])
+        self.running = [term for term in self.terms if not term.idle]
         self.stale = False
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
@@ -86,7 +148,7 @@ class Controller:
         self.settle()
         if self.stale:
             self.compile()
-        model, articulations, layout = self.model, self.articulations, self.layout
+        articulations, layout = self.articulations, self.layout
         actuated = "actuators" not in self.off
         ctrl, inputs, act = self.command(ctrl, actuated, advance)
         force = np.zeros(layout.size)
@@ -96,58 +158,70 @@ class Controller:
         refresh_link_velocities(self.velocity_readers())
         q, v = layout.read(articulations)
         step = Step(articulations, self.joints, layout, q, v, force, self.base.copy(), inputs, ctrl, act,
-                    qfrc_applied, actuated, self.timestep, int(model.opt.integrator) not in IMPLICIT, advance)
+                    qfrc_applied, actuated, self.timestep, not self.options.implicit, advance)
         for term in self.running:
             term.contribute(step)
 
     def settle(self) -> None:
-        """After a physics step: floating roots' velocities as MuJoCo's step leaves them (`runtime/momentum.py`)."""
-        if self.momentum is not None and "momentum" not in self.off:
-            self.momentum.settle(self.articulations, [w for t in self.terms for w in getattr(t, "applied", ())])
+        """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
+        wrenches = [wrench for term in self.terms for wrench in term.applied]
+        for term in self.terms:
+            term.settle(self.articulations, wrenches)
 
     def forget(self) -> None:
         """A state set from outside: no step ends at it (`momentum`), MuJoCo's solve starts cold (`rows`)."""
         for term in [*self.terms, *self.off.values()]:
-            getattr(term, "forget", lambda: None)()
+            term.forget()
 
     def contacts(self, enabled: bool) -> None:
         """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
-        rows = self.term("rows")
-        if rows is not None:
-            rows.contacts = enabled and not mj.disabled(self.model, "contact")
-        if self.momentum is not None:
-            self.momentum.contacts = enabled
+        for term in [*self.terms, *self.off.values()]:
+            term.contacts(enabled)
 
     def velocity_readers(self) -> list:
         """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
-        self._readers = link_readers(self.terms, self.articulations) if self._readers is None else self._readers
-        return self._readers
+        if self.readers is None:
+            links = [link for term in self.terms for link in term.velocity_links(self.articulations)]
+            self.readers = [art for art in self.articulations if any(link in art.links for link in links)]
+        return self.readers
 
     def release(self) -> None:
         """Hand the joints to a caller that drives them itself: passive drives, own armature, PhysX's hard limits at
         MuJoCo's range, no `qf`, equalities locked; the next `set_ctrl` takes them over again."""
-        timestep = self.timestep
+        handover = Handover(self.joints, self.articulations, self.timestep)
         for term in [*self.terms, *self.off.values()]:
-            if term.name == "drives":
-                term.release(self.joints, self.articulations, timestep)
-            elif term.name == "equalities":
-                term.release(self.joints, timestep)
-            elif hasattr(term, "release"):
-                term.release(self.joints)
+            term.release(handover)
+
+    def set_equality_active(self, equality: int, active: bool) -> None:
+        """MuJoCo's `data.eq_active[equality] = active`: for every term (MuJoCo's rows) and the equality's D6 joint."""
+        for term in [*self.terms, *self.off.values()]:
+            term.set_active(equality, active)
+        if equality in self.soft_joints:
+            self.soft_joints[equality].set_active(active)
+
+    def reset_equalities(self) -> None:
+        """Every equality back to the model's `eq_active0`, as MuJoCo's mj_resetData."""
+        for equality, law in self.soft_joints.items():
+            law.set_active(bool(self.model.eq_active0[equality]))
+        for term in [*self.terms, *self.off.values()]:
+            term.reset_active()
+
+    def soft_joint(self, equality: int) -> SoftConnect | None:
+        """The soft law of the D6 joint built for `equality` (MuJoCo's id), or None."""
+        return self.soft_joints.get(equality)
 
     def without(self, *names: str):
         """Switch the named terms off (a term the model lacks is already off). As a context manager, they are
         switched back on at its end. A term switched off undoes what it holds in PhysX (`removed`)."""
-        unknown = [n for n in names if n not in STAGES]
+        unknown = [n for n in names if n not in self.stages]
         if unknown:
-            raise ValueError(f"no per-step term {unknown}: the terms are {', '.join(STAGES)}")
+            raise ValueError(f"no per-step term {unknown}: the terms are {', '.join(self.stages)}")
         self.stale = True
         for term in [t for t in self.terms if t.name in names]:
             self.terms.remove(term)
             self.off[term.name] = term
-            if hasattr(term, "removed"):
-                term.removed(self.joints)
-        self._readers = None
+            term.removed(self.joints)
+        self.readers = None
         return restoring(self, names)
 
     def restore(self, *names: str) -> None:
@@ -156,14 +230,8 @@ class Controller:
         for name in names or list(self.off):
             if name in self.off:
                 self.terms.append(self.off.pop(name))
-        self.terms.sort(key=lambda term: STAGES.index(term.name))
-        self._readers = None
-
-
-def link_readers(terms: list, articulations: list) -> list:
-    """The articulations carrying a link whose velocity one of `terms` reads."""
-    links = [link for t in terms if hasattr(t, "velocity_links") for link in t.velocity_links(articulations)]
-    return [art for art in articulations if any(link in art.links for link in links)]
+        self.terms.sort(key=self.order)
+        self.readers = None
 
 
 @contextmanager
@@ -175,41 +243,27 @@ def restoring(controller: Controller, names: tuple[str, ...]):
         controller.restore(*names)
 
 
-def compile_terms(layout: DofLayout, passive: dict[DofKey, DofDrive], terms: list) -> np.ndarray:
-    """Every term's arrays from its plan; returns the step's starting law (`Step.law`): the passive laws, no
-    via-damping force, implicit extra or offset."""
-    laws = law_arrays([passive[key] for key in layout.keys])
-    for term in terms:
-        if term.name == "actuators":
-            term.compile(layout, laws)
-        elif term.name == "drives":
-            term.compile(layout, offsets=any(t.name == "slides" for t in terms))
-        elif hasattr(term, "compile"):
-            term.compile(layout)
-    return np.concatenate([laws, np.zeros((3, laws.shape[1]))])
-
-
-def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
-         timestep: float | None = None) -> tuple[Controller, list, list]:
-    """Every per-step term the compiled model needs, planned once at load: (controller, actuator maps, equality
-    links). The equalities' PhysX objects (fixed tendons, D6 joints) are built here too. `timestep`: the scene's
-    (None: the model's), which every per-step law uses."""
-    timestep = float(model.opt.timestep if timestep is None else timestep)
+def plan(model: mujoco.MjModel, options: Options, mapping, scene, articulations: list,
+         maps: list[tuple[ActuatorMap, list | None]], equalities: list[EqualityLink], notes) -> Controller:
+    """Every per-step term the compiled model needs, planned once at load (and again at `replan`) from the
+    planning half's actuator maps and equality links."""
+    timestep = options.timestep
     passive = passive_laws(model, mapping)
-    actuators, maps = plan_actuators(model, mapping, passive, notes)
-    equalities = map_equalities(model, scene, articulations, mapping, notes)
-    rowed = [link for link in equalities if link.kind == "MuJoCo row"]
-    rows = plan_rows(model, mapping, [a for a, m in enumerate(maps) if not m.mapped], [link.index for link in rowed],
-                     notes, [link.soft for link in rowed if link.soft is not None], timestep)
-    activation = Activation(model, timestep=timestep) if any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype) else None
+    actuators = plan_actuators(model, mapping, passive, maps, options.implicit, notes)
+    soft = plan_equalities(model, equalities, timestep)
+    rowed = [link.index for link in equalities if link.kind == "MuJoCo row"]
+    unmapped = [a for a, (entry, _) in enumerate(maps) if not entry.mapped]
+    rows = plan_rows(model, mapping, unmapped, rowed, notes, [soft[e] for e in rowed if e in soft], timestep)
+    dynamics = any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype)
+    activation = Activation(model, timestep=timestep) if dynamics else None
     tendons = map_tendons(model, mapping, notes)
     actuators.paths = paths = plan_paths(model, mapping, list(actuators.spatial_tendons.values()))
-    spatial = plan_spatial(model, mapping, notes, int(model.opt.integrator) in IMPLICIT, paths)
+    spatial = plan_spatial(model, mapping, notes, options.implicit, paths)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
     slides = map_slides(articulations)
-    connects = [link.soft for link in equalities if link.soft is not None and link.kind == "D6 joint"]
-    terms = [actuators, StiffnessTerm(mj.explicit_damping(model)), DriveWriter(passive, dof_inertia(model, mapping))]
+    connects = [soft[link.index] for link in equalities if link.kind == "D6 joint"]
+    terms = [actuators, StiffnessTerm(options.explicit_damping), DriveWriter(passive, dof_inertia(model, mapping))]
     terms += [TendonTerm(tendons, spatial)] if tendons or spatial is not None else []
     terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []
@@ -217,4 +271,4 @@ def plan(model: mujoco.MjModel, mapping, scene, articulations: list, notes,
     terms += [EqualityTerm(connects)] if connects else []
     momentum = plan_momentum(model, mapping, articulations, timestep, notes, scene)
     terms += [momentum] if momentum is not None else []
-    return Controller(model, mapping, articulations, passive, terms, activation, timestep), maps, equalities
+    return Controller(model, options, mapping, articulations, passive, terms, activation, soft)

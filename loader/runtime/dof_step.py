@@ -5,12 +5,14 @@ PhysX settings at the end. `DofLayout` is what the arrays index, planned once at
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import mujoco
 import numpy as np
 
-from ..build.joint import dof_damping, joint_stiffness
-from ..build.mapping import Mapping
-from ..drive import DofDrive
+from ..model.drive import DofDrive
+from ..model.joints import dof_damping, joint_stiffness
+from ..model.mapping import Mapping
 
 DofKey = tuple[int, int]  # (articulation, SAPIEN dof)
 
@@ -59,52 +61,93 @@ def law_arrays(laws: list[DofDrive]) -> np.ndarray:
                     dtype=np.float64).reshape(-1, 4).T.copy()
 
 
+@dataclass
 class Step:
-    """The state the terms read and the forces they gather, for one `set_ctrl`. Per drive DoF (columns of
-    `layout.keys`): `stiffness`, `damping`, `constant` (the law's state-independent part), `force_limit`,
-    `via_damping` (a constant force the velocity target carries, `drive.apply`), `implicit_extra` (implicit damping
-    that joins the drive's: the implicit diagonal of tendon dampers and tendon actuators' kv) and `offset` (the
-    velocity the drive's measure is short of, `slides.py`)."""
+    """One `set_ctrl`'s record: the state every term reads and what the terms gather, in stage order. Each field
+    says which stage writes it; every later stage may read it.
 
-    def __init__(self, articulations, joints: list[list], layout: DofLayout, q, v, force, law: np.ndarray, inputs,
-                 ctrl, act, qfrc_applied, actuated: bool, timestep: float, explicit_kv: bool, advance: bool):
-        self.articulations, self.joints, self.layout = articulations, joints, layout  # joints: per articulation
-        self.q, self.v, self.force = q, v, force  # end to end over the articulations' DoFs
-        self.law = law  # rows: stiffness, damping, constant, force limit, via_damping, implicit_extra, offset
-        self.inputs = inputs  # what each actuator's gain multiplies: clamped ctrl, or the activation
-        self.ctrl = ctrl  # MuJoCo's ctrl, clamped to ctrlrange
-        self.act = act  # MuJoCo's act at the start of the step (None: no activation dynamics)
-        self.qfrc_applied = qfrc_applied  # the caller's generalized force, MuJoCo's layout
-        self.actuated = actuated  # the actuators term is on (off: MuJoCo's actuation disabled)
-        self.timestep = timestep
-        self.explicit_kv = explicit_kv  # Euler or RK4: actuator kv is explicit
-        self.advance = advance  # the first `set_ctrl` of this physics step (activations, link forces)
-        self.regular = True  # no clamp bound, no tendon actuator saturated: stiffness, damping, force limit and
-        # implicit extra are every such step's (with the same explicit_kv), what is derived from them is reused
-        self._state: tuple | None = None
+    `law` has one column per drive DoF (`layout.keys`) and these rows: stiffness, damping, constant (the law's
+    state-independent part), force limit (the actuators start them from the planned laws; the stiffness and
+    clamps stages change them), via_damping (a constant force the velocity target carries, `drive.apply`; the
+    clamps), implicit_extra (implicit damping that joins the drive's: the tendon dampers' and tendon actuators'
+    implicit diagonal), offset (the velocity the drive's measure is short of: `slides`). The `drives` stage
+    writes them to PhysX."""
+
+    articulations: list  # read by every stage
+    joints: list[list]  # PhysX joints per articulation (rows, drives)
+    layout: DofLayout
+    q: np.ndarray  # state: joint positions end to end over the articulations' DoFs
+    v: np.ndarray  # state: joint velocities, likewise
+    force: np.ndarray  # every stage adds its generalized force here; `drives` writes it as `qf`
+    law: np.ndarray  # see above
+    inputs: np.ndarray  # ctrl stage: what each actuator's gain multiplies (clamped ctrl, or the activation)
+    ctrl: np.ndarray  # ctrl stage: MuJoCo's ctrl, clamped to ctrlrange
+    act: np.ndarray | None  # ctrl stage: MuJoCo's act at the start of the step (None: no activation dynamics)
+    qfrc_applied: np.ndarray | None  # the caller's generalized force, MuJoCo's layout
+    actuated: bool  # the actuators term is on (off: MuJoCo's actuation disabled)
+    timestep: float
+    explicit_kv: bool  # Euler or RK4: actuator kv is explicit
+    advance: bool  # the first `set_ctrl` of this physics step (activations, link forces)
+    # no clamp bound, no tendon actuator saturated (written False by the actuators stage): stiffness, damping, force
+    # limit and implicit extra are every such step's (with the same explicit_kv), what is derived from them reused
+    regular: bool = True
+    state: tuple | None = field(default=None, repr=False)  # `mujoco_state`, converted once
 
     def mujoco_state(self, mapping) -> tuple[np.ndarray, np.ndarray]:
         """The step's start state in MuJoCo's layout (qpos, qvel), converted once for every term that reads it."""
-        if self._state is None:
-            self._state = mapping.get_state(self.articulations, self.layout.split(self.q), self.layout.split(self.v))
-        return self._state
+        if self.state is None:
+            self.state = mapping.get_state(self.articulations, self.layout.split(self.q), self.layout.split(self.v))
+        return self.state
 
-    stiffness = property(lambda self: self.law[0])
-    damping = property(lambda self: self.law[1])
-    constant = property(lambda self: self.law[2])
-    force_limit = property(lambda self: self.law[3])
-    via_damping = property(lambda self: self.law[4])
-    implicit_extra = property(lambda self: self.law[5])
-    offset = property(lambda self: self.law[6])
+    @property
+    def stiffness(self) -> np.ndarray:
+        return self.law[0]
+
+    @property
+    def damping(self) -> np.ndarray:
+        return self.law[1]
+
+    @property
+    def constant(self) -> np.ndarray:
+        return self.law[2]
+
+    @property
+    def force_limit(self) -> np.ndarray:
+        return self.law[3]
+
+    @property
+    def via_damping(self) -> np.ndarray:
+        return self.law[4]
+
+    @property
+    def implicit_extra(self) -> np.ndarray:
+        return self.law[5]
+
+    @property
+    def offset(self) -> np.ndarray:
+        return self.law[6]
 
 
 def passive_laws(model: mujoco.MjModel, mapping: Mapping) -> dict[DofKey, DofDrive]:
     """Every hinge/slide DoF's passive spring-damper (MuJoCo's terms), the law its drive has without actuators."""
     laws = {}
     for j, target in enumerate(mapping.joints):
-        if target.kind in ("hinge", "slide"):
+        if target.drive_key is not None:
             stiffness = joint_stiffness(model, j)
-            laws[(target.articulation, target.dofs[0])] = DofDrive(
+            laws[target.drive_key] = DofDrive(
                 stiffness, dof_damping(model, int(model.jnt_dofadr[j])),
                 stiffness * float(model.qpos_spring[model.jnt_qposadr[j]]) if stiffness else 0.0)  # 0 * inf
     return laws
+
+
+def refresh_link_velocities(articulations) -> None:
+    """Make a fixed-base articulation's link velocities the ones its joint velocities imply.
+
+    After a step, a fixed-base articulation's links keep the solver's velocities, which carry dt times each
+    link's velocity-product acceleration on top of what the new joint velocities imply (a floating base's are
+    rebuilt at once). Per-step terms that read link velocities read them after this; writing the joint velocities
+    back leaves the dynamics as they are
+    (tests/test_loader_connect.py::test_rows_read_on_the_links_drifted_velocities_miss_the_falling_loop)."""
+    for articulation in articulations:
+        if articulation.dof and articulation.root.joint.type == "fixed":
+            articulation.set_qvel(articulation.get_qvel())

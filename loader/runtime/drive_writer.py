@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import drive
-from ..drive import DofDrive
-from .dof_step import DofKey, DofLayout, Step
+from ..model import drive, mj
+from ..model.drive import DofDrive
+from .dof_step import DofKey, Step
+from .term import Compilation, Handover, Term
 
 
 class DriveRegime:
@@ -66,7 +67,7 @@ class DriveRegime:
         return target
 
 
-class DriveWriter:
+class DriveWriter(Term):
     """Writes drives and `qf`: each drive DoF's law (`drive.apply`, as arrays), the PhysX calls only for the joints
     whose settings changed since the last write (`written`: stiffness, damping, force limit, target and velocity
     target as last written; NaN: unknown, written next step)
@@ -77,10 +78,13 @@ class DriveWriter:
     def __init__(self, passive: dict[DofKey, DofDrive], inertia: dict[DofKey, float] | None = None):
         self.passive = passive
         self.inertia = {} if inertia is None else inertia  # M_ii at qpos0 (`dof_inertia`); absent: qf only
+        self.written: np.ndarray | None = None  # `compile`'s
 
-    def compile(self, layout: DofLayout, offsets: bool = True) -> None:
-        """`offsets`: whether any drive carries a velocity offset (`slides.py`); without, adding it is skipped."""
-        self.layout, self.offsets = layout, offsets
+    def compile(self, compilation: Compilation) -> None:
+        """`offsets`: whether any drive carries a velocity offset (the `slides` term is planned); without, adding it
+        is skipped."""
+        layout = compilation.layout
+        self.layout, self.offsets = layout, "slides" in compilation.planned
         self.mass = np.array([self.inertia.get(key, np.inf) for key in layout.keys], dtype=np.float64)
         self.written = np.full((5, len(layout.keys)), np.nan)
         self.regimes: dict[bool, DriveRegime] = {}  # a regular step's, by Step.explicit_kv
@@ -125,21 +129,20 @@ class DriveWriter:
         for i in changed[4].nonzero()[0].tolist():
             joints[i].set_drive_velocity_target(float(settings[4, i]))
 
-    def release(self, joints, articulations, timestep: float) -> None:
+    def release(self, handover: Handover) -> None:
         """Every DoF's passive spring-damper in its drive, `qf` cleared."""
+        joints = handover.joints
         for (art, dof), passive in self.passive.items():
-            drive.apply(joints[art][dof], passive, passive.constant, timestep)
-        for articulation in articulations:
+            drive.apply(joints[art][dof], passive, passive.constant, handover.timestep)
+        for articulation in handover.articulations:
             if articulation.dof:
                 articulation.set_qf(np.zeros(articulation.dof, np.float32))
-        if hasattr(self, "written"):
+        if self.written is not None:
             self.written[:] = np.nan
 
 
 def dof_inertia(model, mapping) -> dict[DofKey, float]:
     """MuJoCo's joint-space inertia diagonal (armature included) at qpos0, per hinge/slide DoF."""
-    from .. import mj
-
     data = mj.forward_at(model)
     diagonal = data.M[model.M_rowadr + model.M_rownnz - 1]  # a row of the sparse lower triangle ends on its diagonal
     return {key: float(diagonal[d]) for key, d in mapping.mujoco_dofs().items()}

@@ -6,13 +6,16 @@ to the pin and the centripetal term the step leaves out put into the target. `re
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
+import mujoco
 import numpy as np
 import sapien
 
-from ..frames import cross, quat_conj, quat_mul
-from ..soft_row import SoftRow
+from ..model.equalities import D6Joint, EqualityLink
+from ..model.frames import cross, quat_conj, quat_mul
+from ..model.soft_row import SoftRow
+from .term import Handover, Term
 
 FORCE_LIMIT = 1e30  # no force limit on the D6's drives
 
@@ -68,7 +71,7 @@ class SoftConnect:
     row: SoftRow
     diag_approx: np.ndarray  # MuJoCo's diagApprox per row (3 for a connect, 6 for a weld)
     equality: int  # MuJoCo's equality id
-    child_body: int  # MuJoCo body ids of the ends (solver iterations, `build/solver_iterations.py`)
+    child_body: int  # MuJoCo body ids of the ends
     parent_body: int
     articulation: int | None  # the child's articulation
     child_rotation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))  # D6 frame in child
@@ -226,19 +229,40 @@ class SoftWeld(SoftConnect):
 
 
 @dataclass
-class EqualityTerm:
+class EqualityTerm(Term):
     """The soft connect and weld equalities, updated once per `set_ctrl` after the joints' drives are written."""
 
     connects: list[SoftConnect]
-    name: str = "equalities"
+
+    name = "equalities"
 
     def contribute(self, step) -> None:
         for connect in self.connects:
             connect.update(step.timestep)
 
-    def release(self, joints, timestep: float) -> None:
+    def release(self, handover: Handover) -> None:
         for connect in self.connects:
-            connect.lock(timestep)
+            connect.lock(handover.timestep)
 
     def velocity_links(self, articulations) -> list:
         return [end for c in self.connects for end in (c.child, c.parent) if end is not None]
+
+
+def soft_law(model: mujoco.MjModel, joint: D6Joint, timestep: float) -> SoftConnect:
+    """The per-step law of a D6 joint the load built, with MuJoCo's soft row of `model` (solref, solimp) at
+    `timestep`; locked rigid until the first `set_ctrl`, and idle where the equality starts inactive."""
+    kind = SoftWeld if joint.weld else SoftConnect
+    given = {f.name: getattr(joint, f.name) for f in fields(kind) if f.init and hasattr(joint, f.name)}
+    e = joint.equality
+    given["row"] = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e], timestep)
+    law = kind(**given)
+    law.lock(timestep)
+    if not model.eq_active0[e]:
+        law.set_active(False)
+    return law
+
+
+def plan_equalities(model: mujoco.MjModel, links: list[EqualityLink], timestep: float) -> dict[int, SoftConnect]:
+    """Per equality id, the soft law of each D6 joint the load built: a D6 joint's own, or one standing by beside
+    MuJoCo's rows (`runtime/rows.py`) for `release()`."""
+    return {link.index: soft_law(model, link.joint, timestep) for link in links if link.joint is not None}

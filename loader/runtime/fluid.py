@@ -10,9 +10,10 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from ..build.compile import MJMINVAL
-from ..build.mapping import Mapping
 from ..errors import Notes
+from ..model.mapping import Mapping
+from ..model.mj import MJMINVAL
+from .term import Compilation, LinkForces
 
 
 @dataclass(frozen=True)
@@ -23,12 +24,12 @@ class FluidBody:
 
 
 @dataclass
-class Fluid:
+class Fluid(LinkForces):
     density: float
     viscosity: float
     wind: np.ndarray
     bodies: tuple[FluidBody, ...]
-    applied: list = field(default_factory=list)  # this step's (articulation, centre of mass, force, torque), world
+    wrenches: list = field(default_factory=list)  # this step's (articulation, centre of mass, force, torque), world
     factors: np.ndarray | None = field(default=None, repr=False)  # `coefficients`, planned by `compile`
     links: list | None = field(default=None, repr=False)  # each body's link and its centre of mass (`compile`)
 
@@ -54,15 +55,14 @@ class Fluid:
 
     name = "fluid"
 
-    def compile(self, layout) -> None:
-        self.factors = self.coefficients()
-        links = [layout.links[body.articulation][body.link] for body in self.bodies]
-        self.links = [(link, link.cmass_local_pose) for link in links]
+    @property
+    def applied(self) -> list:
+        return self.wrenches
 
-    def contribute(self, step) -> None:
-        """Link forces accumulate in PhysX until the step: added once per physics step."""
-        if step.advance:
-            self.apply(step.articulations)
+    def compile(self, compilation: Compilation) -> None:
+        self.factors = self.coefficients()
+        links = [compilation.layout.links[body.articulation][body.link] for body in self.bodies]
+        self.links = [(link, link.cmass_local_pose) for link in links]
 
     def velocity_links(self, articulations) -> list:
         return [articulations[b.articulation].links[b.link] for b in self.bodies]
@@ -84,8 +84,8 @@ class Fluid:
         torque, force = (frames @ torque[:, :, None])[:, :, 0], (frames @ force[:, :, None])[:, :, 0]
         for link, f, t in zip(links, force, torque):
             link.add_force_torque(f, t)
-        self.applied.clear()
-        self.applied.extend(zip([body.articulation for body in self.bodies], poses[:, :3, 3], force, torque))
+        self.wrenches.clear()
+        self.wrenches.extend(zip([body.articulation for body in self.bodies], poses[:, :3, 3], force, torque))
 
 
 def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:

@@ -16,10 +16,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.mapping import Mapping, scalar_joints
-from ..frames import quat_to_mat
-from .tendons import IMPLICIT
+from ..model import mj
+from ..model.frames import quat_to_mat
+from ..model.mapping import Mapping, scalar_joints
+from ..model.options import IMPLICIT
 
 
 def differs(model: mujoco.MjModel, joint: int, tree: np.ndarray) -> bool:

@@ -9,13 +9,14 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.mapping import Mapping
 from ..errors import Notes
+from ..model import mj
+from ..model.mapping import Mapping
+from .term import Compilation, LinkForces
 
 
 @dataclass
-class GravityCompensation:
+class GravityCompensation(LinkForces):
     """Per-step forces on links whose bodies compensate gravity partly (or more than fully)."""
 
     forces: tuple[tuple[int, int, np.ndarray], ...]  # (articulation, link, world force)
@@ -23,13 +24,8 @@ class GravityCompensation:
 
     name = "gravcomp"
 
-    def contribute(self, step) -> None:
-        """Link forces accumulate in PhysX until the step: added once per physics step."""
-        if step.advance:
-            self.apply(step.articulations)
-
-    def compile(self, layout) -> None:
-        self.links = [layout.links[art][link] for art, link, _ in self.forces]
+    def compile(self, compilation: Compilation) -> None:
+        self.links = [compilation.layout.links[art][link] for art, link, _ in self.forces]
 
     def apply(self, articulations) -> None:
         links = self.links or [articulations[art].links[link] for art, link, _ in self.forces]

@@ -12,10 +12,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.joint import FREE
-from ..build.mapping import Mapping
-from ..frames import cross3
+from ..model import mj
+from ..model.frames import cross3
+from ..model.joints import FREE
+from ..model.mapping import Mapping
 
 EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
 

@@ -25,12 +25,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.joint import BALL, FREE
-from ..build.mapping import Mapping
 from ..errors import Notes
-from ..frames import cross3, quat_to_mat
+from ..model import mj
+from ..model.frames import cross3, quat_to_mat
+from ..model.joints import BALL, FREE
+from ..model.mapping import Mapping
 from .free_joint import FreeJointLaw, differs
+from .term import Term
 
 ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
@@ -98,7 +99,7 @@ class Root:
     damped: bool  # MuJoCo's step adds to the free joint what PhysX's does not (`FreeJointLaw`)
 
 
-class Momentum:
+class Momentum(Term):
     """Per floating articulation (`Root`): the root's velocity after each PhysX step as MuJoCo's step leaves it."""
 
     name = "momentum"
@@ -111,7 +112,7 @@ class Momentum:
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
         self.gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
         self.scene = scene
-        self.contacts = scene is not None  # SAPIEN's contacts are on (`Controller.contacts`)
+        self.sees_contacts = scene is not None  # SAPIEN's contacts are on (`contacts`)
         self.links = {root.articulation: set(articulations[root.articulation].links) for root in roots}
         damped = [root for root in roots if root.damped]
         self.law = FreeJointLaw(model, mapping, damped, timestep) if damped else None
@@ -124,11 +125,16 @@ class Momentum:
         self.start = (qpos, qvel, [q[r.articulation].copy() for r in self.roots],
                       [pose7(arts[r.articulation]) for r in self.roots])
 
-    def forget(self, joints=None) -> None:
-        """The state was set from outside (or the term switched off): the next read is not the end of a step."""
+    def forget(self) -> None:
+        """The state was set from outside: the next read is not the end of a step."""
         self.start = None
 
-    removed = forget
+    def removed(self, joints: list[list]) -> None:
+        """Switched off: the next read is not the end of a step either."""
+        self.start = None
+
+    def contacts(self, enabled: bool) -> None:
+        self.sees_contacts = enabled
 
     def settle(self, articulations, wrenches=()) -> None:
         """Once after a physics step: each floating root's velocity as MuJoCo's step leaves it. `wrenches`: the
@@ -150,7 +156,7 @@ class Momentum:
         self.start = None
         if not stepped:
             return
-        contacts = self.scene.get_contacts() if self.contacts else []
+        contacts = self.scene.get_contacts() if self.sees_contacts else []
         qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
         kept, = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
         joints_only = qvel1.copy()

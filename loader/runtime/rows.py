@@ -17,11 +17,12 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.mapping import Mapping
-from ..build.physx_settings import MAX_DEPENETRATION_VELOCITY
+from ..model import mj
+from ..model.mapping import Mapping
+from ..model.options import MAX_DEPENETRATION_VELOCITY
 from .dof_step import DofKey, Step
 from .integrated import RootPush, accelerated, integrated_force
+from .term import Compilation, Handover, Term
 
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
 SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
@@ -111,12 +112,11 @@ def overrides(model: mujoco.MjModel, edits: dict[str, dict[int, float]]) -> list
     return found
 
 
-class RowTerm:
+class RowTerm(Term):
     """Per step: SAPIEN's state, ctrl, activation and applied force into a contact-free copy of the model
     (`LentModel`), MuJoCo's constraint force out, added to the joints' forces."""
 
     name = "rows"
-    mirror = property(lambda self: self.lent.own(), doc="MuJoCo's copy as the term's own model (`LentModel.own`)")
 
     def __init__(self, lent: LentModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int],
                  standby: list | None = None):
@@ -133,12 +133,27 @@ class RowTerm:
         self.push = RootPush(model, mapping)  # a free joint's share of an unconverged solve
         self.soft = False
         self.flags = int(model.opt.disableflags)  # the model's own
-        self.contacts = not mj.disabled(model, "contact")  # MuJoCo's contacts solved with the rows (set_contacts)
+        self.with_contacts = not mj.disabled(model, "contact")  # MuJoCo's contacts solved with the rows (`contacts`)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
         self.accelerated = accelerated(model)  # MuJoCo integrates the solver's qacc (`integrated.py`)
 
-    def compile(self, layout) -> None:
+    @property
+    def mirror(self) -> mujoco.MjModel:
+        """MuJoCo's copy as the term's own model (`LentModel.own`)."""
+        return self.lent.own()
+
+    @property
+    def applied(self) -> list:
+        """This step's root wrenches, for the momentum term."""
+        return self.push.applied
+
+    def contacts(self, enabled: bool) -> None:
+        """MuJoCo's contacts are solved with the rows while SAPIEN has contacts (and the model has them)."""
+        self.with_contacts = enabled and not mj.disabled_bits(self.flags, "contact")
+
+    def compile(self, compilation: Compilation) -> None:
         """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
+        layout = compilation.layout
         self.flat = layout.flat_of(self.keys)
         self.limit_flat = layout.flat_of(self.limit_keys)
         self.scalar = scalar_state(self.lent.model, self.mapping, layout)
@@ -158,14 +173,12 @@ class RowTerm:
         self.clear_of(step)
         with self.lent as model:
             self.mirror_state(step)
-            solve(model, self.data, self.contacts, step.timestep, self.depenetration)
+            solve(model, self.data, self.with_contacts, step.timestep, self.depenetration)
             force = self.joint_rows()
         step.force[self.flat] += force[self.mujoco_dofs]
         if step.advance:
             self.push(self.data, force, step.layout.links)
         self.data.qacc_warmstart[:] = self.data.qacc  # MuJoCo's next solve starts from this one's acceleration
-
-    applied = property(lambda self: self.push.applied)  # this step's root wrenches, for the momentum term
 
     def joint_rows(self) -> np.ndarray:
         """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
@@ -179,7 +192,7 @@ class RowTerm:
         data, model = self.data, self.lent.model
         actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         flags = (self.flags | actuation) if not step.actuated else self.flags
-        model.opt.disableflags = flags if self.contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        model.opt.disableflags = flags if self.with_contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         if self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
             data.qpos[:], data.qvel[:] = step.q[self.scalar], step.v[self.scalar]
         else:
@@ -192,8 +205,10 @@ class RowTerm:
     def forget(self) -> None:  # a state set from outside: the next solve starts cold, as in a new MjData
         self.data.qacc_warmstart[:] = 0.0
 
-    def set_active(self, equality: int, active: bool) -> None:  # MuJoCo's eq_active of a joint or tendon coupling
-        self.data.eq_active[equality] = int(active)
+    def set_active(self, equality: int, active: bool) -> None:
+        """MuJoCo's eq_active of an equality the copy solves (a coupling, a connect or weld as rows)."""
+        if equality in self.couplings:
+            self.data.eq_active[equality] = int(active)
 
     def reset_active(self) -> None:  # the copy's couplings as the model starts them (eq_active0), no other equality
         self.data.eq_active[:] = 0
@@ -230,7 +245,12 @@ class RowTerm:
                 loop.lock(self.lent.timestep)
         self.soft = soft
 
-    release = removed = lambda self, joints: self.hold(joints, soft=False)  # PhysX's limits at MuJoCo's range
+    def release(self, handover: Handover) -> None:
+        """PhysX's limits at MuJoCo's range; the loops' D6 joints locked."""
+        self.hold(handover.joints, soft=False)
+
+    def removed(self, joints: list[list]) -> None:
+        self.hold(joints, soft=False)
 
 
 def solve(mirror: mujoco.MjModel, data: mujoco.MjData, contacts: bool, timestep: float, depenetration: float) -> None:

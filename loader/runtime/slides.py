@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import sapien
 
+from .term import Compilation, Term
+
 
 @dataclass(frozen=True)
 class SlideDrive:
@@ -82,7 +84,7 @@ def drive_offsets(slides: list[SlideDrive], timestep: float) -> list[float]:
     return out
 
 
-class SlideTerm:
+class SlideTerm(Term):
     """Every step, the velocity each turning slide's drive is short of joins its drive's targets."""
 
     name = "slides"
@@ -90,8 +92,8 @@ class SlideTerm:
     def __init__(self, slides: list[SlideDrive]):
         self.slides = slides
 
-    def compile(self, layout) -> None:
-        self.drive = layout.drive_of([(s.articulation, s.dof) for s in self.slides])
+    def compile(self, compilation: Compilation) -> None:
+        self.drive = compilation.layout.drive_of([(s.articulation, s.dof) for s in self.slides])
 
     def contribute(self, step) -> None:
         offsets = step.law[6]

@@ -10,9 +10,10 @@ as the force -D qdot, and the stiffness with it (tests/test_loader_unconverged.p
 from __future__ import annotations
 
 from .dof_step import Step
+from .term import Compilation, Term
 
 
-class StiffnessTerm:
+class StiffnessTerm(Term):
     """`known`: per explicit_kv, the DoFs whose stiffness leaves the drive on a regular step (`Step.regular`).
     `explicit_damping`: MuJoCo takes joint damping explicitly (Euler with `eulerdamp` disabled)."""
 
@@ -21,9 +22,9 @@ class StiffnessTerm:
     def __init__(self, explicit_damping: bool = False):
         self.explicit_damping = explicit_damping
 
-    def compile(self, layout) -> None:
+    def compile(self, compilation: Compilation) -> None:
         self.known: dict[bool, object] = {}
-        self.idle = not layout.keys  # no hinge or slide
+        self.idle = not compilation.layout.keys  # no hinge or slide
 
     def contribute(self, step: Step) -> None:
         law = step.law

@@ -1,4 +1,15 @@
-"""Passive fixed tendons: their spring and damper forces, applied every step as MuJoCo applies them."""
+"""Tendons every step: fixed tendons' springs and dampers over their joints, spatial tendons' along the path MuJoCo
+computes at SAPIEN's pose, and the paths themselves, which tendon actuators read too (`actuators.py`).
+
+A fixed tendon's force is J^T f with J its constant coefficients. A spatial tendon's length and Jacobian J (over
+MuJoCo's DoFs) change with the pose, so MuJoCo computes them at SAPIEN's state each step (`mj_kinematics`,
+`mj_comPos`, `mj_tendon` on a data of the loaded model), once per step for every consumer. A generalized force J^T f
+over the tendons' DoFs is joint forces on hinges and slides and, on a free joint (a tendon anchored off the floating
+tree), a wrench on the root link (`RootPush`). A spring acts between `lengthspring`'s ends (a dead band). MuJoCo's
+implicitfast holds a damper's or kv's whole J^T J implicitly; a drive holds one DoF, so the diagonal joins the drives
+and the rest stays explicit (`COUPLED_DAMPING` notes it) (tests/test_loader_passive.py,
+tests/test_loader_spatial_tendons.py).
+"""
 
 from __future__ import annotations
 
@@ -7,8 +18,17 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..build.fixed_tendons import fixed_tendon_terms
+from ..model import mj
+from ..model.joints import DRIVEN
+from ..model.mapping import Mapping
+from ..model.options import IMPLICIT
+from .dof_step import Step
+from .integrated import RootPush
+from .rows import scalar_state
+from .term import Compilation, Term
+
+COUPLED_DAMPING = ("damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
+                   "b J^T J; the off-diagonal part is explicit)")
 
 
 def tendon_state(terms, q: list[np.ndarray], v: list[np.ndarray]) -> tuple[float, float]:
@@ -42,7 +62,6 @@ class PassiveTendon:
             yield art, dof, c * pull + diagonal * v[art][dof], diagonal
 
 
-IMPLICIT = (int(mujoco.mjtIntegrator.mjINT_IMPLICIT), int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
 COUPLED_DAMPING = ("damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
                    "b J^T J; the off-diagonal part is explicit)")
 
@@ -54,7 +73,7 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     out, passive = [], mj.tendon_passive(model)
     for t in range(model.ntendon):
         name = mj.name(model, "tendon", t)
-        terms = fixed_tendon_terms(model, t)
+        terms = mj.fixed_tendon_terms(model, t)
         if not terms:
             continue  # a spatial tendon (`spatial_tendons.py`)
         if model.tendon_armature[t] > 0:
@@ -65,10 +84,10 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
         mapped = []
         for joint, coefficient in terms:
             target = mapping.joints[joint]
-            if target.kind not in ("hinge", "slide"):
+            if target.drive_key is None:
                 notes.drop("tendon", name, "crosses a ball or free joint")
                 break
-            mapped.append((target.articulation, target.dofs[0], coefficient))
+            mapped.append((*target.drive_key, coefficient))
         else:
             if damping and len(mapped) > 1 and int(model.opt.integrator) in IMPLICIT:
                 notes.approximate("tendon", name, COUPLED_DAMPING)
@@ -77,7 +96,154 @@ def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
     return out
 
 
-class TendonTerm:
+class TendonPaths:
+    """The spatial tendons `tendons` (MuJoCo ids) over the DoFs `dofs` (MuJoCo's) they move: the hinge and slide
+    ones SAPIEN's `keys` (columns `joint`)."""
+
+    def __init__(self, model: mujoco.MjModel, mapping: Mapping, tendons: list[int]):
+        self.model, self.mapping = model, mapping
+        self.data = mujoco.MjData(model)
+        self.tendons = np.array(tendons, dtype=int)
+        dofs = sorted(set().union(*(mj.tendon_dofs(model, t) for t in tendons)))
+        self.dofs = np.array(dofs, dtype=int)
+        targets = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
+        self.joint = np.array([t.kind in DRIVEN for t in targets], dtype=bool)
+        self.floating = not self.joint.all()  # a free joint among the DoFs
+        self.keys = [(t.articulation, t.dofs[0]) for t, on in zip(targets, self.joint) if on]
+        column = {d: i for i, d in enumerate(dofs)}  # MuJoCo keeps ten_J sparse, its pattern fixed by the model
+        entries = [(k, column[int(model.ten_J_colind[a])], a) for k, t in enumerate(tendons) for a in range(
+            int(model.ten_J_rowadr[t]), int(model.ten_J_rowadr[t] + model.ten_J_rownnz[t]))]
+        self.row, self.column, self.entry = (np.array(x, dtype=int) for x in zip(*entries))
+        self.last: tuple | None = None  # (step, its state): one pass per step for every consumer
+
+    def index(self, tendon: int) -> int:
+        return int(np.flatnonzero(self.tendons == tendon)[0])
+
+    def compile(self, layout) -> None:
+        self.flat = layout.flat_of(self.keys)
+        self.drive = layout.drive_of(self.keys)
+        self.scalar = scalar_state(self.model, self.mapping, layout)
+        self.last = None
+
+    def state(self, step: Step) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The tendons' lengths, Jacobian (tendon x `dofs`) and the DoFs' velocities at the step's start."""
+        if self.last is not None and self.last[0] is step:
+            return self.last[1]
+        if self.scalar is not None:  # hinges and slides only
+            qpos, v = step.q[self.scalar], step.v[self.flat]
+        else:
+            qpos, qvel = step.mujoco_state(self.mapping)
+            v = qvel[self.dofs]
+        found = (*self.measure(qpos), v)
+        self.last = (step, found)
+        return found
+
+    def measure(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tendons' lengths and Jacobian (tendon x `dofs`) at MuJoCo's `qpos`."""
+        model, data = self.model, self.data
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_tendon(model, data)
+        return data.ten_length[self.tendons], self.dense(data)
+
+    def dense(self, data: mujoco.MjData) -> np.ndarray:
+        """The tendons' rows of MuJoCo's sparse ten_J, over `dofs`."""
+        jacobian = np.zeros((len(self.tendons), len(self.dofs)))
+        jacobian[self.row, self.column] = data.ten_J[self.entry]
+        return jacobian
+
+    def apply(self, step: Step, force: np.ndarray, push: RootPush | None, jacobian: np.ndarray, v: np.ndarray,
+              implicit: np.ndarray | None = None) -> None:
+        """A generalized force over `dofs` into the step: joint forces, a free joint's share through `push` (once
+        per physics step); `implicit`: per tendon of `jacobian`'s rows, the damping whose diagonal d J_i^2 the
+        drives take implicitly (and the explicit force gives back at the current rate)."""
+        if push is not None:
+            if step.advance:
+                whole = np.zeros(self.model.nv)
+                whole[self.dofs] = force
+                push(self.data, whole, step.layout.links)
+            force, jacobian, v = force[self.joint], jacobian[:, self.joint], v[self.joint]
+        if implicit is not None:
+            diagonal = implicit @ (jacobian * jacobian)
+            force = force + diagonal * v
+            np.add.at(step.law[5], self.drive, diagonal)
+            step.regular = False  # the implicit extra changes with the pose
+        np.add.at(step.force, self.flat, force)
+
+    def implicit_diagonal(self, rows: np.ndarray, damping: np.ndarray) -> dict[tuple[int, int], float]:
+        """d J_i^2 per DoF at qpos0 over the tendons `rows` (what joins the drives under implicit integrators)."""
+        jacobian = self.dense(mj.forward_at(self.model))[np.ix_(rows, self.joint)]
+        return dict(zip(self.keys, (damping @ (jacobian * jacobian)).tolist()))
+
+
+class SpatialTendons:
+    """The passive spatial tendons `tendons` (MuJoCo ids) along `paths`; `implicit`: MuJoCo's integrator holds
+    dampers implicitly."""
+
+    def __init__(self, paths: TendonPaths, tendons: list[int], implicit: bool):
+        model = paths.model
+        self.paths = paths
+        self.rows = np.array([paths.index(t) for t in tendons], dtype=int)
+        self.push = RootPush(model, paths.mapping) if paths.floating else None  # a free joint's share
+        stiffness, damping = mj.tendon_passive(model)
+        self.stiffness, self.damping = stiffness[tendons], damping[tendons]
+        self.low, self.high = model.tendon_lengthspring[tendons].T.copy()
+        self.implicit = implicit and bool(self.damping.any())  # the dampers' diagonal joins the drives
+
+    @property
+    def applied(self) -> list | tuple:
+        """This step's root wrenches (the momentum term's)."""
+        return self.push.applied if self.push is not None else ()
+
+    def compile(self, layout) -> None:
+        self.paths.compile(layout)
+
+    def contribute(self, step: Step) -> None:
+        length, jacobian, v = self.paths.state(step)
+        length, jacobian = length[self.rows], jacobian[self.rows]
+        stretch = np.where(length < self.low, length - self.low, np.where(length > self.high, length - self.high, 0.0))
+        pull = -self.stiffness * stretch - self.damping * (jacobian @ v)
+        implicit = self.damping if self.implicit and not step.explicit_kv else None
+        self.paths.apply(step, jacobian.T @ pull, self.push, jacobian, v, implicit)
+
+    def implicit_diagonal(self) -> dict[tuple[int, int], float]:
+        """The dampers' diagonal b J_i^2 per DoF at qpos0 (what joins the drives under implicit integrators)."""
+        return self.paths.implicit_diagonal(self.rows, self.damping) if self.implicit else {}
+
+
+def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool,
+                 paths: TendonPaths | None) -> SpatialTendons | None:
+    """The spatial tendons with a spring or damper along `paths` (those SAPIEN can carry: `Mapping.carries`;
+    a tendon whose path crosses a ball joint is noted and left out)."""
+    stiffness, damping = mj.tendon_passive(model)
+    tendons = []
+    for t in range(model.ntendon):
+        if not mj.is_spatial(model, t) or not (stiffness[t] or damping[t]):
+            continue
+        name = mj.name(model, "tendon", t)
+        if not mapping.carries(model, t):
+            notes.drop("tendon", name, "spatial tendon's spring and damper not mapped: the tendon moves a ball "
+                       "joint, whose torque SAPIEN's joint forces do not take")
+            continue
+        if model.tendon_armature[t] > 0:
+            notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
+        if implicit and damping[t] and len(mj.tendon_dofs(model, t)) > 1:
+            notes.approximate("tendon", name, COUPLED_DAMPING)
+        tendons.append(t)
+    return SpatialTendons(paths, tendons, implicit) if tendons else None
+
+
+def plan_paths(model: mujoco.MjModel, mapping: Mapping, actuated: list[int]) -> TendonPaths | None:
+    """The paths of every spatial tendon SAPIEN can carry that has a spring or damper or drives an actuator
+    (`actuated`, tendon ids), computed once per step for all of them."""
+    stiffness, damping = mj.tendon_passive(model)
+    tendons = [t for t in range(model.ntendon) if mj.is_spatial(model, t) and mapping.carries(model, t) and (
+        t in actuated or stiffness[t] or damping[t])]
+    return TendonPaths(model, mapping, tendons) if tendons else None
+
+
+class TendonTerm(Term):
     """The passive fixed tendons' forces every step, as arrays over their terms (per term its tendon `owner`,
     joint position `flat`, drive column and coefficient), and the spatial ones' (`spatial`); under implicit
     integrators their dampers' diagonal joins the drives (`Step.implicit_extra`)."""
@@ -87,9 +253,12 @@ class TendonTerm:
     def __init__(self, tendons: list[PassiveTendon], spatial=None):
         self.tendons, self.spatial = tendons, spatial
 
-    applied = property(lambda self: self.spatial.applied if self.spatial is not None else ())  # root wrenches
+    @property
+    def applied(self) -> list | tuple:
+        return self.spatial.applied if self.spatial is not None else ()
 
-    def compile(self, layout) -> None:
+    def compile(self, compilation: Compilation) -> None:
+        layout = compilation.layout
         if self.spatial is not None:
             self.spatial.compile(layout)
         rows = [(k, (art, dof), c) for k, t in enumerate(self.tendons) for art, dof, c in t.terms]

@@ -2,13 +2,19 @@
 
 - no measured number (e-notation) in a docstring under `loader/`: it belongs in the test that measures it;
 - no import cycle between the project's modules (function-local imports included);
-- no class over `MAX_CLASS_LINES` lines in `loader/`;
+- the loader's layers (`LAYERS`): the shared layer (`loader/model/`, `loader/errors.py`) imports neither half, the
+  planning half (`loader/plan/`) never imports the runtime half (`loader/runtime/`) nor the runtime the planning
+  half; only the façade above them (`mjcf_loader.py`, `result.py`, `maniskill/`) joins them, and no folder is named
+  `build` (tools take it for build output);
 - no module reading another object's private (`_name`) attribute;
 - `loader/` imports nothing beyond the standard library and its core dependencies (`CORE`), but for
   `loader/maniskill/`, which may import what the `maniskill` extra installs (`MANISKILL`), and an optional import
   guarded by `except ImportError`;
 - every relative link in README.md and docs/*.md resolves (file and `#anchor`), every `tests/<file>.py::<test>`
-  they or the source name exists, and README.md stays under `MAX_README_LINES` lines.
+  they or the source name exists, and README.md stays under `MAX_README_LINES` lines;
+- every code identifier README.md and docs/*.md quote in backticks resolves: a dotted name or a call `name()`
+  against the names the code defines and uses, a `file.py` against the tree, a `without("...")` against the
+  controller's stages.
 
 Run as `python tests/support/house.py` from the project root; exits non-zero on a finding."""
 
@@ -21,7 +27,6 @@ import sys
 from pathlib import Path
 
 E_NOTATION = re.compile(r"(?<![\w.])\d+(?:\.\d+)?[eE][-+]?\d+\b")
-MAX_CLASS_LINES = 120
 MAX_README_LINES = 120
 PACKAGES = ("loader", "conformance")
 CORE = ("mujoco", "sapien", "numpy")  # the loader's install: everything else is an extra
@@ -93,13 +98,126 @@ def import_cycles(files: dict[str, str]) -> list[str]:
     return [f"import cycle: {cycle}" for cycle in cycles]
 
 
-def long_classes(files: dict[str, str], limit: int = MAX_CLASS_LINES) -> list[str]:
+SHARED, PLAN, RUNTIME = "loader.model", "loader.plan", "loader.runtime"
+LAYERS = {  # a layer: the layers its modules may import (the façade, every other loader module, may import any)
+    SHARED: (SHARED,),
+    PLAN: (SHARED, PLAN),
+    RUNTIME: (SHARED, RUNTIME),
+}
+LEAVES = ("loader.errors",)  # top-level modules of the shared layer
+
+
+def _layer(module: str) -> str | None:
+    if any(module == leaf or module.startswith(leaf + ".") for leaf in LEAVES):
+        return SHARED
+    return next((layer for layer in LAYERS if module == layer or module.startswith(layer + ".")), None)
+
+
+def _imports(name: str, path: str, text: str) -> list[tuple[int, str]]:
+    """(line, absolute module) of every import in the module (function-local and TYPE_CHECKING ones too)."""
+    package = name if Path(path).name == "__init__.py" else name.rpartition(".")[0]
     out = []
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.ImportFrom):
+            parts = package.split(".")
+            base = parts[: len(parts) - (node.level - 1)] if node.level else []
+            target = ".".join(base + ([node.module] if node.module else [])) if node.level else node.module
+            out.extend((node.lineno, f"{target}.{a.name}") for a in node.names)
+        elif isinstance(node, ast.Import):
+            out.extend((node.lineno, a.name) for a in node.names)
+    return out
+
+
+def layering(files: dict[str, str]) -> list[str]:
+    """`path:line: ...` for every import that crosses the loader's layers the wrong way, and every folder named
+    `build` under the packages."""
+    out = [f"{path}: a folder named build (tools take it for build output)" for path in files
+           if "build" in Path(path).parts[:-1]]
     for path, text in files.items():
+        name = _module_name(path)
+        layer = _layer(name)
+        if layer is None:
+            continue
+        for line, target in _imports(name, path, text):
+            if not target.startswith("loader"):
+                continue
+            reached = _layer(target) or (None if target in ("loader", "loader.model", "loader.plan",
+                                                             "loader.runtime") else "the façade")
+            if reached is not None and reached not in LAYERS[layer]:
+                out.append(f"{path}:{line}: {layer} imports {target} ({reached}); it may import "
+                           f"{', '.join(LAYERS[layer])} only")
+    return out
+
+
+QUOTED = re.compile(r"`([^`\n]+)`")
+DOTTED = re.compile(r"^[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+(?:\(\))?$")
+CALL = re.compile(r"^([A-Za-z_]\w*)\(\)$")
+PY_FILE = re.compile(r"^[\w/.-]+\.py$")
+STAGE_SWITCH = re.compile(r"without\(([^)]*)\)")
+FILE_SUFFIXES = ("md", "json", "txt", "TXT", "toml", "rrd", "xml", "html", "yaml", "csv", "tar")
+THIRD_PARTY = ("mani_skill", "mujoco", "sapien", "numpy", "np", "rerun", "rr", "ray", "torch", "gymnasium",
+               "dm_control", "hypothesis", "nox", "warp", "mjx")  # their names are theirs to resolve
+
+
+def code_names(files: dict[str, str]) -> tuple[set[str], set[str]]:
+    """(every identifier the code defines or uses: names, attributes, functions, classes, arguments, modules; the
+    functions and classes it defines)."""
+    names, defined = set(), set()
+    for path, text in files.items():
+        names.update(Path(path).with_suffix("").parts)
         for node in ast.walk(ast.parse(text)):
-            if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > limit:
-                out.append(f"{path}:{node.lineno}: class {node.name} is {node.end_lineno - node.lineno + 1} lines "
-                           f"(at most {limit})")
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                names.add(node.name)
+                defined.add(node.name)
+            elif isinstance(node, ast.Name):
+                names.add(node.id)
+            elif isinstance(node, ast.Attribute):
+                names.add(node.attr)
+            elif isinstance(node, ast.arg):
+                names.add(node.arg)
+            elif isinstance(node, ast.alias):
+                names.update((node.asname or node.name).split("."))
+                names.update(node.name.split("."))
+    return names, defined
+
+
+def stages(files: dict[str, str]) -> set[str]:
+    """The controller's `STAGES` (the names `without` takes)."""
+    for node in ast.walk(ast.parse(files.get("loader/runtime/controller.py", ""))):
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "STAGES" for t in node.targets):
+            return set(ast.literal_eval(node.value))
+    return set()
+
+
+def unresolved_identifiers(docs: dict[str, str], files: dict[str, str]) -> list[str]:
+    """`path:line: ...` for every code identifier quoted in backticks in `docs` that the code (`files`) does not
+    have: a dotted name or `call()` whose parts the code never names, a `.py` file the tree lacks, a stage that
+    `without(...)` does not know."""
+    names, defined = code_names(files)
+    known_stages = stages(files)
+    paths = list(files)
+    out = []
+    for path, text in docs.items():
+        if not path.endswith(".md"):
+            continue
+        for number, line in enumerate(text.splitlines(), 1):
+            for switch in STAGE_SWITCH.findall(line):
+                for stage in re.findall(r"[\"']([^\"']*)[\"']", switch):
+                    if stage not in known_stages:
+                        out.append(f"{path}:{number}: without({stage!r}): no such stage")
+            for quoted in QUOTED.findall(line):
+                token = quoted.strip()
+                call = CALL.match(token)
+                if PY_FILE.match(token):
+                    if not any(p == token or p.endswith("/" + token) for p in paths):
+                        out.append(f"{path}:{number}: `{token}`: no such file")
+                elif call and call.group(1) not in defined:
+                    out.append(f"{path}:{number}: `{token}`: no such function or class")
+                elif DOTTED.match(token) and token.rpartition(".")[2] not in FILE_SUFFIXES \
+                        and token.split(".")[0] not in THIRD_PARTY:
+                    missing = [part for part in token.removesuffix("()").split(".") if part not in names]
+                    if missing:
+                        out.append(f"{path}:{number}: `{token}`: the code has no {', '.join(missing)}")
     return out
 
 
@@ -198,12 +316,14 @@ def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
 
 def findings(root: Path) -> list[str]:
     every = sources(root)
+    tests = {str(p.relative_to(root)): p.read_text() for p in sorted((root / "tests").rglob("*.py"))}
     loader = {p: t for p, t in every.items() if p.startswith("loader")}
     docs = documents(root)
-    return (docstring_numbers(loader) + import_cycles(every) + long_classes(loader) + private_reads(every)
+    return (docstring_numbers(loader) + import_cycles(every) + layering(loader) + private_reads(every)
             + foreign_imports({p: t for p, t in loader.items() if not p.startswith(MANISKILL[0])})
             + foreign_imports({p: t for p, t in loader.items() if p.startswith(MANISKILL[0])}, CORE + MANISKILL[1])
             + broken_links(docs) + long_readme(docs["README.md"])
+            + unresolved_identifiers(docs, {**every, **tests, "noxfile.py": (root / "noxfile.py").read_text()})
             + broken_test_references({**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
                                      {str(p.relative_to(root)): p.read_text()
                                       for p in sorted((root / "tests").rglob("*.py"))}))

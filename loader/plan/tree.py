@@ -14,10 +14,12 @@ import mujoco
 import numpy as np
 import sapien
 
-from .. import mj
 from ..errors import Notes
-from ..frames import pose
-from .joint import FREE, JointPlan, plan_joint
+from ..model import mj
+from ..model.frames import pose
+from ..model.joints import FREE
+from ..model.mapping import centres
+from .joint import JointPlan, plan_joint
 
 # Helper links must have a positive mass for PhysX; this is far below any body MuJoCo would accept.
 HELPER_MASS = 1e-8
@@ -68,14 +70,6 @@ def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes, 
                               f"{ZERO_MOMENT:g} kg m^2 (PhysX replaces a zero moment with 1)")
         link.inertia = np.where(moments > 0, moments, ZERO_MOMENT)
     link.cmass = pose(centre, model.body_iquat[b])
-
-
-def centres(model: mujoco.MjModel) -> np.ndarray:
-    """Each body's link's centre of mass in the body frame: MuJoCo's, or the origin for a massless body, whose
-    `body_ipos` MuJoCo leaves at the body's position in its parent. A helper mass there, far from the tree's real
-    mass, makes PhysX's articulation ill-conditioned: a falling rigid tree starts turning
-    (tests/test_loader_free_joint.py::test_a_massless_root_carrying_a_heavy_child_falls_without_turning)."""
-    return np.where(model.body_mass[:, None] > 0, model.body_ipos, 0.0)
 
 
 def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:

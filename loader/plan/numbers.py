@@ -9,8 +9,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .. import mj
 from ..errors import MJCFError
+from ..model import mj
 
 # any other number: PhysX multiplies gains, gears, commands and inertias together in float32 (largest 3.4e38), so a
 # factor beyond this overflows one step's product, far above any real robot's

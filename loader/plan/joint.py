@@ -14,23 +14,10 @@ import mujoco
 import numpy as np
 import sapien
 
-from .. import mj
 from ..errors import Notes
-from ..frames import pose, quat_from_axis_angle, quat_x_to
-
-HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
-SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
-BALL = int(mujoco.mjtJoint.mjJNT_BALL)
-FREE = int(mujoco.mjtJoint.mjJNT_FREE)
-KIND = {HINGE: "hinge", SLIDE: "slide", BALL: "ball", FREE: "free"}
-
-
-def joint_stiffness(model: mujoco.MjModel, j: int) -> float:
-    return float(model.jnt_stiffness[j]) if not mj.disabled(model, "spring") else 0.0
-
-
-def dof_damping(model: mujoco.MjModel, dof: int) -> float:
-    return float(model.dof_damping[dof]) if not mj.disabled(model, "damper") else 0.0
+from ..model import mj
+from ..model.frames import pose, quat_from_axis_angle, quat_x_to
+from ..model.joints import FREE, HINGE, SLIDE, dof_damping, joint_stiffness
 
 
 @dataclass

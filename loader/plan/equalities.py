@@ -6,41 +6,18 @@ Derivation: docs/mapping.md#equalities.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import mujoco
 import numpy as np
 import sapien
 
-from .. import mj
 from ..errors import Notes
-from ..runtime.equalities import SoftConnect, SoftWeld
-from ..soft_row import SoftRow, diag_approx
-from .fixed_tendons import fixed_tendon_terms
-from .mapping import Mapping
+from ..model import mj
+from ..model.equalities import D6Joint, EqualityLink
+from ..model.mapping import Mapping
+from ..model.soft_row import SoftRow, diag_approx
 from .physx_settings import scene_timestep
 
 EQ = mujoco.mjtEq
-
-
-@dataclass
-class EqualityLink:
-    """What an equality constraint became: MuJoCo's row (`kind` "MuJoCo row", applied by `runtime/rows.py`) or a D6
-    joint, or nothing (`mapped` False)."""
-
-    name: str
-    kind: str
-    mapped: bool
-    reason: str = ""
-    soft: SoftConnect | None = None  # a connect's or weld's per-step soft law (`runtime/equalities.py`)
-    index: int = -1  # MuJoCo's equality id
-
-
-def _joint_dof(model: mujoco.MjModel, mapping: Mapping, joint: int) -> tuple[int, int] | None:
-    target = mapping.joints[joint]
-    if target.kind not in ("hinge", "slide"):
-        return None
-    return target.articulation, target.dofs[0]
 
 
 def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, mapping: Mapping,
@@ -62,8 +39,8 @@ def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, ma
             result.append(_coupling(model, e, name, mapping, notes))
         elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)) and _joint_row(model, mapping, e):
             # MuJoCo's rows while set_ctrl runs; the D6 built beside them stands by and locks at release()
-            standby = _d6(model, e, name, scene, articulations, mapping, Notes(), qpos0_data).soft
-            result.append(EqualityLink(name, "MuJoCo row", True, soft=standby, index=e))
+            standby = _d6(model, e, name, scene, articulations, mapping, Notes(), qpos0_data).joint
+            result.append(EqualityLink(name, "MuJoCo row", True, joint=standby, index=e))
         elif etype in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
             result.append(_d6(model, e, name, scene, articulations, mapping, notes, qpos0_data))
         else:
@@ -92,10 +69,10 @@ def _coupling(model, e, name, mapping, notes) -> EqualityLink:
     etype = int(model.eq_type[e])
     objects = [int(model.eq_obj1id[e])] + ([int(model.eq_obj2id[e])] if model.eq_obj2id[e] >= 0 else [])
     for obj in objects:
-        joints = [(obj, 1.0)] if etype == int(EQ.mjEQ_JOINT) else fixed_tendon_terms(model, obj)
+        joints = [(obj, 1.0)] if etype == int(EQ.mjEQ_JOINT) else mj.fixed_tendon_terms(model, obj)
         if not joints:
             reason = "couples a spatial tendon, whose force SAPIEN's joints cannot take"
-        elif any(_joint_dof(model, mapping, joint) is None for joint, _ in joints):
+        elif any(mapping.joints[joint].drive_key is None for joint, _ in joints):
             reason = "couples a ball or free joint"
         else:
             continue
@@ -152,16 +129,13 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     weld = etype == int(EQ.mjEQ_WELD)
     extra = {"relative_quat": np.asarray(frame1.q, dtype=float), "torquescale": float(model.eq_data[e][10]),
              "child_is_body1": child_body == body1} if weld else {}
-    soft = (SoftWeld if weld else SoftConnect)(
+    joint = D6Joint(
         drive, child, np.asarray(child_frame.p, dtype=float), parent, np.asarray(parent_frame.p, dtype=float),
         parent_pose, sapien.Pose(q=parent_frame.q), SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e], timestep),
         np.asarray(rows, dtype=float), e, child_body, parent_body, mapping.bodies[child_body].articulation,
-        child_rotation=np.asarray(child_frame.q, dtype=float), **extra)
-    soft.lock(timestep)  # rigid until the first set_ctrl
-    if not model.eq_active0[e]:
-        soft.set_active(False)
+        child_rotation=np.asarray(child_frame.q, dtype=float), weld=weld, **extra)
     kind = "weld" if weld else "connect"
     notes.approximate("equality", name, f"{kind} as MuJoCo's soft law (solref, solimp) on a PhysX D6 joint's drives "
                       "that set_ctrl updates every step; exact on a closed loop, first order in its violation and "
                       "in joint damping off (runtime/equalities.py)")
-    return EqualityLink(name, "D6 joint", True, soft=soft, index=e)
+    return EqualityLink(name, "D6 joint", True, joint=joint, index=e)

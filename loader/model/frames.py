@@ -14,7 +14,7 @@ X_TO_Z = np.array([_S, 0.0, -_S, 0.0])
 
 def unit_quat(q) -> np.ndarray:
     """`q` normalized in float64 before SAPIEN's float32 sees it (one shorter than mjMINVAL, which
-    `build/numbers.py` rejects before any pose is built, is the identity rather than NaN)."""
+    `plan/numbers.py` rejects before any pose is built, is the identity rather than NaN)."""
     q = np.asarray(q, dtype=np.float64)
     norm = float(np.linalg.norm(q))
     return q / norm if norm >= mujoco.mjMINVAL else np.array([1.0, 0.0, 0.0, 0.0])

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from ..frames import X_TO_Z, pose
+from ..model.frames import X_TO_Z, pose
 from .geom import (
     BOX,
     CAPSULE,

@@ -16,6 +16,7 @@ _OBJECT = {"body": mujoco.mjtObj.mjOBJ_BODY, "joint": mujoco.mjtObj.mjOBJ_JOINT,
            "camera": mujoco.mjtObj.mjOBJ_CAMERA, "texture": mujoco.mjtObj.mjOBJ_TEXTURE,
            "pair": mujoco.mjtObj.mjOBJ_PAIR}
 _DISABLE = mujoco.mjtDisableBit
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
 
 
 def name(model: mujoco.MjModel, kind: str, index: int) -> str:
@@ -35,10 +36,15 @@ def model_name(model: mujoco.MjModel) -> str | None:
 
 def disabled(model: mujoco.MjModel, *flags: str) -> bool:
     """Whether any of `<flag NAME="disable"/>` is set (`"limit"`, `"constraint"`, `"spring"`, ...)."""
+    return disabled_bits(int(model.opt.disableflags), *flags)
+
+
+def disabled_bits(disableflags: int, *flags: str) -> bool:
+    """Whether `disableflags` (MuJoCo's bits) has any of the named flags set."""
     bits = 0
     for flag in flags:
         bits |= int(getattr(_DISABLE, f"mjDSBL_{flag.upper()}"))
-    return bool(model.opt.disableflags & bits)
+    return bool(disableflags & bits)
 
 
 def explicit_damping(model: mujoco.MjModel) -> bool:
@@ -132,3 +138,15 @@ def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
         dofs.update(range(start, start + int(model.body_dofnum[body])))
         body = int(model.body_parentid[body])
     return dofs
+
+
+def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, float]]:
+    """(MuJoCo joint id, coefficient) pairs of a fixed tendon, or [] for a spatial one."""
+    start, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
+    if any(int(model.wrap_type[w]) != int(mujoco.mjtWrap.mjWRAP_JOINT) for w in range(start, start + count)):
+        return []
+    return [(int(model.wrap_objid[w]), float(model.wrap_prm[w])) for w in range(start, start + count)]
+
+
+def is_spatial(model: mujoco.MjModel, tendon: int) -> bool:
+    return int(model.wrap_type[model.tendon_adr[tendon]]) != int(mujoco.mjtWrap.mjWRAP_JOINT)

@@ -11,15 +11,14 @@ import mujoco
 import numpy as np
 import sapien
 
-from .. import drive, mj
-from ..drive import DofDrive
 from ..errors import SceneMismatchWarning
+from ..model import drive, mj
+from ..model.drive import DofDrive
+from ..model.options import MAX_DEPENETRATION_VELOCITY
 
 MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
 MAX_LINK_ANGULAR_VELOCITY = 1e4  # rad/s
 MAX_JOINT_VELOCITY = 1e4
-MAX_DEPENETRATION_VELOCITY = 0.1  # m/s; see docs/mapping.md#physx-settings and
-# tests/test_loader_contact.py::test_arms_started_inside_each_other_come_apart_as_slowly_as_in_mujoco
 
 
 def matched_config(model: mujoco.MjModel) -> sapien.physx.PhysxSceneConfig:

@@ -11,8 +11,8 @@ from itertools import combinations
 import mujoco
 import numpy as np
 
-from .. import mj
 from ..errors import Notes
+from ..model import mj
 from .tree import TreePlan
 
 GROUP_BITS = 32

@@ -14,9 +14,11 @@ import mujoco
 import numpy as np
 import sapien
 
-from ..frames import cross3, euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
-from .joint import BALL, FREE
-from .tree import centres
+from . import mj
+from .frames import cross3, euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
+from .joints import BALL, DRIVEN, FREE
+
+CARRIED = ("hinge", "slide", "free")  # joints whose share of a tendon's force SAPIEN applies
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,11 @@ class JointDofs:
     kind: str
     dofs: tuple[int, ...]
 
+    @property
+    def drive_key(self) -> tuple[int, int] | None:
+        """(articulation, SAPIEN dof) of a hinge or slide, the key of its drive DoF; None for a ball or free joint."""
+        return (self.articulation, self.dofs[0]) if self.kind in DRIVEN else None
+
 
 @dataclass(frozen=True)
 class GeomShape:
@@ -45,6 +52,14 @@ class GeomShape:
     link: int | None
     actor: int | None
     shape: int
+
+
+def centres(model: mujoco.MjModel) -> np.ndarray:
+    """Each body's link's centre of mass in the body frame: MuJoCo's, or the origin for a massless body, whose
+    `body_ipos` MuJoCo leaves at the body's position in its parent. A helper mass there, far from the tree's real
+    mass, makes PhysX's articulation ill-conditioned: a falling rigid tree starts turning
+    (tests/test_loader_free_joint.py::test_a_massless_root_carrying_a_heavy_child_falls_without_turning)."""
+    return np.where(model.body_mass[:, None] > 0, model.body_ipos, 0.0)
 
 
 def root_state(art, ipos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -105,7 +120,12 @@ class Mapping:
     def joint_dofs_only(self, model: mujoco.MjModel, dofs: set[int]) -> bool:
         """Whether every one of these MuJoCo DoFs is a hinge's or a slide's, so a force on them is joint forces
         SAPIEN applies (`set_qf`)."""
-        return all(self.joints[int(model.dof_jntid[d])].kind in ("hinge", "slide") for d in dofs)
+        return all(self.joints[int(model.dof_jntid[d])].kind in DRIVEN for d in dofs)
+
+    def carries(self, model: mujoco.MjModel, tendon: int) -> bool:
+        """Whether SAPIEN can apply a force along the tendon: every DoF it moves is a mapped hinge, slide or free
+        joint."""
+        return all(self.joints[int(model.dof_jntid[d])].kind in CARRIED for d in mj.tendon_dofs(model, tendon))
 
     def mujoco_dofs(self) -> dict[tuple[int, int], int]:
         """(articulation, SAPIEN DoF) -> MuJoCo DoF, for every DoF a SAPIEN joint carries."""

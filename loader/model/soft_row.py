@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 
 from . import mj
-from .build.compile import MJMINVAL
+from .mj import MJMINVAL
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ import numpy as np
 _TYPES = {int(mujoco.mjtTexture.mjTEXTURE_2D): "2d", int(mujoco.mjtTexture.mjTEXTURE_CUBE): "cube",
           int(mujoco.mjtTexture.mjTEXTURE_SKYBOX): "skybox"}
 
-from .. import mj
+from ..model import mj
 
 
 @dataclass

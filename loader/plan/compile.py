@@ -8,10 +8,8 @@ from pathlib import Path
 
 import mujoco
 
-from .. import mj
 from ..errors import MissingAssetError, MJCFError
-
-MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
+from ..model import mj
 
 _MISSING_FILE_SIGNS = ("error opening file", "resource not found", "could not open", "file not found")
 

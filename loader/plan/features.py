@@ -5,8 +5,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .. import mj
 from ..errors import Notes
+from ..model import mj
 
 FLOAT32_CONDITION = 1e8  # a joint-space inertia conditioned worse leaves float32 (7 digits) no digit to solve with
 

@@ -7,53 +7,15 @@ force law is `runtime/actuators.py`. Derivation: docs/mapping.md#actuators.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..runtime.activation import MAPPED as MAPPED_DYNAMICS
-from ..runtime.tendon_paths import carried
-from .fixed_tendons import fixed_tendon_terms
-from .mapping import Mapping
+from ..model import mj
+from ..model.actuators import MAPPED_DYNAMICS, SPATIAL, ActuatorMap
+from ..model.joints import DRIVEN
+from ..model.mapping import Mapping
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
-SPATIAL: list = []  # the terms `map_actuator` gives an actuator on a spatial tendon (whose terms change with the pose)
-
-
-@dataclass(frozen=True)
-class ActuatorMap:
-    """One MuJoCo actuator in SAPIEN. `stiffness` / `damping` are the joint-space gains it adds (gear² kp and
-    gear² kv, MuJoCo's terms); the PhysX drive of a DoF sums them with the joint's passive terms and takes
-    damping - stiffness x timestep as its damping (`drive.py`)."""
-
-    name: str
-    kind: str  # "motor", "position", "velocity", "general"
-    joint: str | None
-    tendon: str | None
-    articulation: int | None
-    dofs: tuple[int, ...]
-    gear: float
-    ctrlrange: tuple[float, float] | None
-    forcerange: tuple[float, float] | None
-    stiffness: float = 0.0
-    damping: float = 0.0
-    # MuJoCo's force law in actuator space: gain * ctrl + bias[0] + bias[1] * length + bias[2] * velocity
-    gain: float = 0.0
-    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    mapped: bool = True
-    reason: str = ""
-    dynamics: str = "none"  # "filter", "filterexact", "integrator": the gain multiplies the activation
-
-    def unclamped(self, ctrl: float, length: float, velocity: float) -> float:
-        """MuJoCo's actuator force law (before gear and before the forcerange clamp)."""
-        return float(self.gain * ctrl + self.bias[0] + self.bias[1] * length + self.bias[2] * velocity)
-
-    def force(self, ctrl: float, length: float, velocity: float) -> float:
-        """The actuator force (before gear) this mapping applies, clamped to forcerange."""
-        force = self.unclamped(ctrl, length, velocity)
-        return min(max(force, self.forcerange[0]), self.forcerange[1]) if self.forcerange is not None else force
 
 
 def _kind(model: mujoco.MjModel, a: int) -> str:
@@ -91,19 +53,19 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
     base["bias"] = (float(bias[0]), float(bias[1]), float(bias[2]))
     if trn == int(TRN.mjTRN_JOINT):
         joint = mapping.joints[target]
-        if joint.kind not in ("hinge", "slide"):
+        if joint.kind not in DRIVEN:
             return ActuatorMap(**base, mapped=False, reason=f"drives a {joint.kind} joint"), None
         stiffness, damping = -bias[1] * gear**2, -bias[2] * gear**2
         base.update(joint=mj.name(model, "joint", target), articulation=joint.articulation,
                     dofs=joint.dofs)
         return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping)), None
     if trn == int(TRN.mjTRN_TENDON):
-        terms = fixed_tendon_terms(model, target)
+        terms = mj.fixed_tendon_terms(model, target)
         if not terms:  # a spatial tendon: its path and Jacobian are MuJoCo's at every step (`runtime/tendon_paths.py`)
-            if not carried(model, mapping, target):
+            if not mapping.carries(model, target):
                 return ActuatorMap(**base, mapped=False, reason="its spatial tendon crosses a ball joint"), None
             joints = [mapping.joints[int(model.dof_jntid[d])] for d in sorted(mj.tendon_dofs(model, target))]
-            hinges = [j for j in joints if j.kind in ("hinge", "slide")]
+            hinges = [j for j in joints if j.kind in DRIVEN]
             base.update(tendon=mj.name(model, "tendon", target), dofs=tuple(j.dofs[0] for j in hinges),
                         articulation=hinges[0].articulation if hinges else None)
             return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2),
@@ -111,7 +73,7 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
         mapped_terms = []
         for joint_id, coefficient in terms:
             joint = mapping.joints[joint_id]
-            if joint.kind not in ("hinge", "slide"):
+            if joint.kind not in DRIVEN:
                 return ActuatorMap(**base, mapped=False, reason="its tendon crosses a ball or free joint"), None
             mapped_terms.append((joint.articulation, joint.dofs[0], coefficient))
         base.update(tendon=mj.name(model, "tendon", target),
@@ -119,3 +81,13 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
         return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2), damping=float(-bias[2] * gear**2)), mapped_terms
     kind = TRN(trn).name.removeprefix("mjTRN_").lower()
     return ActuatorMap(**base, mapped=False, reason=f"{kind} transmission is not mapped"), None
+
+
+def map_actuators(model: mujoco.MjModel, mapping: Mapping, notes) -> list[tuple[ActuatorMap, list | None]]:
+    """Every actuator's map with its tendon's terms (`map_actuator`); an unmapped one is noted with its reason."""
+    disabled = mj.disabled(model, "actuation")
+    maps = [map_actuator(model, mapping, a, disabled) for a in range(model.nu)]
+    for entry, _ in maps:
+        if not entry.mapped:
+            notes.drop("actuator", entry.name, entry.reason)
+    return maps

@@ -8,18 +8,13 @@ from __future__ import annotations
 
 import contextlib
 import math
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
-from .. import mj
-from ..drive import DofDrive
-from ..runtime.tendons import IMPLICIT
-from .mapping import Mapping
-
-if TYPE_CHECKING:
-    from ..runtime.controller import Controller
+from ..model import mj
+from ..model.equalities import D6Joint
+from ..model.mapping import Mapping
 
 RESIDUAL = 1e-6  # the fraction of a drive impulse's error left after the sweeps
 MAX_ITERATIONS = 255  # PhysX's limit for an articulation
@@ -41,27 +36,18 @@ def sweeps_needed(radius: float, residual: float = RESIDUAL) -> int:
     return min(MAX_ITERATIONS, max(1, math.ceil(math.log(residual) / math.log(radius))))
 
 
-def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
-                qpos: np.ndarray | None = None) -> dict[int, float]:
-    """Per articulation with at least two rows: the Gauss-Seidel radius of its drive and soft connect rows at
-    qpos0 (or `qpos`)."""
+def drive_radii(model: mujoco.MjModel, weights: dict[tuple[int, int], float], connects: list[D6Joint],
+                mapping: Mapping, qpos: np.ndarray | None = None) -> dict[int, float]:
+    """Per articulation with at least two rows: the Gauss-Seidel radius of its drive rows (`weights`: per drive DoF,
+    dt (D' + dt K) of the law its drive holds, `Controller.drive_weights`) and soft connect rows (the D6 joints
+    `connects`) at qpos0 (or `qpos`)."""
     data = mj.forward_at(model, qpos)
     dof_of = mapping.mujoco_dofs()
-    timestep = controller.timestep
-    implicit = int(model.opt.integrator) in IMPLICIT
-    actuators, tendons = controller.term("actuators", on=True), controller.term("tendons", on=True)
-    # under implicit integrators the tendon actuators' kv diagonal and the passive tendon dampers' join the drives
-    tendon_kv = actuators.tendon_kv_diagonal() if implicit and actuators is not None else {}
-    passive_diagonal = tendons.implicit_diagonal() if implicit and tendons is not None else {}
     rows: dict[int, list[tuple[np.ndarray, float]]] = {}  # per articulation: (row over MuJoCo's DoFs, compliance)
-    for key, dof_drive in controller.laws().items():
-        dof_drive = DofDrive(dof_drive.stiffness, dof_drive.damping + passive_diagonal.get(key, 0.0))
-        damping = dof_drive.physx_damping(timestep) + tendon_kv.get(key, 0.0)
-        weight = timestep * (damping + timestep * dof_drive.stiffness)
+    for key, weight in weights.items():
         if weight > 0 and key in dof_of:
             rows.setdefault(key[0], []).append((np.eye(model.nv)[dof_of[key]], 1.0 / weight))
-    equalities = controller.term("equalities", on=True)
-    for art, jacobian, compliance in connect_rows(model, data, equalities.connects if equalities is not None else []):
+    for art, jacobian, compliance in connect_rows(model, data, connects):
         rows.setdefault(art, []).extend((j, compliance) for j in jacobian)
     radii = {}
     for art, entries in rows.items():
@@ -72,8 +58,9 @@ def drive_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping,
     return radii
 
 
-def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[tuple[int, np.ndarray, float]]:
-    """Per soft connect or weld (`runtime/equalities.py`): its articulation, its three linear rows J1(p1) - J2(p2) at qpos0
+def connect_rows(model: mujoco.MjModel, data: mujoco.MjData,
+                 connects: list[D6Joint]) -> list[tuple[int, np.ndarray, float]]:
+    """Per connect or weld on a D6 joint: its articulation, its three linear rows J1(p1) - J2(p2) at qpos0
     and their compliance R (PhysX's damper 1 / (dt R) leaves R per unit impulse), at a closed loop's impedance; a
     weld's three rotational rows as a second entry (a row's sign does not change the radius)."""
     result = []
@@ -89,7 +76,7 @@ def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[t
             jacobian += sign * part
         imp = connect.row.impedance(0.0)
         result.append((connect.articulation, jacobian, connect.row.regularizer(imp, connect.diag_approx[0])))
-        scale = getattr(connect, "torquescale", 0.0)  # a weld's rotational rows: ts/2 R2^T (Jr1 - Jr2), closed
+        scale = connect.torquescale  # a weld's rotational rows: ts/2 R2^T (Jr1 - Jr2), closed
         if scale:
             rotation = np.zeros((3, model.nv))
             for sign, body in ((1.0, connect.child_body), (-1.0, connect.parent_body)):
@@ -102,11 +89,12 @@ def connect_rows(model: mujoco.MjModel, data: mujoco.MjData, connects) -> list[t
     return result
 
 
-def largest_radii(model: mujoco.MjModel, controller: Controller, mapping: Mapping) -> dict[int, float]:
+def largest_radii(model: mujoco.MjModel, weights: dict[tuple[int, int], float], connects: list[D6Joint],
+                  mapping: Mapping) -> dict[int, float]:
     """Per articulation, the largest drive radius over qpos0 and the keyframes."""
     largest: dict[int, float] = {}
     for qpos in (None, *model.key_qpos):
-        for art, radius in drive_radii(model, controller, mapping, qpos).items():
+        for art, radius in drive_radii(model, weights, connects, mapping, qpos).items():
             largest[art] = max(radius, largest.get(art, 0.0))
     return largest
 
@@ -132,10 +120,11 @@ def one_blas_thread():
     return _BLAS.limit(limits=1, user_api="blas") if _BLAS is not None else contextlib.nullcontext()
 
 
-def tune_iterations(articulations, model: mujoco.MjModel, controller: Controller, mapping: Mapping, notes) -> None:
+def tune_iterations(articulations, model: mujoco.MjModel, weights: dict[tuple[int, int], float],
+                    connects: list[D6Joint], mapping: Mapping, notes) -> None:
     """Raise each articulation's position iterations to what its drives need (never lowers them)."""
     with one_blas_thread():
-        radii = largest_radii(model, controller, mapping)
+        radii = largest_radii(model, weights, connects, mapping)
     for art, radius in radii.items():
         articulation = articulations[art]
         needed = sweeps_needed(radius)

@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import sapien
 
-from .. import mj
-from ..frames import mat_to_quat, pose, quat_mul, unit_quat
+from ..model import mj
+from ..model.frames import mat_to_quat, pose, quat_mul, unit_quat
 
 # SAPIEN cameras look along +X with +Z up; MuJoCo's look along -Z with +Y up.
 # Columns: SAPIEN's x, y, z axes written in MuJoCo camera axes.

@@ -14,9 +14,9 @@ import mujoco
 import numpy as np
 import sapien
 
-from .. import mj
 from ..errors import Notes
-from ..frames import X_TO_Z, pose
+from ..model import mj
+from ..model.frames import X_TO_Z, pose
 
 G = mujoco.mjtGeom
 PLANE, HFIELD, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = (
