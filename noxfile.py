@@ -43,10 +43,13 @@ def maniskill(session: nox.Session) -> None:
 
 @nox.session
 def lint(session: nox.Session) -> None:
-    """Static checks: ruff, and the house rules (no measured number in a loader docstring, no import cycle, no class
-    over 120 lines in the loader, no private attribute read across objects)."""
+    """Static checks: the formatter (`ruff format --check`), ruff's lint with line length and function complexity,
+    and the house rules (no measured number in a loader docstring, no import cycle, the loader's layers, no private
+    attribute read across objects, docs that name only what exists)."""
     install(session, "harness", "test")
-    session.run("python", "-m", "ruff", "check", "loader", "conformance", "tests", "noxfile.py")
+    paths = ("loader", "conformance", "tests", "noxfile.py")
+    session.run("python", "-m", "ruff", "format", "--check", *paths)
+    session.run("python", "-m", "ruff", "check", *paths)
     session.run("python", "tests/support/house.py")
 
 

@@ -53,8 +53,15 @@ def cold_seconds(path: str, what: str) -> float:
     folder)."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (str(PROJECT), os.environ.get("PYTHONPATH")) if p))
     with tempfile.TemporaryDirectory() as scratch:
-        done = subprocess.run([sys.executable, "-c", _COLD, path, what], check=False, cwd=scratch, env=env, capture_output=True,
-                              text=True, timeout=600)
+        done = subprocess.run(
+            [sys.executable, "-c", _COLD, path, what],
+            check=False,
+            cwd=scratch,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
     lines = [line.split()[1] for line in done.stdout.splitlines() if line.startswith("seconds ")]
     if done.returncode or not lines:
         raise RuntimeError(f"cold {what} failed: {(done.stderr or done.stdout).strip()[-500:]}")
@@ -84,8 +91,12 @@ def load_timings(path: str, repeats: int = REPEATS) -> tuple[dict, object]:
             result = None  # the previous scene goes before the next is built
             seconds, result = _timed(lambda: quiet_load(path))
             warm_load.append(seconds)
-    row = {"mujoco_compile_s": statistics.median(warm_compile), "loader_load_s": statistics.median(warm_load),
-           "cold_mujoco_compile_s": statistics.median(cold_compile), "cold_loader_load_s": statistics.median(cold_load)}
+    row = {
+        "mujoco_compile_s": statistics.median(warm_compile),
+        "loader_load_s": statistics.median(warm_load),
+        "cold_mujoco_compile_s": statistics.median(cold_compile),
+        "cold_loader_load_s": statistics.median(cold_load),
+    }
     row["load_over_compile"] = _ratio(row["loader_load_s"], row["mujoco_compile_s"])
     row["cold_load_over_compile"] = _ratio(row["cold_loader_load_s"], row["cold_mujoco_compile_s"])
     return row, result
@@ -112,7 +123,9 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
         "set_ctrl_us": 1e6 * set_ctrl_s / steps,
         "physx_step_us": 1e6 * step_s / steps,
         "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
-        "nbody": model.nbody, "nv": model.nv, "ngeom": model.ngeom,
+        "nbody": model.nbody,
+        "nv": model.nv,
+        "ngeom": model.ngeom,
     }
 
 
@@ -167,7 +180,13 @@ def bench(entries: list[ModelEntry], out: Path, steps: int = 200, repeats: int =
             models[entry.id] = bench_model(str(resolved.path), steps, repeats)
         except Exception as exc:  # noqa: BLE001 - one broken model does not end the benchmark
             models[entry.id] = {"error": f"{type(exc).__name__}: {exc}"}
-    doc = {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions(),
-           "repeats": repeats, "target_load_over_compile": TARGET, "models": models, "totals": totals(models)}
+    doc = {
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "versions": versions(),
+        "repeats": repeats,
+        "target_load_over_compile": TARGET,
+        "models": models,
+        "totals": totals(models),
+    }
     atomic_write_json(Path(out), doc)
     return doc

@@ -31,8 +31,13 @@ class ChaosGate:
         return replace(self, judged_steps=self.steps) if agreed and self.chaotic else self
 
     def to_dict(self) -> dict:
-        return {"perturbation": self.perturbation, "amplification_max": float(self.amplification.max()),
-                "amplification_limit": self.limit, "judged_steps": self.judged_steps, "steps": self.steps}
+        return {
+            "perturbation": self.perturbation,
+            "amplification_max": float(self.amplification.max()),
+            "amplification_limit": self.limit,
+            "judged_steps": self.judged_steps,
+            "steps": self.steps,
+        }
 
 
 def perturbed(model: mujoco.MjModel, qpos: np.ndarray, size: float, seed: int) -> np.ndarray:

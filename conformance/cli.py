@@ -71,69 +71,127 @@ class _Defaults(argparse.HelpFormatter):
     def _get_help_string(self, action):
         text = action.help or ""
         default = action.default
-        if action.option_strings and "(default" not in text and not (
-                default is None or default is False or default == [] or default == argparse.SUPPRESS):
+        if (
+            action.option_strings
+            and "(default" not in text
+            and not (default is None or default is False or default == [] or default == argparse.SUPPRESS)
+        ):
             text += " (default: %(default)s)"
         return text
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m conformance",
-                                description="MuJoCo vs SAPIEN conformance harness")
+    p = argparse.ArgumentParser(prog="python -m conformance", description="MuJoCo vs SAPIEN conformance harness")
     p.add_argument("--version", action="version", version=project_version())
     sub = p.add_subparsers(dest="command", required=True)
     defaults = _Defaults
-    run = sub.add_parser("run", help="run the tiers over the manifest or over MJCF files", formatter_class=defaults,
-                         description="Exit status: 0 when no outcome is worse than the manifest expects, 1 when one "
-                         "is, 2 for a usage error (nothing is written), 130 when interrupted.")
-    run.add_argument("paths", nargs="*", help="MJCF files or folders of them to check instead of the manifest's "
-                     "models (a manifest model's file keeps its expectations)")
-    run.add_argument("--corpus", default=None, help="a named corpus beside the default one: corpus/<NAME>.toml "
-                     "(full: the default corpus and more real robots, from the robots extra)")
+    run = sub.add_parser(
+        "run",
+        help="run the tiers over the manifest or over MJCF files",
+        formatter_class=defaults,
+        description="Exit status: 0 when no outcome is worse than the manifest expects, 1 when one "
+        "is, 2 for a usage error (nothing is written), 130 when interrupted.",
+    )
+    run.add_argument(
+        "paths",
+        nargs="*",
+        help="MJCF files or folders of them to check instead of the manifest's "
+        "models (a manifest model's file keeps its expectations)",
+    )
+    run.add_argument(
+        "--corpus",
+        default=None,
+        help="a named corpus beside the default one: corpus/<NAME>.toml "
+        "(full: the default corpus and more real robots, from the robots extra)",
+    )
     run.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
     run.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
-    run.add_argument("--tiers", type=_tiers, default=None, help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)")
-    run.add_argument("--loader", type=_loader, default=None, help="the loader judged: ours (this project's, the "
-                     "default) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)")
-    run.add_argument("--compare", type=_loaders, default=None, metavar="A,B", help="run each loader and write "
-                     "compare.md and compare.json (per model and tier, every loader's outcome and main metric) "
-                     "beside each loader's own run folder")
+    run.add_argument(
+        "--tiers",
+        type=_tiers,
+        default=None,
+        help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)",
+    )
+    run.add_argument(
+        "--loader",
+        type=_loader,
+        default=None,
+        help="the loader judged: ours (this project's, the "
+        "default) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)",
+    )
+    run.add_argument(
+        "--compare",
+        type=_loaders,
+        default=None,
+        metavar="A,B",
+        help="run each loader and write "
+        "compare.md and compare.json (per model and tier, every loader's outcome and main metric) "
+        "beside each loader's own run folder",
+    )
     run.add_argument("--seed", type=int, default=0, help="seed of configurations and commands")
-    run.add_argument("--seeds", type=_seeds, default=(), metavar="A..B", help="a sweep instead of --seed: every "
-                     "model once per seed from A to B (inclusive), its id suffixed @seed<N>")
-    run.add_argument("--out", default="reports", help="folder that receives one <run>/ folder per run (summary.md, "
-                     "summary.json, recordings) and the link latest")
+    run.add_argument(
+        "--seeds",
+        type=_seeds,
+        default=(),
+        metavar="A..B",
+        help="a sweep instead of --seed: every model once per seed from A to B (inclusive), its id suffixed @seed<N>",
+    )
+    run.add_argument(
+        "--out",
+        default="reports",
+        help="folder that receives one <run>/ folder per run (summary.md, "
+        "summary.json, recordings) and the link latest",
+    )
     run.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
-    run.add_argument("--executor", type=_executor, default="local", help="where the jobs run: local (worker "
-                     "processes), ray (a new local Ray instance), ray://HOST:PORT (a Ray cluster through Ray Client) or "
-                     "ray:auto (the Ray cluster this machine is part of); Ray needs the ray extra")
+    run.add_argument(
+        "--executor",
+        type=_executor,
+        default="local",
+        help="where the jobs run: local (worker "
+        "processes), ray (a new local Ray instance), ray://HOST:PORT (a Ray cluster through Ray Client) or "
+        "ray:auto (the Ray cluster this machine is part of); Ray needs the ray extra",
+    )
     run.add_argument("--timeout-scale", type=float, default=1.0, help="multiply every model's timeout")
     run.add_argument("--tolerances", default=None, help="tolerance file (default: the packaged one)")
     run.add_argument("--no-record", action="store_true", help="skip the .rrd recordings")
-    run.add_argument("--visual-meshes", action="store_true",
-                     help="recordings also draw MuJoCo's visual-only geoms (default: collision geoms)")
+    run.add_argument(
+        "--visual-meshes",
+        action="store_true",
+        help="recordings also draw MuJoCo's visual-only geoms (default: collision geoms)",
+    )
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    run.add_argument("-v", "--verbose", action="store_true", help="each of the loader's notes under its model "
-                     "(without: counted per kind on the model's line)")
-    bench = sub.add_parser("bench", help="loader time vs MuJoCo compile time, harness steps per second",
-                           formatter_class=defaults)
+    run.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="each of the loader's notes under its model (without: counted per kind on the model's line)",
+    )
+    bench = sub.add_parser(
+        "bench", help="loader time vs MuJoCo compile time, harness steps per second", formatter_class=defaults
+    )
     bench.add_argument("paths", nargs="*", help="MJCF files or folders of them instead of the manifest's models")
     bench.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus manifest (TOML)")
     bench.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
     bench.add_argument("--out", default=str(Path("reports") / "bench.json"), help="JSON report")
     bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
     bench.add_argument("--repeats", type=int, default=5, help="loads and compiles per model, cold and warm (median)")
-    robust = sub.add_parser("robustness", help="mutants of the corpus's real files, each loaded and stepped in its "
-                            "own process; exit 1 on any bad outcome",
-                            formatter_class=defaults)
+    robust = sub.add_parser(
+        "robustness",
+        help="mutants of the corpus's real files, each loaded and stepped in its "
+        "own process; exit 1 on any bad outcome",
+        formatter_class=defaults,
+    )
     robust.add_argument("--mutants", type=int, default=1000, help="how many mutants")
     robust.add_argument("--seed", type=int, default=0, help="seed of the mutations and the random ctrl")
     robust.add_argument("--manifest", default=str(DEFAULT_MANIFEST), help="corpus whose files are mutated")
     robust.add_argument("--model", action="append", default=[], help="only this manifest model id (repeatable)")
     robust.add_argument("--jobs", type=int, default=0, help="processes at once (0: all cores)")
     robust.add_argument("--out", default=str(Path("reports") / "robustness.json"), help="JSON report")
-    robust.add_argument("--save", default=None, help="folder for shrunk bad mutants (e.g. corpus/regressions/"
-                        "mutants); default: not saved")
+    robust.add_argument(
+        "--save",
+        default=None,
+        help="folder for shrunk bad mutants (e.g. corpus/regressions/mutants); default: not saved",
+    )
     robust.add_argument("--quiet", action="store_true", help="no progress lines")
     return p
 
@@ -154,8 +212,10 @@ def _known(manifest_path: str) -> dict[Path, manifest_mod.ModelEntry]:
 
 def _entries(args) -> list:
     if getattr(args, "paths", None) and getattr(args, "model", None):
-        raise ValueError(f"--model {' '.join(args.model)} picks manifest models and the paths pick files: give one "
-                         "or the other (a path that is a manifest model's file keeps its expectations)")
+        raise ValueError(
+            f"--model {' '.join(args.model)} picks manifest models and the paths pick files: give one "
+            "or the other (a path that is a manifest model's file keeps its expectations)"
+        )
     if getattr(args, "corpus", None):
         named = Path(args.manifest).parent / f"{args.corpus}.toml"
         if not named.is_file():
@@ -189,12 +249,21 @@ def cmd_run(args) -> int:
     entries = _entries(args)
     if args.seeds and args.seed:
         raise ValueError(f"--seed {args.seed} and --seeds {args.seeds[0]}..{args.seeds[-1]}: give one or the other")
-    options = RunOptions(out=Path(args.out), seed=args.seed, seeds=args.seeds, executor=args.executor,
-                         jobs=args.jobs, tiers=args.tiers,
-                         tolerance_file=args.tolerances, timeout_scale=args.timeout_scale,
-                         progress=not args.quiet, record=not args.no_record,
-                         visual_meshes=args.visual_meshes, loader=loaders[0],
-                         extra={"manifest": args.manifest if not args.paths else None})
+    options = RunOptions(
+        out=Path(args.out),
+        seed=args.seed,
+        seeds=args.seeds,
+        executor=args.executor,
+        jobs=args.jobs,
+        tiers=args.tiers,
+        tolerance_file=args.tolerances,
+        timeout_scale=args.timeout_scale,
+        progress=not args.quiet,
+        record=not args.no_record,
+        visual_meshes=args.visual_meshes,
+        loader=loaders[0],
+        extra={"manifest": args.manifest if not args.paths else None},
+    )
     if args.compare:
         return _cmd_compare(entries, options, loaders)
     try:
@@ -220,13 +289,17 @@ def _cmd_compare(entries, options, loaders: tuple[str, ...]) -> int:
         return 130
     for loader in loaders:
         counts = ", ".join(f"{k} {v}" for k, v in sorted(doc["tally"][loader].items()))
-        print(f"{loader}: {doc['models_passing'][loader]} of {len(doc['models'])} models pass every tier that ran; "
-              f"model x tier: {counts}; {folder / loader / 'summary.md'}")
+        print(
+            f"{loader}: {doc['models_passing'][loader]} of {len(doc['models'])} models pass every tier that ran; "
+            f"model x tier: {counts}; {folder / loader / 'summary.md'}"
+        )
     print(f"report: {folder / 'compare.md'}")
     first = docs[loaders[0]]
     if not first["ok"]:
-        print(f"{loaders[0]}: {len(first['worse_than_expected'])} outcome(s) worse than the manifest expects",
-              file=sys.stderr)
+        print(
+            f"{loaders[0]}: {len(first['worse_than_expected'])} outcome(s) worse than the manifest expects",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -236,8 +309,10 @@ def cmd_bench(args) -> int:
 
     doc = bench(_entries(args), Path(args.out), steps=args.steps, repeats=args.repeats)
     over = doc["totals"]["over_target"]
-    print(f"bench: {args.out} ({len(doc['models'])} models); load over compile above {doc['target_load_over_compile']}: "
-          f"cold {', '.join(over['cold']) or 'none'}; warm {', '.join(over['warm']) or 'none'}")
+    print(
+        f"bench: {args.out} ({len(doc['models'])} models); load over compile above {doc['target_load_over_compile']}: "
+        f"cold {', '.join(over['cold']) or 'none'}; warm {', '.join(over['warm']) or 'none'}"
+    )
     return 0
 
 
@@ -251,9 +326,14 @@ def cmd_robustness(args) -> int:
     sources = sources_of(_entries(args))
     if not sources:
         raise ValueError(f"no source file of {args.manifest} is installed")
-    tally = run(sources, args.mutants, seed=args.seed, jobs=args.jobs or os.cpu_count() or 1,
-                save=Path(args.save) if args.save else None,
-                progress=None if args.quiet else print_progress(args.mutants))
+    tally = run(
+        sources,
+        args.mutants,
+        seed=args.seed,
+        jobs=args.jobs or os.cpu_count() or 1,
+        save=Path(args.save) if args.save else None,
+        progress=None if args.quiet else print_progress(args.mutants),
+    )
     doc = {"seed": args.seed, "sources": [s.source for s in sources], "versions": versions(), **tally.to_dict()}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -261,11 +341,15 @@ def cmd_robustness(args) -> int:
     counts = ", ".join(f"{k} {v}" for k, v in doc["outcomes"].items())
     if doc["interrupted"]:
         print(f"robustness: interrupted after {doc['mutants']} of {args.mutants} mutants; the report holds those")
-    print(f"robustness: {doc['mutants']} mutants of {len(sources)} files in {doc['seconds']} s "
-          f"({doc['mutants_per_second']} per second): {counts}; bad {doc['bad']}")
+    print(
+        f"robustness: {doc['mutants']} mutants of {len(sources)} files in {doc['seconds']} s "
+        f"({doc['mutants_per_second']} per second): {counts}; bad {doc['bad']}"
+    )
     for finding in doc["findings"]:
-        print(f"  bad: {finding['outcome']} {finding['source']} #{finding['index']} {finding['kind']} "
-              f"({finding['description']}): {finding['detail'][:200]}")
+        print(
+            f"  bad: {finding['outcome']} {finding['source']} #{finding['index']} {finding['kind']} "
+            f"({finding['description']}): {finding['detail'][:200]}"
+        )
     print(f"report: {out}")
     return 1 if doc["bad"] or doc["interrupted"] else 0
 

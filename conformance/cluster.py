@@ -75,8 +75,9 @@ def run_on_node(job: Job, timeout_s: float) -> NodeResult:
     """The Ray task: the job in a fresh process in a folder of its own, under `timeout_s`; its result and files."""
     resolved = resolve(job.entry)  # the node's own copy of the model
     if resolved.path is None:
-        lost = ModelResult(job.entry.id, "crashed", reason=f"node {socket.gethostname()} cannot find the model: "
-                                                            f"{resolved.skip_reason}")
+        lost = ModelResult(
+            job.entry.id, "crashed", reason=f"node {socket.gethostname()} cannot find the model: {resolved.skip_reason}"
+        )
         return NodeResult(lost.to_dict(), None, None, b"")
     with tempfile.TemporaryDirectory(prefix="conformance-job-") as tmp:
         local = replace(job, path=str(resolved.path), run_dir=tmp)
@@ -91,8 +92,9 @@ def run_on_node(job: Job, timeout_s: float) -> NodeResult:
             proc.join()
         result = collect(local, proc.exitcode, timed_out, time.monotonic() - start)
         recording = _read(Path(tmp) / result.recording) if result.recording else None
-        return NodeResult(result.to_dict(), _read(result_path(tmp, job.entry.id)), recording,
-                          _read(Path(tmp) / MUJOCO_LOG) or b"")
+        return NodeResult(
+            result.to_dict(), _read(result_path(tmp, job.entry.id)), recording, _read(Path(tmp) / MUJOCO_LOG) or b""
+        )
 
 
 def _lost(job: Job, exc: Exception) -> ModelResult:

@@ -27,13 +27,21 @@ def collect(job: Job, exitcode: int | None, timed_out: bool, seconds: float) -> 
     partial = Path(job.run_dir) / f".{job.entry.id}.rrd.partial"  # a recording the worker did not finish
     partial.unlink(missing_ok=True)
     if timed_out:
-        return ModelResult(job.entry.id, "timeout", seconds=round(seconds, 3),
-                           reason=f"worker exceeded its {job.entry.timeout_s:g} s timeout and was killed")
+        return ModelResult(
+            job.entry.id,
+            "timeout",
+            seconds=round(seconds, 3),
+            reason=f"worker exceeded its {job.entry.timeout_s:g} s timeout and was killed",
+        )
     path = result_path(job.run_dir, job.entry.id)
     if path.is_file():
         try:
             return ModelResult.from_dict(json.loads(path.read_text()))
         except (json.JSONDecodeError, TypeError, ValueError) as exc:
             return ModelResult(job.entry.id, "crashed", reason=f"unreadable result file: {exc}")
-    return ModelResult(job.entry.id, "crashed", seconds=round(seconds, 3),
-                       reason=f"worker died without a result ({describe_exit(exitcode)})")
+    return ModelResult(
+        job.entry.id,
+        "crashed",
+        seconds=round(seconds, 3),
+        reason=f"worker died without a result ({describe_exit(exitcode)})",
+    )

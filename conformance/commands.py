@@ -42,8 +42,14 @@ def dof_inertia(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     return 1.0 / np.maximum(compliance, np.finfo(float).tiny)
 
 
-def smooth_signal(gen: np.random.Generator, steps: int, dt: float, channels: int,
-                  freq_hz: tuple[float, float] = (0.5, 3.0), components: int = 3) -> np.ndarray:
+def smooth_signal(
+    gen: np.random.Generator,
+    steps: int,
+    dt: float,
+    channels: int,
+    freq_hz: tuple[float, float] = (0.5, 3.0),
+    components: int = 3,
+) -> np.ndarray:
     """(steps, channels) sums of random sinusoids, each channel of unit peak bound, zero mean-ish."""
     t = np.arange(steps)[:, None] * dt
     out = np.zeros((steps, channels))
@@ -58,8 +64,7 @@ def zero_torque(model: mujoco.MjModel, steps: int) -> np.ndarray:
     return np.zeros((steps, model.nv))
 
 
-def random_torque(model: mujoco.MjModel, qpos0: np.ndarray, steps: int, seed: int,
-                  accel: float) -> np.ndarray:
+def random_torque(model: mujoco.MjModel, qpos0: np.ndarray, steps: int, seed: int, accel: float) -> np.ndarray:
     """Smooth random torques sized to give about `accel` (rad/s^2 or m/s^2) on each dof."""
     scale = dof_inertia(model, qpos0) * accel * actuated_dofs(model)
     return smooth_signal(rng(seed, "torque"), steps, model.opt.timestep, model.nv) * scale
@@ -71,8 +76,16 @@ class PDTracking:
     The torque is computed from the state passed in (the MuJoCo reference run); the sequence it
     produced is then replayed on SAPIEN, so both sides receive exactly the same command."""
 
-    def __init__(self, model: mujoco.MjModel, qpos0: np.ndarray, steps: int, seed: int,
-                 amplitude: float, freq_hz: float, damping_ratio: float = 1.0):
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        qpos0: np.ndarray,
+        steps: int,
+        seed: int,
+        amplitude: float,
+        freq_hz: float,
+        damping_ratio: float = 1.0,
+    ):
         self.mask = actuated_dofs(model)
         inertia = dof_inertia(model, qpos0)
         omega = 2 * np.pi * freq_hz
@@ -117,8 +130,9 @@ def hold_ctrl(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray) -> np
         mujoco.mj_forward(model, data)
         gain, bias = model.actuator_gainprm[:, 0], model.actuator_biasprm
         affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
-        bias_force = np.where(affine, bias[:, 0] + bias[:, 1] * data.actuator_length
-                              + bias[:, 2] * data.actuator_velocity, 0.0)
+        bias_force = np.where(
+            affine, bias[:, 0] + bias[:, 1] * data.actuator_length + bias[:, 2] * data.actuator_velocity, 0.0
+        )
         ctrl = np.where(gain != 0, -bias_force / np.where(gain != 0, gain, 1.0), 0.0)
     return clip_ctrl(model, ctrl)
 
@@ -135,8 +149,16 @@ def ctrl_span(model: mujoco.MjModel) -> np.ndarray:
     return np.where(model.actuator_ctrllimited, np.diff(model.actuator_ctrlrange, axis=1)[:, 0], 1.0)
 
 
-def ctrl_sequence(model: mujoco.MjModel, hold: np.ndarray, steps: int, seed: int, step_fraction: float,
-                  smooth_fraction: float, phases: tuple[float, float], scale: float = 1.0) -> np.ndarray:
+def ctrl_sequence(
+    model: mujoco.MjModel,
+    hold: np.ndarray,
+    steps: int,
+    seed: int,
+    step_fraction: float,
+    smooth_fraction: float,
+    phases: tuple[float, float],
+    scale: float = 1.0,
+) -> np.ndarray:
     """(steps, nu) seeded ctrl: hold at `hold` for the first phases[0] of the horizon, then a step to a random
     target (hold +- step_fraction of the ctrlrange width), held until phases[1] of the horizon, then smooth random
     motion (smooth_fraction of the width) about that target; `scale` shrinks every deviation from `hold`.

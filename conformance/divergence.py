@@ -40,8 +40,10 @@ class SpeedBound:
 
     @classmethod
     def from_tolerances(cls, tolerances) -> SpeedBound:
-        return cls(float(tolerances.setting("divergence", "speed_factor")),
-                   float(tolerances.setting("divergence", "speed_floor")))
+        return cls(
+            float(tolerances.setting("divergence", "speed_factor")),
+            float(tolerances.setting("divergence", "speed_floor")),
+        )
 
     def limit(self, mujoco_qvel) -> float:
         reference = np.abs(np.asarray(mujoco_qvel, dtype=float))
@@ -49,8 +51,7 @@ class SpeedBound:
         return max(self.floor, self.factor * fastest)
 
 
-def first_divergence(run: str, qpos, qvel, mujoco_qvel, bound: SpeedBound, dt: float,
-                     steps=None) -> Divergence | None:
+def first_divergence(run: str, qpos, qvel, mujoco_qvel, bound: SpeedBound, dt: float, steps=None) -> Divergence | None:
     """The first row of a SAPIEN run (qpos (T, nq), qvel (T, nv)) that is not finite or moves faster than the
     bound MuJoCo's run (`mujoco_qvel`, any shape) allows; `steps` names the rows' step numbers (default 0..T-1)."""
     qpos = np.asarray(qpos, dtype=float).reshape(len(qpos), -1)

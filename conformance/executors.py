@@ -80,7 +80,7 @@ def ray_address(spec: str) -> str | None:
     if spec.startswith("ray://") and len(spec) > len("ray://"):
         return spec
     if spec.startswith("ray:") and not spec.startswith("ray:/") and len(spec) > len("ray:"):
-        return spec[len("ray:"):]
+        return spec[len("ray:") :]
     raise ValueError(f"unknown executor {spec!r}: use {LOCAL}, ray, ray://HOST:PORT or ray:auto")
 
 

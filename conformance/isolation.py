@@ -37,6 +37,7 @@ def _zero_frictionloss(spec: mujoco.MjSpec) -> None:
 def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
     def edit(spec: mujoco.MjSpec) -> None:
         spec.option.disableflags |= int(bit)
+
     return edit
 
 
@@ -57,21 +58,42 @@ class Gap:
     remove: Callable[[mujoco.MjSpec], None]
 
 
-GAPS = {gap.name: gap for gap in (
-    Gap("frictionloss", "joint frictionloss zeroed (its rows are MuJoCo's own, solved with the others)",
-        lambda m: bool(m.dof_frictionloss.any()), _zero_frictionloss),
-    Gap("equality", "equality constraints disabled (couplings and fixed-base loops are MuJoCo's own rows; "
-        "connects and welds moving a ball joint are D6 joints, coupled with joint damping)",
-        lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
-        _disable(FLAGS.mjDSBL_EQUALITY)),
-    Gap("limits", "joint limits disabled (MuJoCo's own rows on both sides, solved with MuJoCo's contacts)",
-        lambda m: bool(m.jnt_limited.any()) and not mj.disabled(m, "limit", "constraint"),
-        _disable(FLAGS.mjDSBL_LIMIT)),
-    Gap("fluid", "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
-        lambda m: m.opt.density > 0 or m.opt.viscosity > 0, _no_fluid),
-    Gap("half_timestep", "timestep halved on both sides (integration differences shrink faster than force errors)",
-        lambda m: True, _half_timestep),
-)}
+GAPS = {
+    gap.name: gap
+    for gap in (
+        Gap(
+            "frictionloss",
+            "joint frictionloss zeroed (its rows are MuJoCo's own, solved with the others)",
+            lambda m: bool(m.dof_frictionloss.any()),
+            _zero_frictionloss,
+        ),
+        Gap(
+            "equality",
+            "equality constraints disabled (couplings and fixed-base loops are MuJoCo's own rows; "
+            "connects and welds moving a ball joint are D6 joints, coupled with joint damping)",
+            lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
+            _disable(FLAGS.mjDSBL_EQUALITY),
+        ),
+        Gap(
+            "limits",
+            "joint limits disabled (MuJoCo's own rows on both sides, solved with MuJoCo's contacts)",
+            lambda m: bool(m.jnt_limited.any()) and not mj.disabled(m, "limit", "constraint"),
+            _disable(FLAGS.mjDSBL_LIMIT),
+        ),
+        Gap(
+            "fluid",
+            "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
+            lambda m: m.opt.density > 0 or m.opt.viscosity > 0,
+            _no_fluid,
+        ),
+        Gap(
+            "half_timestep",
+            "timestep halved on both sides (integration differences shrink faster than force errors)",
+            lambda m: True,
+            _half_timestep,
+        ),
+    )
+}
 
 
 def present_gaps(model: mujoco.MjModel) -> list[str]:
@@ -101,13 +123,20 @@ def run_without(path: str, tier: str, gaps: tuple[str, ...], seed: int, toleranc
         report = TIERS[tier](result, result.model, seed, tolerances)
     except Exception as exc:  # noqa: BLE001 - a failed isolation run is reported, it does not stop the model
         return {**entry, "outcome": "error", "reason": f"{type(exc).__name__}: {exc}", "metrics": []}
-    return {**entry, "outcome": report.status,
-            "metrics": [{"name": m.name, "max": m.max, "tolerance": m.tolerance} for m in report.metrics
-                        if m.name != "settings_mismatches"]}
+    return {
+        **entry,
+        "outcome": report.status,
+        "metrics": [
+            {"name": m.name, "max": m.max, "tolerance": m.tolerance}
+            for m in report.metrics
+            if m.name != "settings_mismatches"
+        ],
+    }
 
 
-def isolate(path: str, model: mujoco.MjModel, tier: str, seed: int, tolerances,
-            claimed: tuple[tuple[str, ...], ...] = ()) -> list[dict]:
+def isolate(
+    path: str, model: mujoco.MjModel, tier: str, seed: int, tolerances, claimed: tuple[tuple[str, ...], ...] = ()
+) -> list[dict]:
     """Runs of `tier` without each present gap, without all of them, and without each claimed combination."""
     gaps = present_gaps(model)
     physical = tuple(g for g in gaps if g != "half_timestep")

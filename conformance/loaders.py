@@ -10,8 +10,7 @@ DEFAULT = "ours"
 # per loader, the tiers it cannot take part in on any model, and why (expected: skipped)
 SKIPS = {
     "maniskill": {
-        "collision": "ManiSkill's loader names no collision shape, so no geom can be matched to one by its MuJoCo "
-                     "name",
+        "collision": "ManiSkill's loader names no collision shape, so no geom can be matched to one by its MuJoCo name",
         "actuated_contact": "ManiSkill's loader maps no actuators",
         "actuated": "ManiSkill's loader maps no actuators",
         "maniskill": "the maniskill tier runs this project's loader inside ManiSkill, not ManiSkill's own",
@@ -32,8 +31,17 @@ def maniskill(path: str) -> Session:
     from . import maniskill_loader
 
     result, model, compile_seconds, load_seconds = maniskill_loader.load(path)
-    return Session(str(path), result, model, load_seconds, compile_seconds, fix_root_link=True,
-                   loader=maniskill_loader.NAME, skips=dict(SKIPS["maniskill"]), isolates=False)
+    return Session(
+        str(path),
+        result,
+        model,
+        load_seconds,
+        compile_seconds,
+        fix_root_link=True,
+        loader=maniskill_loader.NAME,
+        skips=dict(SKIPS["maniskill"]),
+        isolates=False,
+    )
 
 
 LOADERS = {"ours": ours, "maniskill": maniskill}

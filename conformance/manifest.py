@@ -9,8 +9,17 @@ import tomllib
 
 from .isolation import GAPS, ISOLATED_TIERS
 
-TIER_NAMES = ("structure", "kinematics", "inertia", "collision", "contact", "actuated_contact", "actuated",
-              "dynamics", "maniskill")
+TIER_NAMES = (
+    "structure",
+    "kinematics",
+    "inertia",
+    "collision",
+    "contact",
+    "actuated_contact",
+    "actuated",
+    "dynamics",
+    "maniskill",
+)
 OPTIONAL_TIERS = ("maniskill",)  # run only when asked (`--tiers`, a model's `tiers`): it needs the maniskill extra
 DEFAULT_TIERS = tuple(t for t in TIER_NAMES if t not in OPTIONAL_TIERS)
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
@@ -114,28 +123,45 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
     for exp in raw.get("expect", []):
         tier, outcome, reason = exp.get("tier"), exp.get("outcome"), exp.get("reason")
         if tier not in (*TIER_NAMES, LOAD) or outcome not in EXPECTABLE or not reason:
-            raise ValueError(f"{where}: model {raw['id']!r} has a bad expectation {exp} "
-                             f"(needs tier in {TIER_NAMES}, outcome in {list(EXPECTABLE)}, reason)")
+            raise ValueError(
+                f"{where}: model {raw['id']!r} has a bad expectation {exp} "
+                f"(needs tier in {TIER_NAMES}, outcome in {list(EXPECTABLE)}, reason)"
+            )
         if (tier == LOAD) != (outcome == "error"):
-            raise ValueError(f"{where}: model {raw['id']!r}: a load error is expected as tier = {LOAD!r}, "
-                             f"outcome = 'error' (and only so), not {exp}")
+            raise ValueError(
+                f"{where}: model {raw['id']!r}: a load error is expected as tier = {LOAD!r}, "
+                f"outcome = 'error' (and only so), not {exp}"
+            )
         seen = exp.get("seen")
         seen = tuple(seen) if isinstance(seen, list) and len(seen) == 2 else (seen, seen)
-        if outcome == "fail" and not (exp.get("metric") and all(isinstance(x, (int, float)) and x > 0 for x in seen)
-                                      and seen[0] <= seen[1]):
-            raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: an expected failure names the `metric` its "
-                             "reason describes and the positive max `seen` when it was measured, or [low, high] over seeds (the run checks "
-                             f"that the failure stays within {BAND_FACTOR:g}x of it)")
+        if outcome == "fail" and not (
+            exp.get("metric") and all(isinstance(x, (int, float)) and x > 0 for x in seen) and seen[0] <= seen[1]
+        ):
+            raise ValueError(
+                f"{where}: model {raw['id']!r} tier {tier!r}: an expected failure names the `metric` its "
+                "reason describes and the positive max `seen` when it was measured, or [low, high] over seeds (the run checks "
+                f"that the failure stays within {BAND_FACTOR:g}x of it)"
+            )
         claimed = tuple(exp.get("passes_without", ()))
         unknown = [g for g in claimed if g not in GAPS]
         if unknown or (claimed and (tier not in ISOLATED_TIERS or outcome != "fail")):
-            raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: passes_without {list(claimed)} needs "
-                             f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}")
+            raise ValueError(
+                f"{where}: model {raw['id']!r} tier {tier!r}: passes_without {list(claimed)} needs "
+                f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}"
+            )
         seeds = exp.get("seeds", [])
         if not (isinstance(seeds, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in seeds)):
             raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: seeds is a list of integers, not {seeds!r}")
-        expect[tier] = Expectation(tier, outcome, reason, claimed, str(exp.get("metric", "")), float(seen[0] or 0.0),
-                                   float(seen[1] or 0.0), tuple(seeds))
+        expect[tier] = Expectation(
+            tier,
+            outcome,
+            reason,
+            claimed,
+            str(exp.get("metric", "")),
+            float(seen[0] or 0.0),
+            float(seen[1] or 0.0),
+            tuple(seeds),
+        )
     if "actuated" in expect and "maniskill" not in expect:  # the same rollout through ManiSkill: the same known gap
         known = expect["actuated"]
         expect["maniskill"] = replace(known, tier="maniskill", reason=f"as actuated: {known.reason}", passes_without=())
@@ -193,8 +219,12 @@ def expand_paths(paths: list[str]) -> list[Path]:
 GENERIC_STEMS = ("robot", "scene", "model", "main", "mjmodel", "index")
 
 
-def from_paths(paths: list[str], tiers: tuple[str, ...] = DEFAULT_TIERS, timeout_s: float = 300.0,
-               known: dict[Path, ModelEntry] | None = None) -> Manifest:
+def from_paths(
+    paths: list[str],
+    tiers: tuple[str, ...] = DEFAULT_TIERS,
+    timeout_s: float = 300.0,
+    known: dict[Path, ModelEntry] | None = None,
+) -> Manifest:
     """An ad-hoc manifest for MJCF files given on the command line. A file that is a manifest model (`known`: its
     resolved path -> entry) is that entry, with its id, tiers and expectations; any other file expects every tier to
     pass or be skipped for the model's own reason (`listed`) and is named by its stem, or by its parent folder where the stem is generic (`GENERIC_STEMS`) or repeats

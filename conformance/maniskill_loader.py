@@ -45,8 +45,14 @@ def _inert_visual(self, *args, **kwargs):
     return self  # the builders' add_*_visual: nothing to render without a device
 
 
-_VISUALS = ("add_box_visual", "add_capsule_visual", "add_cylinder_visual", "add_sphere_visual",
-            "add_plane_visual", "add_visual_from_file")
+_VISUALS = (
+    "add_box_visual",
+    "add_capsule_visual",
+    "add_cylinder_visual",
+    "add_sphere_visual",
+    "add_plane_visual",
+    "add_visual_from_file",
+)
 
 
 @contextlib.contextmanager
@@ -80,14 +86,21 @@ def maniskill_physx(model: mujoco.MjModel):
     gravity = np.zeros(3) if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else model.opt.gravity
     try:
         physx.set_shape_config(contact_offset=config.contact_offset, rest_offset=config.rest_offset)
-        physx.set_body_config(solver_position_iterations=config.solver_position_iterations,
-                              solver_velocity_iterations=config.solver_velocity_iterations,
-                              sleep_threshold=config.sleep_threshold)
-        physx.set_scene_config(gravity=np.asarray(gravity, dtype=np.float32), bounce_threshold=config.bounce_threshold,
-                               enable_pcm=config.enable_pcm, enable_tgs=False, enable_ccd=config.enable_ccd,
-                               enable_enhanced_determinism=config.enable_enhanced_determinism,
-                               enable_friction_every_iteration=config.enable_friction_every_iteration,
-                               cpu_workers=config.cpu_workers)
+        physx.set_body_config(
+            solver_position_iterations=config.solver_position_iterations,
+            solver_velocity_iterations=config.solver_velocity_iterations,
+            sleep_threshold=config.sleep_threshold,
+        )
+        physx.set_scene_config(
+            gravity=np.asarray(gravity, dtype=np.float32),
+            bounce_threshold=config.bounce_threshold,
+            enable_pcm=config.enable_pcm,
+            enable_tgs=False,
+            enable_ccd=config.enable_ccd,
+            enable_enhanced_determinism=config.enable_enhanced_determinism,
+            enable_friction_every_iteration=config.enable_friction_every_iteration,
+            cpu_workers=config.cpu_workers,
+        )
         physx.set_default_material(**DefaultMaterialsConfig().dict())
         yield
     finally:
@@ -157,8 +170,12 @@ class NamedMapping:
     def __init__(self, model: mujoco.MjModel, articulations):
         self.model = model
         links = {link.name: (a, i) for a, art in enumerate(articulations) for i, link in enumerate(art.links)}
-        dofs = {joint.name: (a, d, joint.type) for a, art in enumerate(articulations)
-                for d, joint in enumerate(art.active_joints) if joint.name}
+        dofs = {
+            joint.name: (a, d, joint.type)
+            for a, art in enumerate(articulations)
+            for d, joint in enumerate(art.active_joints)
+            if joint.name
+        }
         self.articulation_dofs = [art.dof for art in articulations]
         self.bodies = [BodyLink(None, None)] + [None] * (model.nbody - 1)
         for b in range(1, model.nbody):
@@ -205,7 +222,7 @@ class NamedMapping:
         for j, target in enumerate(self.joints):
             adr, dof = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
             if j in self.free:
-                self._set_root(articulations, self.free[j], qpos[adr:adr + 7], qvel[dof:dof + 6])
+                self._set_root(articulations, self.free[j], qpos[adr : adr + 7], qvel[dof : dof + 6])
             elif target is not None:
                 q[target.articulation][target.dofs[0]] = qpos[adr]
                 v[target.articulation][target.dofs[0]] = qvel[dof]
@@ -238,9 +255,9 @@ class NamedMapping:
                 omega = np.asarray(art.get_root_angular_velocity(), np.float64)
                 com = (art.get_root_pose() * art.root.cmass_local_pose).p
                 v_com = np.asarray(art.get_root_linear_velocity(), np.float64)
-                qpos[adr:adr + 7] = np.concatenate([pose.p, pose.q])
-                qvel[dof:dof + 3] = v_com + np.cross(omega, pose.p - com)
-                qvel[dof + 3:dof + 6] = pose.to_transformation_matrix()[:3, :3].T @ omega
+                qpos[adr : adr + 7] = np.concatenate([pose.p, pose.q])
+                qvel[dof : dof + 3] = v_com + np.cross(omega, pose.p - com)
+                qvel[dof + 3 : dof + 6] = pose.to_transformation_matrix()[:3, :3].T @ omega
             elif target is not None:
                 qpos[adr] = q[target.articulation][target.dofs[0]]
                 qvel[dof] = v[target.articulation][target.dofs[0]]

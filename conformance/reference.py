@@ -60,8 +60,11 @@ def limited_dofs(model: mujoco.MjModel) -> list[tuple[int, int, float, float]]:
     """(joint, qpos address, lower, upper) of every limited hinge or slide joint."""
     out = []
     for j in range(model.njnt):
-        if model.jnt_limited[j] and not limits_disabled(model) and int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE),
-                                                                int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        if (
+            model.jnt_limited[j]
+            and not limits_disabled(model)
+            and int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        ):
             out.append((j, int(model.jnt_qposadr[j]), float(model.jnt_range[j][0]), float(model.jnt_range[j][1])))
     return out
 
@@ -130,7 +133,7 @@ def position_scale(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
         if kind in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
             out[:, dof] = np.abs(qpos[:, adr])
         elif kind == int(mujoco.mjtJoint.mjJNT_FREE):
-            out[:, dof:dof + 3] = np.abs(qpos[:, adr:adr + 3])
+            out[:, dof : dof + 3] = np.abs(qpos[:, adr : adr + 3])
     return out
 
 
@@ -158,15 +161,23 @@ class Rollout:
         if self.unstable_step is None:
             return None
         integrator = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
-        return (f"MuJoCo's own rollout is unstable under {integrator} (bad qacc at step {self.unstable_step}): "
-                "no reference to compare")
+        return (
+            f"MuJoCo's own rollout is unstable under {integrator} (bad qacc at step {self.unstable_step}): "
+            "no reference to compare"
+        )
 
 
 Policy = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
 
 
-def step_from(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None,
-              ctrl: np.ndarray | None = None, qfrc: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def step_from(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    act: np.ndarray | None = None,
+    ctrl: np.ndarray | None = None,
+    qfrc: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's next (qpos, qvel) from exactly this state: a one-step comparison starts both simulators from the
     state SAPIEN holds (float32), so that a constraint row switching on at a boundary sees the same state."""
     data = mujoco.MjData(model)
@@ -181,8 +192,14 @@ def step_from(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, act: np
     return data.qpos.copy(), data.qvel.copy()
 
 
-def rollout(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray, steps: int,
-            command: np.ndarray | Policy | None = None, ctrl: np.ndarray | None = None) -> Rollout:
+def rollout(
+    model: mujoco.MjModel,
+    qpos0: np.ndarray,
+    qvel0: np.ndarray,
+    steps: int,
+    command: np.ndarray | Policy | None = None,
+    ctrl: np.ndarray | None = None,
+) -> Rollout:
     """Step MuJoCo from (qpos0, qvel0); `command` is a (steps, nv) array or a policy(step, qpos, qvel);
     `ctrl` (steps, nu) is written to `data.ctrl` before each step."""
     data = mujoco.MjData(model)

@@ -36,8 +36,16 @@ class Metric:
         def num(x: float) -> float | None:
             return None if not math.isfinite(x) else float(x)
 
-        out = {"name": self.name, "max": num(self.max), "rms": num(self.rms), "tolerance": self.tolerance,
-               "margin": num(self.margin), "unit": self.unit, "count": self.count, "passed": self.passed}
+        out = {
+            "name": self.name,
+            "max": num(self.max),
+            "rms": num(self.rms),
+            "tolerance": self.tolerance,
+            "margin": num(self.margin),
+            "unit": self.unit,
+            "count": self.count,
+            "passed": self.passed,
+        }
         if self.raw_max is not None:
             out["raw_max"] = num(self.raw_max)
         return out
@@ -113,15 +121,21 @@ class TierReport:
             raise ValueError(f"unknown tier status {self.status!r}")
 
     def to_dict(self) -> dict:
-        out = {"tier": self.tier, "status": self.status, "metrics": [m.to_dict() for m in self.metrics],
-               "notes": list(self.notes), "settings": self.settings}
+        out = {
+            "tier": self.tier,
+            "status": self.status,
+            "metrics": [m.to_dict() for m in self.metrics],
+            "notes": list(self.notes),
+            "settings": self.settings,
+        }
         if self.divergence is not None:
             out["divergence"] = self.divergence.to_dict()
         return out
 
 
-def verdict(metrics: list[Metric], chaotic: bool = False, divergence: Divergence | None = None,
-            simulated: bool = True) -> str:
+def verdict(
+    metrics: list[Metric], chaotic: bool = False, divergence: Divergence | None = None, simulated: bool = True
+) -> str:
     """Every tier's status. A simulated tier is diverged when SAPIEN left the finite, physical states or a metric is
     not finite (whatever else holds); fail when a metric is past its tolerance; chaotic when MuJoCo cannot predict
     itself; else pass. A static tier (`simulated=False`) never diverges: an infinite error there, such as a finite

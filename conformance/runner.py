@@ -64,8 +64,10 @@ def foreign(entries: list[ModelEntry], loader: str) -> list[ModelEntry]:
     if loader == DEFAULT_LOADER:
         return entries
     cannot = {t: Expectation(t, "skipped", why) for t, why in SKIPS.get(loader, {}).items()}
-    return [replace(e, expect={**{t: x for t, x in e.expect.items() if x.outcome in ("skipped", "error")},
-                               **cannot}) for e in entries]
+    return [
+        replace(e, expect={**{t: x for t, x in e.expect.items() if x.outcome in ("skipped", "error")}, **cannot})
+        for e in entries
+    ]
 
 
 def run(entries: list[ModelEntry], options: RunOptions) -> tuple[Path, dict]:
@@ -80,10 +82,16 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
     out.mkdir(parents=True, exist_ok=True)
     run_dir = new_run_dir(out, options.run_name)
     seeds = tuple(options.seeds) or (options.seed,)
-    meta = {"run": run_dir.name, "seed": seeds[0], **({"seeds": list(seeds)} if len(seeds) > 1 else {}),
-            "versions": versions(DISTRIBUTIONS.get(options.loader, ())), "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-            **({"executor": options.executor} if options.executor != executors.LOCAL else {}),
-            **({"loader": options.loader} if options.loader != DEFAULT_LOADER else {}), **options.extra}
+    meta = {
+        "run": run_dir.name,
+        "seed": seeds[0],
+        **({"seeds": list(seeds)} if len(seeds) > 1 else {}),
+        "versions": versions(DISTRIBUTIONS.get(options.loader, ())),
+        "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        **({"executor": options.executor} if options.executor != executors.LOCAL else {}),
+        **({"loader": options.loader} if options.loader != DEFAULT_LOADER else {}),
+        **options.extra,
+    }
     entries = foreign(entries, options.loader)
     if options.tiers:
         entries = [replace(e, tiers=tuple(options.tiers)) for e in entries]
@@ -98,8 +106,19 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
         if resolved.path is None:
             results[entry.id] = ModelResult(entry.id, "skipped", reason=resolved.skip_reason)
             continue
-        jobs.append(Job(entry, str(resolved.path), str(run_dir), seed, entry.tiers, options.tolerance_file,
-                        options.record, options.visual_meshes, options.loader))
+        jobs.append(
+            Job(
+                entry,
+                str(resolved.path),
+                str(run_dir),
+                seed,
+                entry.tiers,
+                options.tolerance_file,
+                options.record,
+                options.visual_meshes,
+                options.loader,
+            )
+        )
 
     def write_summary(interrupted: bool = False) -> dict:
         doc = summary.build({**meta, "interrupted": interrupted, "tiers": tier_names}, entries, results, seed_of)
@@ -108,8 +127,7 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
         return doc
 
     write_summary()
-    bar = tqdm(total=len(entries), initial=len(results), desc="conformance", unit="model",
-               disable=not options.progress)
+    bar = tqdm(total=len(entries), initial=len(results), desc="conformance", unit="model", disable=not options.progress)
     interrupted = False
     finished = executor.results(jobs, options.timeout_scale)
     try:

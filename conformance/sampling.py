@@ -22,10 +22,10 @@ def random_configuration(model: mujoco.MjModel, gen: np.random.Generator) -> np.
         a = model.jnt_qposadr[j]
         kind = model.jnt_type[j]
         if kind == mujoco.mjtJoint.mjJNT_FREE:
-            qpos[a:a + 3] += gen.uniform(-_FREE_POSITION, _FREE_POSITION, 3)
-            qpos[a + 3:a + 7] = random_unit_quaternion(gen)
+            qpos[a : a + 3] += gen.uniform(-_FREE_POSITION, _FREE_POSITION, 3)
+            qpos[a + 3 : a + 7] = random_unit_quaternion(gen)
         elif kind == mujoco.mjtJoint.mjJNT_BALL:
-            qpos[a:a + 4] = random_unit_quaternion(gen)
+            qpos[a : a + 4] = random_unit_quaternion(gen)
         else:
             if model.jnt_limited[j]:
                 lo, hi = model.jnt_range[j]

@@ -119,8 +119,9 @@ def set_state(result, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None
     result.set_act(act)
 
 
-def held_start(result, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+def held_start(
+    result, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """A start as SAPIEN holds it (float32), where the one-step comparisons and the contact-free rollouts start
     MuJoCo too: a joint started exactly on its limit then sits on the same side of it in both, which MuJoCo's row
     switches on (corpus/regressions/conformance-8afb1dfdf1.xml)."""

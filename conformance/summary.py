@@ -32,12 +32,16 @@ def _left_band(expectation: Expectation, detail: dict) -> str | None:
     lo, hi = expectation.band
     value = next((m["max"] for m in detail.get("metrics", []) if m["name"] == expectation.metric), None)
     if value is None:
-        return (f"changed: the manifest's reason describes {expectation.metric} (seen {expectation.seen_text}); "
-                "the tier reported no finite value of it")
+        return (
+            f"changed: the manifest's reason describes {expectation.metric} (seen {expectation.seen_text}); "
+            "the tier reported no finite value of it"
+        )
     if lo <= value <= hi:
         return None
-    return (f"changed: {expectation.metric} {value:.3g} left the band [{lo:.3g}, {hi:.3g}] around the "
-            f"{expectation.seen_text} the manifest's reason was measured at: re-measure the reason")
+    return (
+        f"changed: {expectation.metric} {value:.3g} left the band [{lo:.3g}, {hi:.3g}] around the "
+        f"{expectation.seen_text} the manifest's reason was measured at: re-measure the reason"
+    )
 
 
 def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
@@ -47,8 +51,17 @@ def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
     expectation (tests/test_conformance_summary.py::test_a_load_error_is_one_error_outcome)."""
     if result.status == "error":
         expected = max((e.outcome for e in entry.expect.values()), key=OUTCOME_RANK.get, default="pass")
-        return [Verdict(entry.id, LOAD, "error", "error", expected, OUTCOME_RANK["error"] > OUTCOME_RANK[expected],
-                        {"notes": [load_message(result.reason)], "metrics": []})]
+        return [
+            Verdict(
+                entry.id,
+                LOAD,
+                "error",
+                "error",
+                expected,
+                OUTCOME_RANK["error"] > OUTCOME_RANK[expected],
+                {"notes": [load_message(result.reason)], "metrics": []},
+            )
+        ]
     verdicts = []
     for tier in entry.tiers:
         report = result.tiers.get(tier)
@@ -102,8 +115,10 @@ def _clip(text: str, width: int) -> str:
 
 def _verdicts(m: dict) -> list[Verdict]:
     """A summary document's model back as verdicts."""
-    return [Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v)
-            for t, v in m["verdicts"].items()]
+    return [
+        Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v)
+        for t, v in m["verdicts"].items()
+    ]
 
 
 def _notes_by_kind(load: dict) -> str:
@@ -129,19 +144,25 @@ def terminal(summary: dict, run_dir: Path, verbose: bool = False) -> str:
         verdicts = _verdicts(m)
         mark = "WORSE" if any(v.worse for v in verdicts) else "ok"
         notes = _notes_by_kind(m.get("load"))
-        lines.append(f"{m['id']:<{width}}  {mark:<5}  {headline(m['status'], verdicts)}"
-                     + (f"  (loader: {notes})" if notes else ""))
+        lines.append(
+            f"{m['id']:<{width}}  {mark:<5}  {headline(m['status'], verdicts)}"
+            + (f"  (loader: {notes})" if notes else "")
+        )
         if verbose:
             load = m.get("load") or {}
-            lines += [f"    {word} {n['kind']} '{n['name']}': {n['reason']}"
-                      for key, word in (("approximations", "approximated"), ("unsupported", "unsupported"))
-                      for n in load.get(key, [])]
+            lines += [
+                f"    {word} {n['kind']} '{n['name']}': {n['reason']}"
+                for key, word in (("approximations", "approximated"), ("unsupported", "unsupported"))
+                for n in load.get(key, [])
+            ]
     worse = sum(1 for m in summary["models"] if any(v["worse_than_expected"] for v in m["verdicts"].values()))
     lines.append(f"{len(summary['models'])} models, {worse} worse than the manifest expects")
     counts = [sum(m.get("warnings", {}).values()) for m in summary["models"]]
     if sum(counts):
-        lines.append(f"third-party warnings: {sum(counts)} in {sum(1 for c in counts if c)} models, counted by kind "
-                     f"in summary.json (MuJoCo's in {run_dir / 'MUJOCO_LOG.TXT'})")
+        lines.append(
+            f"third-party warnings: {sum(counts)} in {sum(1 for c in counts if c)} models, counted by kind "
+            f"in summary.json (MuJoCo's in {run_dir / 'MUJOCO_LOG.TXT'})"
+        )
     lines.append(f"report: {run_dir / 'summary.md'}")
     return "\n".join(lines)
 
@@ -202,8 +223,15 @@ def divergence_text(divergence: dict | None) -> str:
 def worst_metric(metrics: list[dict]) -> dict | None:
     """The metric closest to (or furthest past) its tolerance: the largest max / tolerance, a non-finite max (None)
     first; None without metrics."""
-    return max(metrics, key=lambda m: (m["max"] / m["tolerance"]) if m["max"] is not None and m["tolerance"]
-               else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0), default=None)
+    return max(
+        metrics,
+        key=lambda m: (
+            (m["max"] / m["tolerance"])
+            if m["max"] is not None and m["tolerance"]
+            else (float("inf") if m["max"] is None or m["max"] > 0 else 0.0)
+        ),
+        default=None,
+    )
 
 
 def _cell(v: Verdict) -> str:
@@ -215,34 +243,58 @@ def _cell(v: Verdict) -> str:
     if worst is None:
         return v.outcome
     raw = f"raw {_fmt(worst['raw_max'])}, " if worst.get("raw_max") is not None else ""
-    return (f"{v.outcome}: {worst['name']} {_fmt(worst['max'])} ({raw}tol {_fmt(worst['tolerance'])}, "
-            f"margin {_fmt(worst['margin'])})")
+    return (
+        f"{v.outcome}: {worst['name']} {_fmt(worst['max'])} ({raw}tol {_fmt(worst['tolerance'])}, "
+        f"margin {_fmt(worst['margin'])})"
+    )
 
 
-def build(run: dict, entries: list[ModelEntry], results: dict[str, ModelResult],
-          seeds: dict[str, int] | None = None) -> dict:
+def build(
+    run: dict, entries: list[ModelEntry], results: dict[str, ModelResult], seeds: dict[str, int] | None = None
+) -> dict:
     """The summary document: run metadata, per-model results and verdicts, and the overall judgement. A seed sweep
     gives each entry's seed (`seeds`, by id), recorded beside its id."""
     models, worse, better = [], [], []
     for entry in entries:
         result = results.get(entry.id) or ModelResult(entry.id, "pending", reason="not finished")
         verdicts = judge(entry, result) if result.status != "pending" else []
-        worse += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _why_worse(entry, v) for v in verdicts
-                  if v.worse]
-        better += [f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" for v in verdicts
-                   if OUTCOME_RANK[v.raw] < OUTCOME_RANK[v.expected]]
-        models.append({
-            "id": entry.id, **({"seed": seeds[entry.id]} if seeds else {}), "source": entry.source, "status": result.status, "reason": result.reason,
-            "recording": result.recording, "seconds": result.seconds, "settings": result.settings,
-            "load": result.load, "warnings": result.warnings,
-            "verdicts": {v.tier: {"outcome": v.outcome, "raw": v.raw, "expected": v.expected,
-                                  "expected_reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
-                                  "worse_than_expected": v.worse, "metrics": v.detail.get("metrics", []),
-                                  "notes": v.detail.get("notes", []), "settings": v.detail.get("settings", {}),
-                                  "isolation": v.detail.get("isolation", []),
-                                  "divergence": v.detail.get("divergence")}
-                         for v in verdicts},
-        })
+        worse += [
+            f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _why_worse(entry, v) for v in verdicts if v.worse
+        ]
+        better += [
+            f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})"
+            for v in verdicts
+            if OUTCOME_RANK[v.raw] < OUTCOME_RANK[v.expected]
+        ]
+        models.append(
+            {
+                "id": entry.id,
+                **({"seed": seeds[entry.id]} if seeds else {}),
+                "source": entry.source,
+                "status": result.status,
+                "reason": result.reason,
+                "recording": result.recording,
+                "seconds": result.seconds,
+                "settings": result.settings,
+                "load": result.load,
+                "warnings": result.warnings,
+                "verdicts": {
+                    v.tier: {
+                        "outcome": v.outcome,
+                        "raw": v.raw,
+                        "expected": v.expected,
+                        "expected_reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
+                        "worse_than_expected": v.worse,
+                        "metrics": v.detail.get("metrics", []),
+                        "notes": v.detail.get("notes", []),
+                        "settings": v.detail.get("settings", {}),
+                        "isolation": v.detail.get("isolation", []),
+                        "divergence": v.detail.get("divergence"),
+                    }
+                    for v in verdicts
+                },
+            }
+        )
     return {**run, "models": models, "worse_than_expected": worse, "better_than_expected": better, "ok": not worse}
 
 
@@ -261,8 +313,10 @@ def _actuation_lines(summary: dict) -> list[str]:
                 continue
             parts = []
             if settings.get("integrator_authored") != settings.get("integrator_reference"):
-                parts.append(f"MuJoCo {settings.get('integrator_reference')} instead of the authored "
-                             f"{settings.get('integrator_authored')}")
+                parts.append(
+                    f"MuJoCo {settings.get('integrator_reference')} instead of the authored "
+                    f"{settings.get('integrator_authored')}"
+                )
             if settings["ctrl_scale"] < 1:
                 parts.append(f"ctrl deviations scaled by {settings['ctrl_scale']:g}")
             if settings.get("saturated_steps"):
@@ -286,8 +340,7 @@ def _why_worse(entry: ModelEntry, v: Verdict) -> str:
 def _run_text(run: dict) -> str:
     if run["outcome"] == "error":
         return f"without {' + '.join(run['without'])}: error ({run['reason']})"
-    worst = max(run["metrics"], key=lambda m: (m["max"] or 0) / m["tolerance"] if m["tolerance"] else 0,
-                default=None)
+    worst = max(run["metrics"], key=lambda m: (m["max"] or 0) / m["tolerance"] if m["tolerance"] else 0, default=None)
     numbers = f" ({worst['name']} {_fmt(worst['max'])}, tol {_fmt(worst['tolerance'])})" if worst else ""
     return f"without {' + '.join(run['without'])}: {run['outcome']}{numbers}"
 
@@ -300,6 +353,7 @@ def isolation_text(runs: list[dict]) -> str:
 def _timestep_order(metrics: list[dict], runs: list[dict]) -> float | None:
     """The order in dt of the one-step velocity error with every other gap out: the run without all physical gaps
     (or the tier itself when it has none) against the same run at half the timestep."""
+
     def one_step(items):
         return {x["name"]: x["max"] for x in items}.get("one_step_qvel")
 
@@ -325,8 +379,10 @@ def _isolation_lines(summary: dict) -> list[str]:
             parts = [isolation_text(runs)]
             order = _timestep_order(v["metrics"], runs)
             if order is not None:
-                parts.append(f"one-step velocity error order in dt, the other gaps removed: {order:.1f} "
-                             "(1: a force error, 2: an integration difference)")
+                parts.append(
+                    f"one-step velocity error order in dt, the other gaps removed: {order:.1f} "
+                    "(1: a force error, 2: an integration difference)"
+                )
             lines.append(f"- {m['id']}/{tier}: " + "; ".join(parts))
     return lines
 
@@ -338,8 +394,12 @@ def _seed_text(summary: dict) -> str:
 
 def markdown(summary: dict, tiers: list[str]) -> str:
     """summary.md: a model x tier table (worst metric max/tolerance per cell), then the failures."""
-    lines = [f"# Conformance run {summary['run']}", "",
-             f"{_seed_text(summary)}; " + ", ".join(f"{k} {v}" for k, v in summary["versions"].items()), ""]
+    lines = [
+        f"# Conformance run {summary['run']}",
+        "",
+        f"{_seed_text(summary)}; " + ", ".join(f"{k} {v}" for k, v in summary["versions"].items()),
+        "",
+    ]
     if summary.get("interrupted"):
         lines += ["**Interrupted: results below are partial.**", ""]
     lines += ["| model | " + " | ".join(tiers) + " |", "|---" * (len(tiers) + 1) + "|"]
@@ -353,9 +413,11 @@ def markdown(summary: dict, tiers: list[str]) -> str:
             text = _cell(Verdict(m["id"], t, v["outcome"], v["raw"], v["expected"], v["worse_than_expected"], v))
             cells.append(("**" + text + "**") if v["worse_than_expected"] else text)
         lines.append(f"| {m['id']} | " + " | ".join(cells + [""] * (len(tiers) - len(cells))) + " |")
-    legend = ("Cells: outcome, then the metric closest to (or furthest past) its tolerance: max error, tolerance "
-              "and margin = tolerance - max (units and every other metric in summary.json); where float32 cannot "
-              "resolve part of an error, max is what is left beyond it and raw the error itself.")
+    legend = (
+        "Cells: outcome, then the metric closest to (or furthest past) its tolerance: max error, tolerance "
+        "and margin = tolerance - max (units and every other metric in summary.json); where float32 cannot "
+        "resolve part of an error, max is what is left beyond it and raw the error itself."
+    )
     lines += ["", legend, ""]
     if summary["worse_than_expected"]:
         lines += ["## Worse than the manifest expects", ""] + [f"- {w}" for w in summary["worse_than_expected"]]
@@ -373,8 +435,14 @@ def markdown(summary: dict, tiers: list[str]) -> str:
     isolation = _isolation_lines(summary)
     if isolation:
         lines += ["", "## Isolation: failing tiers rerun with each known gap removed on both sides", ""] + isolation
-    gaps = [(m["id"], t, v["raw"], v["expected_reason"]) for m in summary["models"]
-            for t, v in m["verdicts"].items() if v["expected_reason"]]
+    gaps = [
+        (m["id"], t, v["raw"], v["expected_reason"])
+        for m in summary["models"]
+        for t, v in m["verdicts"].items()
+        if v["expected_reason"]
+    ]
     if gaps:
-        lines += ["", "## Known gaps (from the manifest)", ""] + [f"- {i}/{t} ({raw}): {why}" for i, t, raw, why in gaps]
+        lines += ["", "## Known gaps (from the manifest)", ""] + [
+            f"- {i}/{t} ({raw}): {why}" for i, t, raw, why in gaps
+        ]
     return "\n".join(lines) + "\n"

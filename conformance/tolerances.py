@@ -44,8 +44,12 @@ class Tolerances:
         steps = round(self.setting(tier, "horizon_s") / timestep)
         return max(1, min(steps, int(self.setting(tier, "max_steps"))))
 
-    def with_overrides(self, tolerances: dict[str, float] | None = None,
-                       settings: dict[str, dict] | None = None, why: str = "per-model override") -> Tolerances:
+    def with_overrides(
+        self,
+        tolerances: dict[str, float] | None = None,
+        settings: dict[str, dict] | None = None,
+        why: str = "per-model override",
+    ) -> Tolerances:
         """A copy with some values replaced (manifest overrides); unknown keys are errors."""
         entries = dict(self.entries)
         for key, value in (tolerances or {}).items():

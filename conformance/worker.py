@@ -72,9 +72,16 @@ def _poison_steps(result) -> None:
 
 def judgements(entry: ModelEntry, result: ModelResult) -> dict[str, dict]:
     """Per tier that ran, the summary's judgement and the manifest's expectation, for the recording's verdict."""
-    return {v.tier: {"outcome": v.outcome, "expected": v.expected, "worse": v.worse,
-                     "reason": entry.expect[v.tier].reason if v.tier in entry.expect else ""}
-            for v in judge(entry, result) if v.tier in result.tiers}
+    return {
+        v.tier: {
+            "outcome": v.outcome,
+            "expected": v.expected,
+            "worse": v.worse,
+            "reason": entry.expect[v.tier].reason if v.tier in entry.expect else "",
+        }
+        for v in judge(entry, result)
+        if v.tier in result.tiers
+    }
 
 
 def evaluate(job: Job) -> ModelResult:
@@ -83,11 +90,18 @@ def evaluate(job: Job) -> ModelResult:
 
     entry = job.entry
     started = time.perf_counter()
-    result = ModelResult(entry.id, "ok", source=entry.source, path=job.path,
-                         versions=versions(DISTRIBUTIONS.get(job.loader, ())), seed=job.seed)
+    result = ModelResult(
+        entry.id,
+        "ok",
+        source=entry.source,
+        path=job.path,
+        versions=versions(DISTRIBUTIONS.get(job.loader, ())),
+        seed=job.seed,
+    )
     _inject_fault(entry.fault)
-    tol = tolerances_mod.load(job.tolerance_file).with_overrides(entry.tolerances, entry.settings,
-                                                                 why=entry.override_reason)
+    tol = tolerances_mod.load(job.tolerance_file).with_overrides(
+        entry.tolerances, entry.settings, why=entry.override_reason
+    )
     try:
         from .loaders import open_with
 
@@ -109,8 +123,9 @@ def evaluate(job: Job) -> ModelResult:
                 report = TIERS[tier](session.result, session.model, job.seed, tol)
         except Exception as exc:  # noqa: BLE001 - a tier that raises fails, the others still run
             log.warning("model %s tier %s raised %s", entry.id, tier, exc)
-            report = TierReport(tier, "fail", notes=[f"tier raised {type(exc).__name__}: {exc}",
-                                                     traceback.format_exc(limit=4)])
+            report = TierReport(
+                tier, "fail", notes=[f"tier raised {type(exc).__name__}: {exc}", traceback.format_exc(limit=4)]
+            )
         report.settings = {**report.settings, "seconds": round(time.perf_counter() - t0, 3)}
         reports[tier] = report
         result.tiers[tier] = report.to_dict()
@@ -126,10 +141,20 @@ def evaluate(job: Job) -> ModelResult:
         rrd = Path(job.run_dir) / f"{entry.id}.rrd"
         try:
             isolation = {t: r.get("isolation") for t, r in result.tiers.items() if r.get("isolation")}
-            write_recording(rrd, session, reports, {"model": entry.id, "seed": job.seed,
-                                                      "versions": result.versions, "verdicts": judgements(entry, result),
-                                                      "settings": result.settings, "isolation": isolation},
-                            visual=job.visual_meshes)
+            write_recording(
+                rrd,
+                session,
+                reports,
+                {
+                    "model": entry.id,
+                    "seed": job.seed,
+                    "versions": result.versions,
+                    "verdicts": judgements(entry, result),
+                    "settings": result.settings,
+                    "isolation": isolation,
+                },
+                visual=job.visual_meshes,
+            )
             result.recording = rrd.name
         except Exception as exc:  # noqa: BLE001 - a failed recording is noted, the verdicts stand
             log.warning("model %s: recording failed: %s", entry.id, exc)
@@ -146,4 +171,3 @@ def main(job: Job) -> None:
         result = evaluate(job)
     result.warnings = dict(tally.counts)
     atomic_write_json(result_path(job.run_dir, job.entry.id), result.to_dict())
-

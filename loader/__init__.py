@@ -1,12 +1,12 @@
 """Load MuJoCo MJCF models into SAPIEN, with MuJoCo's own compiler as the front end."""
 
 from .errors import (
-                     ControlError,
-                     MissingAssetError,
-                     MJCFError,
-                     SceneMismatchWarning,
-                     Unsupported,
-                     UnsupportedFeatureWarning,
+    ControlError,
+    MissingAssetError,
+    MJCFError,
+    SceneMismatchWarning,
+    Unsupported,
+    UnsupportedFeatureWarning,
 )
 from .mjcf_loader import MJCFLoader
 from .model.actuators import ActuatorMap
@@ -18,7 +18,23 @@ from .plan.visual import NoRenderDeviceWarning, has_render_device
 from .result import LoadResult
 
 __all__ = [
-    "ActuatorMap", "BodyLink", "CameraConfig", "ControlError", "EqualityLink", "GeomShape", "JointDofs", "LoadResult", "MJCFError", "MJCFLoader", "MJCFTexture",
-    "Mapping", "MissingAssetError", "NoRenderDeviceWarning", "SceneMismatchWarning", "SiteConfig", "Unsupported",
-    "UnsupportedFeatureWarning", "has_render_device",
+    "ActuatorMap",
+    "BodyLink",
+    "CameraConfig",
+    "ControlError",
+    "EqualityLink",
+    "GeomShape",
+    "JointDofs",
+    "LoadResult",
+    "MJCFError",
+    "MJCFLoader",
+    "MJCFTexture",
+    "Mapping",
+    "MissingAssetError",
+    "NoRenderDeviceWarning",
+    "SceneMismatchWarning",
+    "SiteConfig",
+    "Unsupported",
+    "UnsupportedFeatureWarning",
+    "has_render_device",
 ]

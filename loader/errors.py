@@ -12,8 +12,7 @@ class MJCFError(Exception):
     `file` and `line` name where, when MuJoCo said so; `mujoco_message` is MuJoCo's own text.
     """
 
-    def __init__(self, file: str, mujoco_message: str, hint: str = "",
-                 rejected_by: str = "MuJoCo rejected the model"):
+    def __init__(self, file: str, mujoco_message: str, hint: str = "", rejected_by: str = "MuJoCo rejected the model"):
         self.file = str(file)
         self.mujoco_message = mujoco_message.strip()
         match = re.search(r"line (\d+)", self.mujoco_message, re.IGNORECASE) or re.search(
@@ -49,8 +48,10 @@ def command_vector(path: str, name: str, value, size: int, what: str):
         return None
     vector = np.asarray(value, dtype=np.float64)
     if vector.shape != (size,):
-        raise ControlError(f"{path}: {name} has shape {vector.shape}; the model has {size} {what}: pass a vector "
-                           f"of {size} numbers (or None for zeros)")
+        raise ControlError(
+            f"{path}: {name} has shape {vector.shape}; the model has {size} {what}: pass a vector "
+            f"of {size} numbers (or None for zeros)"
+        )
     if np.count_nonzero(np.abs(vector) <= mujoco.mjMAXVAL) == size:  # finite and within MuJoCo's bound
         return vector
     bad = np.flatnonzero(~np.isfinite(vector))
@@ -58,8 +59,10 @@ def command_vector(path: str, name: str, value, size: int, what: str):
         raise ControlError(f"{path}: {name}[{int(bad[0])}] is {vector[bad[0]]}: every entry must be finite")
     huge = np.flatnonzero(np.abs(vector) > mujoco.mjMAXVAL)  # MuJoCo zeroes such a command and warns
     if huge.size:
-        raise ControlError(f"{path}: {name}[{int(huge[0])}] is {vector[huge[0]]:g}: MuJoCo refuses commands beyond "
-                           f"{mujoco.mjMAXVAL:g} (it zeroes them as unstable); pass values within that")
+        raise ControlError(
+            f"{path}: {name}[{int(huge[0])}] is {vector[huge[0]]:g}: MuJoCo refuses commands beyond "
+            f"{mujoco.mjMAXVAL:g} (it zeroes them as unstable); pass values within that"
+        )
     return vector
 
 
@@ -98,8 +101,9 @@ class Notes:
         self.approximations.append(Unsupported(kind, name, reason))
 
 
-def warn_notes(path, unsupported: list[Unsupported], approximations: list[Unsupported], each: bool = False,
-               stacklevel: int = 3) -> None:
+def warn_notes(
+    path, unsupported: list[Unsupported], approximations: list[Unsupported], each: bool = False, stacklevel: int = 3
+) -> None:
     """UnsupportedFeatureWarning for a load's notes: one per category and kind, with the count and the first note
     (the lists on the result hold every one), or one per note with `each`
     (tests/test_loader_structure.py::test_unsupported_features_are_listed_and_warned_once_per_kind)."""
@@ -118,5 +122,8 @@ def warn_notes(path, unsupported: list[Unsupported], approximations: list[Unsupp
         listed = "result.unsupported" if category == "unsupported" else "result.approximations"
         for kind, same in kinds.items():
             more = f"; {len(same) - 1} more in {listed}" if len(same) > 1 else ""
-            warnings.warn(f"{name}: {category} {kind} x{len(same)}: '{same[0].name}': {same[0].reason}{more}",
-                          UnsupportedFeatureWarning, stacklevel=stacklevel)
+            warnings.warn(
+                f"{name}: {category} {kind} x{len(same)}: '{same[0].name}': {same[0].reason}{more}",
+                UnsupportedFeatureWarning,
+                stacklevel=stacklevel,
+            )

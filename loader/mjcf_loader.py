@@ -80,8 +80,9 @@ class MJCFLoader:
         parsed = self._parse(mjcf_file, package_dir)
         return parsed.articulation_builders, parsed.actor_builders, parsed.cameras
 
-    def load(self, mjcf_file: str | os.PathLike | mujoco.MjSpec,
-             package_dir: str | os.PathLike | None = None) -> LoadResult:
+    def load(
+        self, mjcf_file: str | os.PathLike | mujoco.MjSpec, package_dir: str | os.PathLike | None = None
+    ) -> LoadResult:
         """Build everything into `scene` and return it with the mapping and the unsupported features."""
         parsed = self._parse(mjcf_file, package_dir)
         articulations = [builder.build() for builder in parsed.articulation_builders]
@@ -113,12 +114,14 @@ class MJCFLoader:
         static = {0} | ({b for b in range(model.nbody) if model.body_weldid[b] == 0} if self.fix_root_link else set())
         contact_off = mj.disabled(model, "contact", "constraint")
         meshes: dict = {}
-        shapes = {g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes, meshes)
-                  for g in kept if collides(model, g)}
+        shapes = {
+            g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes, meshes)
+            for g in kept
+            if collides(model, g)
+        }
         shapes = {g: s for g, s in shapes.items() if s is not None}
         hulls.plan_sharing(shapes.values())
-        contact_filter = plan_collision_filter(
-            model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
+        contact_filter = plan_collision_filter(model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
         for g, shape in shapes.items():
             shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)
         show = bool(self.visual_groups) and visuals_available(self.scene)
@@ -149,8 +152,14 @@ class MJCFLoader:
                 if link.parent is None:
                     lb.joint_record.joint_type = link.joint.type
                 else:
-                    lb.set_joint_properties(link.joint.type, [list(link.joint.limits)], link.pose_in_parent,
-                                            link.joint.frame_in_child, 0.0, link.joint.damping)
+                    lb.set_joint_properties(
+                        link.joint.type,
+                        [list(link.joint.limits)],
+                        link.pose_in_parent,
+                        link.joint.frame_in_child,
+                        0.0,
+                        link.joint.damping,
+                    )
                 lb.set_mass_and_inertia(link.mass, link.cmass, np.asarray(link.inertia, np.float32))
                 if link.body is not None:
                     dress(lb, link.body)
@@ -167,9 +176,15 @@ class MJCFLoader:
         return _Parsed(compiled, tree, articulation_builders, actor_builders, cameras(model), notes)
 
 
-def finish(parsed: _Parsed, scene: sapien.Scene, articulations: list, actors: list,
-           solver_iterations: tuple[int, int] | str | None = "auto", warn_each_note: bool = False,
-           stacklevel: int = 4) -> LoadResult:
+def finish(
+    parsed: _Parsed,
+    scene: sapien.Scene,
+    articulations: list,
+    actors: list,
+    solver_iterations: tuple[int, int] | str | None = "auto",
+    warn_each_note: bool = False,
+    stacklevel: int = 4,
+) -> LoadResult:
     """The mapping and the per-step terms of built articulations (one per tree, in order) in `scene`: the
     `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller)."""
     model = parsed.compiled.model
@@ -182,19 +197,36 @@ def finish(parsed: _Parsed, scene: sapien.Scene, articulations: list, actors: li
             connects = [link.joint for link in equalities if link.kind == "D6 joint"]
             tune_iterations(articulations, model, controller.drive_weights(), connects, mapping, parsed.notes)
     result = LoadResult(
-        path=str(parsed.compiled.path), spec=parsed.compiled.spec, scene=scene,
-        articulations=articulations, actors=actors, cameras=parsed.cameras, sites=sites(model),
-        textures=textures(parsed.compiled.spec, model), mapping=mapping,
-        unsupported=list(parsed.notes.unsupported), approximations=list(parsed.notes.approximations),
-        actuators=[entry for entry, _ in maps], equalities=equalities, controller=controller, replanner=replan,
+        path=str(parsed.compiled.path),
+        spec=parsed.compiled.spec,
+        scene=scene,
+        articulations=articulations,
+        actors=actors,
+        cameras=parsed.cameras,
+        sites=sites(model),
+        textures=textures(parsed.compiled.spec, model),
+        mapping=mapping,
+        unsupported=list(parsed.notes.unsupported),
+        approximations=list(parsed.notes.approximations),
+        actuators=[entry for entry, _ in maps],
+        equalities=equalities,
+        controller=controller,
+        replanner=replan,
     )
     warn_notes(result.path, result.unsupported, result.approximations, each=warn_each_note, stacklevel=stacklevel)
     result.reset()
     return result
 
 
-def _runtime(model: mujoco.MjModel, scene: sapien.Scene, articulations: list, mapping: Mapping, maps: list,
-             equalities: list, notes: Notes) -> Controller:
+def _runtime(
+    model: mujoco.MjModel,
+    scene: sapien.Scene,
+    articulations: list,
+    mapping: Mapping,
+    maps: list,
+    equalities: list,
+    notes: Notes,
+) -> Controller:
     """The per-step terms of `model` (the runtime's own: nobody else edits it), at the scene's timestep."""
     options = Options.of(model, physx_settings.scene_timestep(scene, model))
     return runtime_plan(model, options, mapping, scene, articulations, maps, equalities, notes)

@@ -189,8 +189,12 @@ class LoadResult:
     def state(self, key: int | str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Deprecated: the keyframe's state, which the name did not say; use `keyframe_state` (or `get_state` for the
         live state). Kept for one version."""
-        warnings.warn("LoadResult.state(key) is deprecated: use keyframe_state(key) for a keyframe's state or "
-                      "get_state() for the live one", DeprecationWarning, stacklevel=2)
+        warnings.warn(
+            "LoadResult.state(key) is deprecated: use keyframe_state(key) for a keyframe's state or "
+            "get_state() for the live one",
+            DeprecationWarning,
+            stacklevel=2,
+        )
         return self.keyframe_state(key)
 
     def ctrl(self, key: int | str | None = None) -> np.ndarray:

@@ -14,8 +14,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_bench_writes_timings_per_model(tmp_path):
-    entries = [ModelEntry(id="pendulum", source="fixture:fixtures/pendulum.xml", base_dir=str(ROOT / "corpus")),
-               ModelEntry(id="missing", source="fixture:fixtures/nope.xml", base_dir=str(ROOT / "corpus"))]
+    entries = [
+        ModelEntry(id="pendulum", source="fixture:fixtures/pendulum.xml", base_dir=str(ROOT / "corpus")),
+        ModelEntry(id="missing", source="fixture:fixtures/nope.xml", base_dir=str(ROOT / "corpus")),
+    ]
     out = tmp_path / "bench.json"
     bench(entries, out, steps=50, repeats=2)
     doc = json.loads(out.read_text())

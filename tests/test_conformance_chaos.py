@@ -131,8 +131,9 @@ def test_the_start_is_settled_onto_violated_equality_constraints():
     assert _anchor_gap(model, model.key_qpos[0]) > 1e-2  # the keyframe breaks the loop
     qpos, _, origin = reference.initial_state(model)
     assert _anchor_gap(model, qpos) < 1e-5 and "settled" in origin
-    free = mujoco.MjModel.from_xml_string(LOOP.replace('<equality><connect body1="left" body2="right" '
-                                                       'anchor="0 0 -.5"/></equality>', ""))
+    free = mujoco.MjModel.from_xml_string(
+        LOOP.replace('<equality><connect body1="left" body2="right" anchor="0 0 -.5"/></equality>', "")
+    )
     qpos, _, origin = reference.initial_state(free)
     np.testing.assert_array_equal(qpos, free.key_qpos[0])
     assert "settled" not in origin

@@ -58,8 +58,12 @@ def test_ray_gives_the_local_summary_metric_by_metric(ray_instance, tmp_path):
     _, local = _run(tmp_path, "local", entries, seeds=(0, 1))
     ray_dir, on_ray = _run(tmp_path, "ray", entries, seeds=(0, 1), executor="ray")
     assert on_ray["executor"] == "ray" and "executor" not in local
-    assert [m["id"] for m in on_ray["models"]] == ["cartpole@seed0", "cartpole@seed1", "pendulum@seed0",
-                                                   "pendulum@seed1"]
+    assert [m["id"] for m in on_ray["models"]] == [
+        "cartpole@seed0",
+        "cartpole@seed1",
+        "pendulum@seed0",
+        "pendulum@seed1",
+    ]
     assert {m["status"] for m in on_ray["models"]} == {"ok"}
     for mine, theirs in zip(local["models"], on_ray["models"]):
         assert _without_timing(theirs) == _without_timing(mine), mine["id"]
@@ -142,9 +146,14 @@ def _landed(out: Path, model_id: str) -> bool:
 def test_a_ray_worker_killed_mid_job_is_that_jobs_crash_and_the_run_goes_on(ray_instance, tmp_path):
     entries = manifest.load(SELFTEST).select(["hang", "pendulum"])
     finished = {}
-    runner = threading.Thread(target=lambda: finished.update(
-        zip(("run_dir", "summary"), _run(tmp_path, "ray", entries, executor="ray", tiers=("structure",),
-                                         timeout_scale=100))))
+    runner = threading.Thread(
+        target=lambda: finished.update(
+            zip(
+                ("run_dir", "summary"),
+                _run(tmp_path, "ray", entries, executor="ray", tiers=("structure",), timeout_scale=100),
+            )
+        )
+    )
     runner.start()
     _wait_for(lambda: _landed(tmp_path / "ray", "pendulum"), 120, "the pendulum's result")
     ((worker, job),) = _wait_for(lambda: list(_job_processes().items()), 60, "the hang's process")
@@ -163,19 +172,28 @@ def test_a_ray_worker_killed_mid_job_is_that_jobs_crash_and_the_run_goes_on(ray_
 
 
 def test_the_default_harness_never_imports_ray(tmp_path):
-    code = ("import sys; from conformance.cli import main; "
-            f"code = main(['run', '--manifest', {str(SELFTEST)!r}, '--model', 'pendulum', '--out', {str(tmp_path)!r},"
-            " '--quiet', '--no-record', '--tiers', 'structure']); "
-            "import loader, conformance.runner, conformance.worker; "
-            "assert 'ray' not in sys.modules, 'ray imported'; sys.exit(code)")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300,
-                          check=False)
+    code = (
+        "import sys; from conformance.cli import main; "
+        f"code = main(['run', '--manifest', {str(SELFTEST)!r}, '--model', 'pendulum', '--out', {str(tmp_path)!r},"
+        " '--quiet', '--no-record', '--tiers', 'structure']); "
+        "import loader, conformance.runner, conformance.worker; "
+        "assert 'ray' not in sys.modules, 'ray imported'; sys.exit(code)"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300, check=False
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
 @pytest.mark.skipif(not ray_missing(), reason="ray is installed: its absence cannot be seen here")
 def test_without_ray_the_ray_executor_is_a_usage_error_naming_the_extra(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--executor", "ray", "--out",
-                           str(tmp_path / "out")], cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-m", "conformance", "run", "--executor", "ray", "--out", str(tmp_path / "out")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert proc.returncode == 2 and "pip install 'mjcf-sapien[ray]'" in proc.stderr, proc.stderr
     assert not (tmp_path / "out").exists()

@@ -42,11 +42,16 @@ def test_a_finite_run_within_the_bound_has_not_diverged():
     assert first_divergence("settle", qpos, qvel, np.zeros(2), BOUND, DT) is None
 
 
-@pytest.mark.parametrize("mujoco_fastest,sapien,diverged", [
-    (1.0, 99.0, False), (1.0, 101.0, True),  # the floor: 100 rad/s
-    (20.0, 199.0, False), (20.0, 201.0, True),  # 10x MuJoCo's fastest in the same run
-    (20.0, -201.0, True),  # either direction
-])
+@pytest.mark.parametrize(
+    "mujoco_fastest,sapien,diverged",
+    [
+        (1.0, 99.0, False),
+        (1.0, 101.0, True),  # the floor: 100 rad/s
+        (20.0, 199.0, False),
+        (20.0, 201.0, True),  # 10x MuJoCo's fastest in the same run
+        (20.0, -201.0, True),  # either direction
+    ],
+)
 def test_the_speed_bound_is_the_floor_or_ten_times_mujocos_fastest(mujoco_fastest, sapien, diverged):
     qpos, qvel = _run([0.0, sapien])
     found = first_divergence("rollout", qpos, qvel, [0.0, mujoco_fastest], BOUND, DT, steps=[10, 20])
@@ -78,22 +83,35 @@ def test_an_infinite_error_of_a_static_tier_is_a_mapping_failure_not_a_divergenc
 
 
 def _entry(seen: float) -> ModelEntry:
-    return ModelEntry(id="m", source="x", tiers=("dynamics",), expect={"dynamics": Expectation(
-        "dynamics", "fail", "a known gap", metric="rollout_zero_qpos", seen=seen)})
+    return ModelEntry(
+        id="m",
+        source="x",
+        tiers=("dynamics",),
+        expect={"dynamics": Expectation("dynamics", "fail", "a known gap", metric="rollout_zero_qpos", seen=seen)},
+    )
 
 
 def _measured(value: float | None, status: str = "fail", divergence: dict | None = None) -> ModelResult:
-    report = {"status": status, "metrics": [{"name": "rollout_zero_qpos", "max": value, "tolerance": 1e-5}],
-              "notes": []}
+    report = {
+        "status": status,
+        "metrics": [{"name": "rollout_zero_qpos", "max": value, "tolerance": 1e-5}],
+        "notes": [],
+    }
     if divergence:
         report["divergence"] = divergence
     return ModelResult("m", "ok", tiers={"dynamics": report})
 
 
-@pytest.mark.parametrize("factor,outcome", [
-    (1.0, "expected-fail"), (0.9 * BAND_FACTOR, "expected-fail"), (1 / (0.9 * BAND_FACTOR), "expected-fail"),
-    (1.1 * BAND_FACTOR, "changed"), (1 / (1.1 * BAND_FACTOR), "changed"),
-])
+@pytest.mark.parametrize(
+    "factor,outcome",
+    [
+        (1.0, "expected-fail"),
+        (0.9 * BAND_FACTOR, "expected-fail"),
+        (1 / (0.9 * BAND_FACTOR), "expected-fail"),
+        (1.1 * BAND_FACTOR, "changed"),
+        (1 / (1.1 * BAND_FACTOR), "changed"),
+    ],
+)
 def test_an_expected_failure_outside_its_band_is_changed(factor, outcome):
     (v,) = summary.judge(_entry(0.02), _measured(0.02 * factor))
     assert v.outcome == outcome and v.worse is (outcome == "changed")
@@ -108,23 +126,29 @@ def test_an_expected_failure_without_its_metric_is_changed():
 
 def test_a_divergence_is_worse_than_an_expected_failure_and_names_its_step():
     where = {"run": "settle", "step": 151, "time": 0.755, "what": "qpos and qvel not finite"}
-    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [_entry(0.02)],
-                        {"m": _measured(None, "diverged", where)})
+    doc = summary.build(
+        {"run": "r", "seed": 0, "versions": {}}, [_entry(0.02)], {"m": _measured(None, "diverged", where)}
+    )
     assert not doc["ok"]
     assert doc["worse_than_expected"] == [
-        "m/dynamics: diverged (expected fail): settle step 151 (t = 0.755 s): qpos and qvel not finite"]
+        "m/dynamics: diverged (expected fail): settle step 151 (t = 0.755 s): qpos and qvel not finite"
+    ]
     assert "| m | **diverged: settle step 151" in summary.markdown(doc, ["dynamics"])
     (v,) = summary.judge(_entry(0.02), _measured(None, "diverged", where))
-    assert summary.headline("ok", [v]) == ("diverged (expected fail) in dynamics at settle step 151 (t = 0.755 s): "
-                                           "qpos and qvel not finite")
+    assert summary.headline("ok", [v]) == (
+        "diverged (expected fail) in dynamics at settle step 151 (t = 0.755 s): qpos and qvel not finite"
+    )
 
 
-@pytest.mark.parametrize("body,message", [
-    ('outcome = "diverged"\nreason = "r"', "outcome in"),
-    ('outcome = "changed"\nreason = "r"', "outcome in"),
-    ('outcome = "fail"\nreason = "r"', "names the `metric`"),
-    ('outcome = "fail"\nmetric = "rollout_zero_qpos"\nseen = 0\nreason = "r"', "positive max `seen`"),
-])
+@pytest.mark.parametrize(
+    "body,message",
+    [
+        ('outcome = "diverged"\nreason = "r"', "outcome in"),
+        ('outcome = "changed"\nreason = "r"', "outcome in"),
+        ('outcome = "fail"\nreason = "r"', "names the `metric`"),
+        ('outcome = "fail"\nmetric = "rollout_zero_qpos"\nseen = 0\nreason = "r"', "positive max `seen`"),
+    ],
+)
 def test_the_manifest_cannot_expect_what_only_a_run_can_say(tmp_path, body, message):
     from conformance import manifest
 
@@ -135,9 +159,27 @@ def test_the_manifest_cannot_expect_what_only_a_run_can_say(tmp_path, body, mess
 
 
 def _selftest(model: str, tmp_path: Path) -> tuple[subprocess.CompletedProcess, dict]:
-    proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--manifest", str(SELFTEST), "--model", model,
-                           "--out", str(tmp_path), "--quiet", "--no-record"], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300, check=False)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "conformance",
+            "run",
+            "--manifest",
+            str(SELFTEST),
+            "--model",
+            model,
+            "--out",
+            str(tmp_path),
+            "--quiet",
+            "--no-record",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     return proc, json.loads((tmp_path / "latest" / "summary.json").read_text())
 
 
@@ -168,7 +210,8 @@ def test_the_recordings_verdict_panel_names_the_first_bad_step():
     from conformance.report import TierReport
 
     found = first_divergence("rollout zero", *_run([1.0, np.nan]), [1.0], BOUND, DT)
-    report = TierReport("dynamics", "diverged", [Metric("rollout_zero_qpos", np.inf, np.inf, 1e-5, "rad")],
-                        divergence=found)
+    report = TierReport(
+        "dynamics", "diverged", [Metric("rollout_zero_qpos", np.inf, np.inf, 1e-5, "rad")], divergence=found
+    )
     text = verdict_markdown({"dynamics": report}, {"model": "m"})
     assert "| dynamics | diverged | first bad step: rollout zero step 1 (t = 0.002 s): qvel not finite |" in text

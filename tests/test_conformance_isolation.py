@@ -77,20 +77,30 @@ def test_a_kp_error_survives_every_isolation(friction_arm, dropped_friction, mon
 
 def _manifest(tmp_path, claim: str) -> object:
     path = tmp_path / "manifest.toml"
-    path.write_text(f'[[model]]\nid = "arm"\nsource = "arm.xml"\n[[model.expect]]\ntier = "actuated"\n'
-                    f'outcome = "fail"\nmetric = "one_step_qvel"\nseen = 0.01\nreason = "frictionloss"\n'
-                    f'passes_without = {claim}\n')
+    path.write_text(
+        f'[[model]]\nid = "arm"\nsource = "arm.xml"\n[[model.expect]]\ntier = "actuated"\n'
+        f'outcome = "fail"\nmetric = "one_step_qvel"\nseen = 0.01\nreason = "frictionloss"\n'
+        f"passes_without = {claim}\n"
+    )
     return load_manifest(path)
 
 
 def test_a_claim_the_run_cannot_reproduce_is_worse_than_expected(tmp_path):
     entry = _manifest(tmp_path, '["frictionloss"]').models[0]
-    failing = {"status": "fail", "metrics": [{"name": "one_step_qvel", "max": 0.02, "tolerance": 1e-5}], "notes": [],
-               "isolation": [{"without": ["frictionloss"], "outcome": "fail", "metrics": []}]}
-    verdict = next(v for v in judge(entry, ModelResult("arm", "ok", tiers={"actuated": failing})) if v.tier == "actuated")
+    failing = {
+        "status": "fail",
+        "metrics": [{"name": "one_step_qvel", "max": 0.02, "tolerance": 1e-5}],
+        "notes": [],
+        "isolation": [{"without": ["frictionloss"], "outcome": "fail", "metrics": []}],
+    }
+    verdict = next(
+        v for v in judge(entry, ModelResult("arm", "ok", tiers={"actuated": failing})) if v.tier == "actuated"
+    )
     assert verdict.worse and verdict.outcome == "fail"
     holding = {**failing, "isolation": [{"without": ["frictionloss"], "outcome": "pass", "metrics": []}]}
-    verdict = next(v for v in judge(entry, ModelResult("arm", "ok", tiers={"actuated": holding})) if v.tier == "actuated")
+    verdict = next(
+        v for v in judge(entry, ModelResult("arm", "ok", tiers={"actuated": holding})) if v.tier == "actuated"
+    )
     assert not verdict.worse and verdict.outcome == "expected-fail"
 
 
@@ -110,6 +120,7 @@ def test_the_worker_records_the_isolation_in_the_result_and_the_recording(fricti
     runs = result.tiers["actuated"]["isolation"]
     assert result.tiers["actuated"]["status"] == "fail"
     assert {"without": ["frictionloss"], "outcome": "pass"}.items() <= next(
-        r for r in runs if r["without"] == ["frictionloss"]).items()
+        r for r in runs if r["without"] == ["frictionloss"]
+    ).items()
     text = read_rrd(tmp_path / "friction_arm.rrd")["/verdict"]["TextDocument:text"][-1][0]
     assert "## Isolation" in text and "without frictionloss: pass" in text

@@ -11,9 +11,16 @@ from conformance.manifest import ModelEntry
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "corpus" / "manifest.toml"
-MENAGERIE_SLICE = {"aloha/scene.xml", "boston_dynamics_spot/spot.xml", "franka_emika_panda/panda.xml",
-                   "google_barkour_vb/barkour_vb.xml", "leap_hand/right_hand.xml", "robotiq_2f85_v4/2f85.xml",
-                   "tetheria_aero_hand_open/right_hand.xml", "unitree_go1/go1.xml"}
+MENAGERIE_SLICE = {
+    "aloha/scene.xml",
+    "boston_dynamics_spot/spot.xml",
+    "franka_emika_panda/panda.xml",
+    "google_barkour_vb/barkour_vb.xml",
+    "leap_hand/right_hand.xml",
+    "robotiq_2f85_v4/2f85.xml",
+    "tetheria_aero_hand_open/right_hand.xml",
+    "unitree_go1/go1.xml",
+}
 
 
 def test_default_corpus_is_every_suite_model_and_the_menagerie_slice():
@@ -37,7 +44,7 @@ def test_the_full_corpus_is_the_default_one_and_thirty_more_real_robots_from_pin
     default_ids = [e.id for e in manifest.load(DEFAULT).models]
     ids = [e.id for e in full.models]
     assert ids[: len(default_ids)] == default_ids
-    added = full.models[len(default_ids):]
+    added = full.models[len(default_ids) :]
     assert len(added) >= 30
     assert {e.source.split(":", 1)[1].split("/", 1)[0] for e in added} == set(ROBOT_PACKAGES)
     assert all(e.source.startswith("package:") for e in added)
@@ -79,14 +86,23 @@ def _write(tmp_path: Path, text: str) -> Path:
     return path
 
 
-@pytest.mark.parametrize("body,message", [
-    ('id = "a"\nsource = "x.xml"\ntiers = ["physics"]', "unknown tiers"),
-    ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "fail"', "bad expectation"),
-    ('id = "a"\nsource = "x.xml"\n[model.override]\nsettings = { dynamics = { horizon_s = 1.0 } }', "reason"),
-    ('id = "a"\nsource = "x.xml"\nfault = "explode"', "fault"),
-    ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "error"\nreason = "r"', "load error"),
-    ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "load"\noutcome = "skipped"\nreason = "r"', "load error"),
-])
+@pytest.mark.parametrize(
+    "body,message",
+    [
+        ('id = "a"\nsource = "x.xml"\ntiers = ["physics"]', "unknown tiers"),
+        ('id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "fail"', "bad expectation"),
+        ('id = "a"\nsource = "x.xml"\n[model.override]\nsettings = { dynamics = { horizon_s = 1.0 } }', "reason"),
+        ('id = "a"\nsource = "x.xml"\nfault = "explode"', "fault"),
+        (
+            'id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "error"\nreason = "r"',
+            "load error",
+        ),
+        (
+            'id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "load"\noutcome = "skipped"\nreason = "r"',
+            "load error",
+        ),
+    ],
+)
 def test_bad_entries_are_rejected_with_the_file_named(tmp_path, body, message):
     path = _write(tmp_path, "[[model]]\n" + body + "\n")
     with pytest.raises(ValueError, match=message) as err:
@@ -107,8 +123,9 @@ def test_menagerie_resolves_from_the_environment_variable(tmp_path, monkeypatch)
     found = corpus.resolve(ModelEntry(id="r", source="menagerie:robot/r.xml"))
     assert found.path == (tmp_path / "robot" / "r.xml").resolve()
     missing = corpus.resolve(ModelEntry(id="q", source="menagerie:robot/q.xml"))
-    assert missing.path is None and "robot/q.xml" in missing.skip_reason and "MUJOCO_MENAGERIE_PATH" in \
-        missing.skip_reason
+    assert (
+        missing.path is None and "robot/q.xml" in missing.skip_reason and "MUJOCO_MENAGERIE_PATH" in missing.skip_reason
+    )
 
 
 def test_menagerie_falls_back_to_the_envpool_package(monkeypatch):
@@ -132,8 +149,14 @@ def test_command_line_paths_become_entries_named_by_their_folder_where_stems_rep
     (tmp_path / "sub" / "arm.xml").write_text("<mujoco/>")
     (tmp_path / "ur5e").mkdir()
     (tmp_path / "ur5e" / "scene.xml").write_text("<mujoco/>")
-    m = manifest.from_paths([str(tmp_path / "panda" / "robot.xml"), str(tmp_path / "go2" / "robot.xml"),
-                             str(tmp_path / "sub"), str(tmp_path / "ur5e" / "scene.xml")])
+    m = manifest.from_paths(
+        [
+            str(tmp_path / "panda" / "robot.xml"),
+            str(tmp_path / "go2" / "robot.xml"),
+            str(tmp_path / "sub"),
+            str(tmp_path / "ur5e" / "scene.xml"),
+        ]
+    )
     # a folder stands for its .xml files; a generic stem (scene) takes its folder's name even where it is alone
     assert [e.id for e in m.models] == ["panda", "go2", "arm", "sub", "ur5e"]
     assert all(e.expected(t) == "pass" for e in m.models for t in manifest.TIER_NAMES)
@@ -162,4 +185,6 @@ def test_a_command_line_file_that_is_a_manifest_model_keeps_its_expectations(tmp
     entry = ModelEntry(id="my_arm", source="fixture:arm.xml", tiers=("contact",), expect=expect)
     m = manifest.from_paths([str(tmp_path)], known={(tmp_path / "arm.xml").resolve(): entry})
     assert [(e.id, e.expected("contact"), e.tiers) for e in m.models] == [
-        ("my_arm", "skipped", ("contact",)), ("other", "pass", manifest.DEFAULT_TIERS)]
+        ("my_arm", "skipped", ("contact",)),
+        ("other", "pass", manifest.DEFAULT_TIERS),
+    ]

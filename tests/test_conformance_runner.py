@@ -18,8 +18,14 @@ SELFTEST = ROOT / "corpus" / "selftest.toml"
 
 
 def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "conformance", "run", *args], cwd=ROOT, capture_output=True,
-                          text=True, timeout=timeout, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "conformance", "run", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +34,17 @@ def selftest_run(tmp_path_factory):
     started = time.monotonic()
     # the harness pendulum has no actuators: its actuated tiers would be skipped, which counts as worse than the
     # selftest manifest's "pass" (they run in test_conformance_worker.py and test_tiers_actuated.py)
-    proc = run_cli("--manifest", str(SELFTEST), "--out", str(out), "--jobs", "2", "--quiet",
-                   "--tiers", "structure,kinematics,inertia,collision,contact,dynamics")
+    proc = run_cli(
+        "--manifest",
+        str(SELFTEST),
+        "--out",
+        str(out),
+        "--jobs",
+        "2",
+        "--quiet",
+        "--tiers",
+        "structure,kinematics,inertia,collision,contact,dynamics",
+    )
     elapsed = time.monotonic() - started
     latest = out / "latest"
     return proc, out, latest.resolve(), json.loads((latest / "summary.json").read_text()), elapsed
@@ -80,8 +95,18 @@ def test_exit_status_is_nonzero_exactly_when_worse_than_expected(selftest_run, t
     assert any(w.startswith("crash/") for w in summary["worse_than_expected"])
     assert not any(w.startswith("pendulum/") for w in summary["worse_than_expected"])
     # the healthy fixture alone meets every expectation
-    ok = run_cli("--manifest", str(SELFTEST), "--model", "pendulum", "--out", str(tmp_path), "--quiet",
-                 "--no-record", "--tiers", "structure,kinematics")
+    ok = run_cli(
+        "--manifest",
+        str(SELFTEST),
+        "--model",
+        "pendulum",
+        "--out",
+        str(tmp_path),
+        "--quiet",
+        "--no-record",
+        "--tiers",
+        "structure,kinematics",
+    )
     assert ok.returncode == 0, ok.stdout + ok.stderr
 
 
@@ -96,14 +121,35 @@ def test_summary_records_versions_and_markdown_table(selftest_run):
 def test_interrupted_run_keeps_a_valid_summary_and_earlier_runs(selftest_run, tmp_path):
     _, out, earlier, _, _ = selftest_run
     before = {p.name: p.read_bytes() for p in earlier.iterdir() if p.is_file()}
-    proc = subprocess.Popen([sys.executable, "-m", "conformance", "run", "--manifest", str(SELFTEST),
-                             "--model", "hang", "--out", str(out), "--quiet", "--timeout-scale", "100"],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "conformance",
+            "run",
+            "--manifest",
+            str(SELFTEST),
+            "--model",
+            "hang",
+            "--out",
+            str(out),
+            "--quiet",
+            "--timeout-scale",
+            "100",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 60
     runs = set()
     while time.monotonic() < deadline and not runs:
-        runs = {p for p in out.iterdir() if p.is_dir() and not p.is_symlink() and p != earlier
-                and (p / "summary.json").exists()}
+        runs = {
+            p
+            for p in out.iterdir()
+            if p.is_dir() and not p.is_symlink() and p != earlier and (p / "summary.json").exists()
+        }
         time.sleep(0.2)
     if not runs:
         proc.kill()
@@ -121,8 +167,18 @@ def test_interrupted_run_keeps_a_valid_summary_and_earlier_runs(selftest_run, tm
 
 
 def test_mjcf_paths_on_the_command_line(tmp_path):
-    proc = run_cli(str(ROOT / "corpus" / "fixtures" / "pendulum.xml"), "--out", str(tmp_path), "--quiet",
-                   "--tiers", "structure,inertia", "--seed", "5", "--jobs", "1")
+    proc = run_cli(
+        str(ROOT / "corpus" / "fixtures" / "pendulum.xml"),
+        "--out",
+        str(tmp_path),
+        "--quiet",
+        "--tiers",
+        "structure,inertia",
+        "--seed",
+        "5",
+        "--jobs",
+        "1",
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads((tmp_path / "latest" / "summary.json").read_text())
     assert summary["seed"] == 5 and summary["tiers"] == ["structure", "inertia"]
@@ -165,8 +221,14 @@ def test_an_unknown_named_corpus_lists_the_known_ones(tmp_path):
 def test_version_and_help_show_what_a_newcomer_needs():
     import mujoco
 
-    version = subprocess.run([sys.executable, "-m", "conformance", "--version"], cwd=ROOT, capture_output=True,
-                             text=True, timeout=60, check=False)
+    version = subprocess.run(
+        [sys.executable, "-m", "conformance", "--version"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert version.returncode == 0 and version.stdout.startswith("mjcf-sapien ")
     assert f"mujoco {mujoco.__version__}" in version.stdout
     helped = run_cli("--help")
@@ -177,10 +239,30 @@ def test_version_and_help_show_what_a_newcomer_needs():
 
 
 def test_summary_files_are_readable_by_everyone(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--manifest", str(SELFTEST), "--model",
-                           "pendulum", "--out", str(tmp_path), "--quiet", "--no-record", "--tiers", "structure"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=300, check=False,
-                          preexec_fn=lambda: os.umask(0o022))
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "conformance",
+            "run",
+            "--manifest",
+            str(SELFTEST),
+            "--model",
+            "pendulum",
+            "--out",
+            str(tmp_path),
+            "--quiet",
+            "--no-record",
+            "--tiers",
+            "structure",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+        preexec_fn=lambda: os.umask(0o022),
+    )
     assert proc.returncode == 0, proc.stderr
     run = (tmp_path / "latest").resolve()
     written = [run / "summary.json", run / "summary.md", run / "models" / "pendulum.json"]
@@ -197,9 +279,26 @@ def test_third_party_warnings_are_counted_not_printed(tmp_path):
     elsewhere = tmp_path / "cwd"
     elsewhere.mkdir()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.run([sys.executable, "-m", "conformance", "run", str(tmp_path / "heavy.xml"), "--out",
-                           str(tmp_path / "out"), "--no-record", "--tiers", "structure,inertia"], cwd=elsewhere,
-                          env=env, capture_output=True, text=True, timeout=300, check=False)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "conformance",
+            "run",
+            str(tmp_path / "heavy.xml"),
+            "--out",
+            str(tmp_path / "out"),
+            "--no-record",
+            "--tiers",
+            "structure,inertia",
+        ],
+        cwd=elsewhere,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr
     terminal = proc.stdout + proc.stderr
     assert "settotalmass" not in terminal and "libvulkan" not in terminal and "Warning:" not in terminal
@@ -245,9 +344,11 @@ def test_the_terminal_gets_one_line_per_model_and_the_file_the_table(tmp_path):
     plain = run_cli(*args, "--out", str(tmp_path / "a"))
     assert plain.returncode == 0, plain.stderr
     run = (tmp_path / "a" / "latest").resolve()
-    assert plain.stdout.splitlines() == ["rack  ok     pass  (loader: approximated geom 3)",
-                                         "1 models, 0 worse than the manifest expects",
-                                         f"report: {run / 'summary.md'}"]
+    assert plain.stdout.splitlines() == [
+        "rack  ok     pass  (loader: approximated geom 3)",
+        "1 models, 0 worse than the manifest expects",
+        f"report: {run / 'summary.md'}",
+    ]
     assert "| rack | pass" in (run / "summary.md").read_text()
     detailed = run_cli(*args, "--out", str(tmp_path / "b"), "-v").stdout.splitlines()
     notes = [line for line in detailed if line.startswith("    approximated geom ")]

@@ -16,8 +16,9 @@ SEEN = [{"name": "rollout_zero_qpos", "max": 0.3, "tolerance": 1e-5, "margin": -
 
 
 def _result(status: str, metrics: list | None = None, **tiers: str) -> ModelResult:
-    return ModelResult("m", status, tiers={t: {"status": s, "metrics": metrics or [], "notes": []}
-                                            for t, s in tiers.items()})
+    return ModelResult(
+        "m", status, tiers={t: {"status": s, "metrics": metrics or [], "notes": []} for t, s in tiers.items()}
+    )
 
 
 def _gap(tier: str = "dynamics", outcome: str = "fail") -> Expectation:
@@ -31,13 +32,22 @@ def test_known_gap_is_expected_fail_and_not_worse():
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": _result("ok", SEEN, dynamics="fail")})
     assert doc["ok"]
     text = summary.markdown(doc, ["dynamics"])
-    assert "| m | expected-fail: rollout_zero_qpos 0.3 " in text and "- m/dynamics (fail): tendons are not mapped" in text
+    assert (
+        "| m | expected-fail: rollout_zero_qpos 0.3 " in text and "- m/dynamics (fail): tendons are not mapped" in text
+    )
 
 
-@pytest.mark.parametrize("raw,expected,worse", [
-    ("pass", "pass", False), ("chaotic", "pass", True), ("fail", "chaotic", True),
-    ("chaotic", "chaotic", False), ("pass", "fail", False), ("skipped", "pass", True),
-])
+@pytest.mark.parametrize(
+    "raw,expected,worse",
+    [
+        ("pass", "pass", False),
+        ("chaotic", "pass", True),
+        ("fail", "chaotic", True),
+        ("chaotic", "chaotic", False),
+        ("pass", "fail", False),
+        ("skipped", "pass", True),
+    ],
+)
 def test_worse_than_expected(raw, expected, worse):
     expect = {} if expected == "pass" else {"contact": _gap("contact", expected)}
     entry = ModelEntry(id="m", source="x", tiers=("contact",), expect=expect)
@@ -68,10 +78,15 @@ def test_a_gap_that_closed_is_listed_for_the_manifest_update():
 
 
 def test_build_flags_the_run(tmp_path):
-    entries = [ModelEntry(id="a", source="x", tiers=("structure",)),
-               ModelEntry(id="b", source="y", tiers=("structure",))]
-    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, entries,
-                        {"a": _result("ok", structure="pass"), "b": _result("ok", structure="fail")})
+    entries = [
+        ModelEntry(id="a", source="x", tiers=("structure",)),
+        ModelEntry(id="b", source="y", tiers=("structure",)),
+    ]
+    doc = summary.build(
+        {"run": "r", "seed": 0, "versions": {}},
+        entries,
+        {"a": _result("ok", structure="pass"), "b": _result("ok", structure="fail")},
+    )
     assert not doc["ok"] and doc["worse_than_expected"] == ["b/structure: fail (expected pass)"]
     json.dumps(doc, allow_nan=False)
     assert "| b | **fail** |" in summary.markdown(doc, ["structure"])
@@ -79,8 +94,10 @@ def test_build_flags_the_run(tmp_path):
 
 def test_markdown_cell_shows_error_tolerance_and_margin():
     entry = ModelEntry(id="a", source="x", tiers=("inertia",))
-    metrics = [{"name": "mass", "max": 2e-7, "rms": 1e-7, "tolerance": 1e-5, "margin": 1e-5 - 2e-7, "unit": "relative"},
-               {"name": "com", "max": 4e-6, "rms": 1e-6, "tolerance": 5e-6, "margin": 1e-6, "unit": "m"}]
+    metrics = [
+        {"name": "mass", "max": 2e-7, "rms": 1e-7, "tolerance": 1e-5, "margin": 1e-5 - 2e-7, "unit": "relative"},
+        {"name": "com", "max": 4e-6, "rms": 1e-6, "tolerance": 5e-6, "margin": 1e-6, "unit": "m"},
+    ]
     result = ModelResult("a", "ok", tiers={"inertia": {"status": "pass", "metrics": metrics, "notes": []}})
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"a": result})
     assert "| a | pass: com 4e-06 (tol 5e-06, margin 1e-06) |" in summary.markdown(doc, ["inertia"])
@@ -109,17 +126,37 @@ def test_latest_points_at_the_newest_run(tmp_path):
 
 def test_summary_lists_integrator_switch_ctrl_scaling_and_saturation_of_the_actuated_tiers():
     entry = ModelEntry(id="arm", source="x", tiers=("actuated", "actuated_contact"))
-    settings = {"integrator_authored": "mjINT_EULER", "integrator_reference": "mjINT_IMPLICITFAST",
-                "ctrl_scale": 0.25, "saturated_steps": 3, "limit_steps": 0}
-    result = ModelResult("arm", "ok", tiers={
-        "actuated": {"status": "pass", "metrics": [], "notes": [], "settings": settings},
-        "actuated_contact": {"status": "pass", "metrics": [], "notes": [],
-                             "settings": {**settings, "integrator_authored": "mjINT_IMPLICITFAST",
-                                          "ctrl_scale": 1.0, "saturated_steps": 0}}})
+    settings = {
+        "integrator_authored": "mjINT_EULER",
+        "integrator_reference": "mjINT_IMPLICITFAST",
+        "ctrl_scale": 0.25,
+        "saturated_steps": 3,
+        "limit_steps": 0,
+    }
+    result = ModelResult(
+        "arm",
+        "ok",
+        tiers={
+            "actuated": {"status": "pass", "metrics": [], "notes": [], "settings": settings},
+            "actuated_contact": {
+                "status": "pass",
+                "metrics": [],
+                "notes": [],
+                "settings": {
+                    **settings,
+                    "integrator_authored": "mjINT_IMPLICITFAST",
+                    "ctrl_scale": 1.0,
+                    "saturated_steps": 0,
+                },
+            },
+        },
+    )
     doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"arm": result})
     text = summary.markdown(doc, ["actuated", "actuated_contact"])
-    assert ("- arm/actuated: MuJoCo mjINT_IMPLICITFAST instead of the authored mjINT_EULER; ctrl deviations "
-            "scaled by 0.25; forcerange reached on 3 steps (clamped on both sides)") in text
+    assert (
+        "- arm/actuated: MuJoCo mjINT_IMPLICITFAST instead of the authored mjINT_EULER; ctrl deviations "
+        "scaled by 0.25; forcerange reached on 3 steps (clamped on both sides)"
+    ) in text
     assert "- arm/actuated_contact" not in text  # nothing to say: same integrator, no scaling
 
 
@@ -140,8 +177,12 @@ def test_a_float32_floor_is_subtracted_before_judging_and_the_raw_error_kept():
 def test_a_model_result_round_trips_through_json_and_rejects_an_unknown_status():
     import numpy as np
 
-    result = ModelResult("m", "ok", seconds=np.float64(1.5), tiers={"dynamics": {"status": "diverged",
-                                                                                 "metrics": [{"max": float("nan")}]}})
+    result = ModelResult(
+        "m",
+        "ok",
+        seconds=np.float64(1.5),
+        tiers={"dynamics": {"status": "diverged", "metrics": [{"max": float("nan")}]}},
+    )
     doc = json.loads(json.dumps(result.to_dict(), allow_nan=False))
     assert doc["seconds"] == 1.5 and doc["tiers"]["dynamics"]["metrics"][0]["max"] is None
     assert ModelResult.from_dict({**doc, "written_by": "a later version"}) == ModelResult.from_dict(doc)
@@ -156,17 +197,22 @@ def test_a_load_error_is_one_error_outcome():
     entry = ModelEntry(id="m", source="x", tiers=("structure", "dynamics"))
     (v,) = summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))
     assert (v.tier, v.raw, v.expected, v.worse) == ("load", "error", "pass", True)
-    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"m": ModelResult("m", "error",
-                                                                                           reason=PARSE_ERROR)})
+    doc = summary.build(
+        {"run": "r", "seed": 0, "versions": {}}, [entry], {"m": ModelResult("m", "error", reason=PARSE_ERROR)}
+    )
     assert not doc["ok"] and doc["worse_than_expected"] == ["m/load: error (expected pass)"]
-    assert ("| m | **error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1** "
-            "|  |") in summary.markdown(doc, ["structure", "dynamics"])
+    assert (
+        "| m | **error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1** |  |"
+    ) in summary.markdown(doc, ["structure", "dynamics"])
 
 
 @pytest.mark.parametrize("expected,worse", [("pass", True), ("fail", True), ("error", False)])
 def test_an_error_is_worse_than_any_expectation_but_error(expected, worse):
-    expect = {"load": Expectation("load", "error", "MuJoCo rejects it")} if expected == "error" else (
-        {"dynamics": _gap()} if expected == "fail" else {})
+    expect = (
+        {"load": Expectation("load", "error", "MuJoCo rejects it")}
+        if expected == "error"
+        else ({"dynamics": _gap()} if expected == "fail" else {})
+    )
     entry = ModelEntry(id="m", source="x", tiers=("dynamics",), expect=expect)
     (v,) = summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))
     assert v.worse is worse
@@ -179,8 +225,8 @@ def test_the_headline_is_the_worst_outcome():
     result = _result("ok", SEEN, structure="pass", contact="pass", dynamics="fail")
     assert summary.headline("ok", summary.judge(entry, result)) == "expected-fail in dynamics"
     assert summary.headline("error", summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))) == (
-        "error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1 "
-        "(expected fail)")  # judged against the model's worst expectation
+        "error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1 (expected fail)"
+    )  # judged against the model's worst expectation
     assert summary.headline("crashed", summary.judge(entry, ModelResult("m", "crashed"))) == "crashed"
 
 
@@ -188,9 +234,11 @@ def _swept_manifest(tmp_path, seeds_line: str, seen: str):
     from conformance import manifest
 
     path = tmp_path / "m.toml"
-    path.write_text(f'[[model]]\nid = "m"\nsource = "fixture:fixtures/pendulum.xml"\n[[model.expect]]\ntier = "dynamics"\n'
-                    f'outcome = "fail"\nmetric = "rollout_zero_qpos"\nseen = {seen}\n{seeds_line}'
-                    'reason = "measured over seeds"\n')
+    path.write_text(
+        f'[[model]]\nid = "m"\nsource = "fixture:fixtures/pendulum.xml"\n[[model.expect]]\ntier = "dynamics"\n'
+        f'outcome = "fail"\nmetric = "rollout_zero_qpos"\nseen = {seen}\n{seeds_line}'
+        'reason = "measured over seeds"\n'
+    )
     return dataclasses.replace(manifest.load(path).models[0], tiers=("dynamics",))
 
 

@@ -24,15 +24,20 @@ def test_result_is_json_with_versions_settings_and_load_notes(tmp_path):
     json.dumps(result.to_dict(), allow_nan=False)
     assert result.status == "ok" and set(result.tiers) == {"structure", "dynamics"}
     assert result.settings["sapien"]["solver"] == "PGS"
-    assert result.settings["sapien"]["timestep"] == pytest.approx(result.settings["mujoco"]["timestep"],
-                                                                     rel=1e-6)  # SAPIEN stores float32
+    assert result.settings["sapien"]["timestep"] == pytest.approx(
+        result.settings["mujoco"]["timestep"], rel=1e-6
+    )  # SAPIEN stores float32
     assert result.load["load_seconds"] > 0 and result.versions["rerun-sdk"]
 
 
 def test_manifest_overrides_reach_the_tiers(tmp_path):
-    result = _evaluate(tmp_path, tiers=("kinematics", "dynamics"),
-                       tolerances={"kinematics.position": 1e-12},
-                       settings={"dynamics": {"horizon_s": 0.02}}, override_reason="test")
+    result = _evaluate(
+        tmp_path,
+        tiers=("kinematics", "dynamics"),
+        tolerances={"kinematics.position": 1e-12},
+        settings={"dynamics": {"horizon_s": 0.02}},
+        override_reason="test",
+    )
     kinematics = result.tiers["kinematics"]
     assert kinematics["status"] == "fail"
     assert next(m for m in kinematics["metrics"] if m["name"] == "position")["tolerance"] == 1e-12
@@ -57,7 +62,11 @@ def test_actuated_tiers_run_in_order_before_dynamics_and_leave_it_a_clean_scene(
     json.dumps(result.to_dict(), allow_nan=False)
     assert list(result.tiers) == ["contact", "actuated_contact", "actuated", "dynamics"]
     assert {t: r["status"] for t, r in result.tiers.items()} == {
-        "contact": "pass", "actuated_contact": "pass", "actuated": "pass", "dynamics": "pass"}
+        "contact": "pass",
+        "actuated_contact": "pass",
+        "actuated": "pass",
+        "dynamics": "pass",
+    }
     actuated = result.tiers["actuated"]["settings"]
     assert actuated["integrator_reference"] == "mjINT_EULER" and actuated["actuators"] is True  # as authored
     assert result.tiers["dynamics"]["settings"]["actuators"] is False  # its reference disables actuation

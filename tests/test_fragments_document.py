@@ -21,11 +21,20 @@ def _box_mesh() -> MeshAsset:
 
 
 def _doc(split: bool) -> Document:
-    main = DefaultClass(None, geom={"rgba": "0 1 0 1", "size": ".1 .2 .3", "type": "box"},
-                        children=[DefaultClass("a", joint={"damping": "3"})])
-    body = Body("body", {"name": "b"}, [Element("joint", {"name": "j", "class": "a"}),
-                                        Element("geom", {"name": "g"}),
-                                        Element("geom", {"name": "h", "type": "mesh", "mesh": "m"})])
+    main = DefaultClass(
+        None,
+        geom={"rgba": "0 1 0 1", "size": ".1 .2 .3", "type": "box"},
+        children=[DefaultClass("a", joint={"damping": "3"})],
+    )
+    body = Body(
+        "body",
+        {"name": "b"},
+        [
+            Element("joint", {"name": "j", "class": "a"}),
+            Element("geom", {"name": "g"}),
+            Element("geom", {"name": "h", "type": "mesh", "mesh": "m"}),
+        ],
+    )
     return Document(defaults=main, split_main=split, meshes=[_box_mesh()], bodies=[body])
 
 
@@ -35,7 +44,7 @@ def test_main_split_over_two_default_blocks_compiles_like_one(tmp_path):
     assert _doc(True).render()[0].count("<default>") == 2
     for field in ("geom_size", "geom_rgba", "dof_damping", "mesh_vert"):
         np.testing.assert_array_equal(getattr(one, field), getattr(two, field))
-    np.testing.assert_allclose(two.geom_size[0], (.1, .2, .3))
+    np.testing.assert_allclose(two.geom_size[0], (0.1, 0.2, 0.3))
     assert two.dof_damping[0] == 3
 
 

@@ -38,8 +38,11 @@ def test_two_workers_run_their_shares_and_the_tallies_add_up(tmp_path, monkeypat
 def test_regressions_that_differ_only_in_a_mesh_get_different_files(tmp_path):
     def tetra(size: float) -> Document:
         mesh = MeshAsset("m", [(0, 0, 0), (size, 0, 0), (0, size, 0), (0, 0, size)], TETRA_FACES)
-        body = Body("body", {"name": "b"}, [Element("joint", {"name": "j"}),
-                                            Element("geom", {"name": "g", "type": "mesh", "mesh": "m"})])
+        body = Body(
+            "body",
+            {"name": "b"},
+            [Element("joint", {"name": "j"}), Element("geom", {"name": "g", "type": "mesh", "mesh": "m"})],
+        )
         return Document(meshes=[mesh], bodies=[body])
 
     small, large = save_regression(tetra(0.1), "p", tmp_path), save_regression(tetra(0.3), "p", tmp_path)

@@ -60,7 +60,8 @@ def test_a_model_that_blows_up_only_with_its_actuators_on_is_no_reference(integr
 
     model = mujoco.MjModel.from_xml_string(
         f'<mujoco><option integrator="{integrator}"/><worldbody><body><joint name="j"/><geom size="0.02"/></body>'
-        '</worldbody><actuator><velocity joint="j" kv="1"/></actuator></mujoco>')
+        '</worldbody><actuator><velocity joint="j" kv="1"/></actuator></mujoco>'
+    )
     reason = mujoco_ill_posed(model, 20)
     assert (reason is not None and reason.startswith("MuJoCo itself is unstable on the model")) is unstable, reason
 
@@ -72,7 +73,8 @@ def _slide(option: str, joint: str, actuator: str):
 
     model = mujoco.MjModel.from_xml_string(
         f'<mujoco><option timestep="0.01"{option}/><worldbody><body><joint name="s" type="slide"{joint}/>'
-        f'<geom size="0.05" mass="1"/></body></worldbody><actuator>{actuator}</actuator></mujoco>')
+        f'<geom size="0.05" mass="1"/></body></worldbody><actuator>{actuator}</actuator></mujoco>'
+    )
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     return model, data
@@ -144,8 +146,11 @@ def test_a_loader_that_keeps_the_hard_limit_on_frictional_joints_is_caught(monke
     def hard_on_frictional(model, mapping, *args):
         term = plan(model, mapping, *args)
         if term is not None:
-            frictional = {(t.articulation, t.dofs[0]) for j, t in enumerate(mapping.joints)
-                          if t.kind in ("hinge", "slide") and model.dof_frictionloss[model.jnt_dofadr[j]] > 0}
+            frictional = {
+                (t.articulation, t.dofs[0])
+                for j, t in enumerate(mapping.joints)
+                if t.kind in ("hinge", "slide") and model.dof_frictionloss[model.jnt_dofadr[j]] > 0
+            }
             term.set_limits([limit for limit in term.limits if limit.key not in frictional])
             for j, t in enumerate(mapping.joints):
                 if (t.articulation, (t.dofs or [None])[0]) in frictional:
@@ -176,8 +181,11 @@ def test_checked_documents_leave_no_files_and_never_share_a_name():
 
     def tetra(size: float) -> Document:
         mesh = MeshAsset("m", [(0, 0, 0), (size, 0, 0), (0, size, 0), (0, 0, size)], TETRA_FACES)
-        body = Body("body", {"name": "b"}, [Element("joint", {"name": "j"}),
-                                            Element("geom", {"name": "g", "type": "mesh", "mesh": "m"})])
+        body = Body(
+            "body",
+            {"name": "b"},
+            [Element("joint", {"name": "j"}), Element("geom", {"name": "g", "type": "mesh", "mesh": "m"})],
+        )
         return Document(meshes=[mesh], bodies=[body])
 
     paths = []

@@ -45,12 +45,16 @@ def test_every_open_bug_detector_names_a_known_bug():
     assert {bug.regression for bug in KNOWN_BUGS} <= set(KNOWN)
 
 
-@pytest.mark.parametrize("find, detector, change, detector_silent_after", [
-    ("slender_rod_about_its_axis", "_slender_about_a_hinge", ('euler="0 35 0"', 'euler="0 0 0"'), False),
-    ("robot_classes-1fb34010df", "_servo_spins_fast", ('kp="5"', 'kp="0.5"'), True),
-])
-def test_a_known_bugs_find_passes_without_the_trait_its_detector_names(tmp_path, find, detector, change,
-                                                                       detector_silent_after):
+@pytest.mark.parametrize(
+    "find, detector, change, detector_silent_after",
+    [
+        ("slender_rod_about_its_axis", "_slender_about_a_hinge", ('euler="0 35 0"', 'euler="0 0 0"'), False),
+        ("robot_classes-1fb34010df", "_servo_spins_fast", ('kp="5"', 'kp="0.5"'), True),
+    ],
+)
+def test_a_known_bugs_find_passes_without_the_trait_its_detector_names(
+    tmp_path, find, detector, change, detector_silent_after
+):
     """The attribution of a known bug: its detector names the find, and the same document with only that trait
     undone (the body back on the world axes) passes every property."""
     import shutil

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 from support import house
@@ -13,50 +15,86 @@ def test_the_tree_keeps_the_house_rules():
     assert house.findings(ROOT) == []
 
 
+LINTED = ("loader", "conformance", "tests", "noxfile.py")
+
+
+def _ruff(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ruff", *args], cwd=cwd, capture_output=True, text=True, check=False)
+
+
+def test_the_code_is_formatted():
+    """What `nox -s lint` checks first, so that CI holds it too: ruff's formatter leaves every file as it is."""
+    done = _ruff("format", "--check", *LINTED)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
 def test_a_measured_number_in_a_loader_docstring_is_found_and_one_in_code_is_not():
     text = '"""Module."""\n\nLIMIT = 1e-6\n\n\ndef f():\n    """Measured 4.2e-7 rad over 1 s."""\n    return 2.5E3\n'
     assert house.docstring_numbers({"loader/x.py": text}) == [
-        "loader/x.py:7: 4.2e-7 in a docstring; name the test that measures it instead"]
+        "loader/x.py:7: 4.2e-7 in a docstring; name the test that measures it instead"
+    ]
 
 
 def test_an_import_cycle_is_found_even_through_a_function_local_import():
-    files = {"pkg/__init__.py": "", "pkg/a.py": "from .b import g\n",
-             "pkg/b.py": "def g():\n    from .a import h\n    return h\n"}
+    files = {
+        "pkg/__init__.py": "",
+        "pkg/a.py": "from .b import g\n",
+        "pkg/b.py": "def g():\n    from .a import h\n    return h\n",
+    }
     assert house.import_cycles(files) == ["import cycle: pkg.a -> pkg.b -> pkg.a"]
     assert house.import_cycles({**files, "pkg/b.py": "def g():\n    return 1\n"}) == []
 
 
 def test_the_planning_half_importing_the_runtime_is_found_and_the_shared_layer_is_not():
-    files = {"loader/plan/joint.py": "from ..model import mj\nfrom ..errors import Notes\n",
-             "loader/runtime/rows.py": "from ..model.mapping import Mapping\nfrom .term import Term\n",
-             "loader/model/mj.py": "import mujoco\n", "loader/result.py": "from .plan import tree\nfrom .runtime import x\n"}
+    files = {
+        "loader/plan/joint.py": "from ..model import mj\nfrom ..errors import Notes\n",
+        "loader/runtime/rows.py": "from ..model.mapping import Mapping\nfrom .term import Term\n",
+        "loader/model/mj.py": "import mujoco\n",
+        "loader/result.py": "from .plan import tree\nfrom .runtime import x\n",
+    }
     assert house.layering(files) == []
     crossed = {**files, "loader/plan/joint.py": "def f():\n    from ..runtime.rows import RowTerm\n"}
-    assert house.layering(crossed) == [("loader/plan/joint.py:2: loader.plan imports loader.runtime.rows.RowTerm "
-                                       "(loader.runtime); it may import loader.model, loader.plan only")]
+    assert house.layering(crossed) == [
+        (
+            "loader/plan/joint.py:2: loader.plan imports loader.runtime.rows.RowTerm "
+            "(loader.runtime); it may import loader.model, loader.plan only"
+        )
+    ]
     shared = {**files, "loader/model/mj.py": "from ..plan.tree import centres\n"}
-    assert house.layering(shared) == [("loader/model/mj.py:1: loader.model imports loader.plan.tree.centres "
-                                      "(loader.plan); it may import loader.model only")]
+    assert house.layering(shared) == [
+        (
+            "loader/model/mj.py:1: loader.model imports loader.plan.tree.centres "
+            "(loader.plan); it may import loader.model only"
+        )
+    ]
     facade = {**files, "loader/runtime/rows.py": "from ..result import LoadResult\n"}
     assert len(house.layering(facade)) == 1
 
 
 def test_a_folder_named_build_is_found():
     assert house.layering({"loader/build/tree.py": ""}) == [
-        "loader/build/tree.py: a folder named build (tools take it for build output)"]
+        "loader/build/tree.py: a folder named build (tools take it for build output)"
+    ]
 
 
 def test_a_quoted_identifier_the_code_lacks_is_found():
-    code = {"loader/runtime/controller.py": 'STAGES = ("rows", "drives")\n\n\nclass Controller:\n'
-                                            '    def without(self, *names):\n        self.terms = names\n',
-            "loader/plan/tree.py": "def plan_tree(model):\n    return model.nbody\n"}
-    good = "`controller.without`, `plan_tree()`, `plan/tree.py`, `summary.json`, `mujoco.mj_step` and " \
-           '`controller.without("rows")`\n'
+    code = {
+        "loader/runtime/controller.py": 'STAGES = ("rows", "drives")\n\n\nclass Controller:\n'
+        "    def without(self, *names):\n        self.terms = names\n",
+        "loader/plan/tree.py": "def plan_tree(model):\n    return model.nbody\n",
+    }
+    good = (
+        "`controller.without`, `plan_tree()`, `plan/tree.py`, `summary.json`, `mujoco.mj_step` and "
+        '`controller.without("rows")`\n'
+    )
     assert house.unresolved_identifiers({"docs/a.md": good}, code) == []
     bad = '`controller.within`, `plan_forest()`, `plan/forest.py`, `without("limits")`\n'
     assert house.unresolved_identifiers({"docs/a.md": bad}, code) == [
-        "docs/a.md:1: without('limits'): no such stage", "docs/a.md:1: `controller.within`: the code has no within",
-        "docs/a.md:1: `plan_forest()`: no such function or class", "docs/a.md:1: `plan/forest.py`: no such file"]
+        "docs/a.md:1: without('limits'): no such stage",
+        "docs/a.md:1: `controller.within`: the code has no within",
+        "docs/a.md:1: `plan_forest()`: no such function or class",
+        "docs/a.md:1: `plan/forest.py`: no such file",
+    ]
 
 
 def test_reading_another_objects_private_attribute_is_found():
@@ -65,18 +103,24 @@ def test_reading_another_objects_private_attribute_is_found():
 
 
 def test_a_link_to_a_missing_anchor_or_file_is_found():
-    docs = {"README.md": "see [limits](docs/mapping.md#joint-limits) and [x](docs/mapping.md#joint-limit)\n",
-            "docs/mapping.md": "# Mapping\n\n## Joint limits\n\n[back](../README.md), [gone](../nothere.py)\n"}
-    assert house.broken_links(docs) == ["README.md:1: broken link docs/mapping.md#joint-limit",
-                                        "docs/mapping.md:5: broken link ../nothere.py"]
+    docs = {
+        "README.md": "see [limits](docs/mapping.md#joint-limits) and [x](docs/mapping.md#joint-limit)\n",
+        "docs/mapping.md": "# Mapping\n\n## Joint limits\n\n[back](../README.md), [gone](../nothere.py)\n",
+    }
+    assert house.broken_links(docs) == [
+        "README.md:1: broken link docs/mapping.md#joint-limit",
+        "docs/mapping.md:5: broken link ../nothere.py",
+    ]
     docs["nothere.py"] = ""
     docs["README.md"] = docs["README.md"].replace("#joint-limit)", "#joint-limits)")
     assert house.broken_links(docs) == []
 
 
 def test_a_heading_with_punctuation_has_githubs_anchor():
-    docs = {"a.md": "## Visuals, cameras and sites\n## `set_ctrl` and `release()`\n[v](#visuals-cameras-and-sites) "
-                    "[s](#set_ctrl-and-release)\n"}
+    docs = {
+        "a.md": "## Visuals, cameras and sites\n## `set_ctrl` and `release()`\n[v](#visuals-cameras-and-sites) "
+        "[s](#set_ctrl-and-release)\n"
+    }
     assert house.broken_links(docs) == []
 
 
@@ -87,18 +131,25 @@ def test_a_readme_over_the_limit_is_found():
 
 def test_a_reference_to_a_moved_or_renamed_test_is_found():
     files = {"tests/test_a.py": "def test_kept():\n    pass\n"}
-    docs = {"docs/m.md": "Measured by: `tests/test_a.py::test_kept`, `tests/test_a.py::test_gone`,\n"
-                         "`tests/test_b.py::test_kept`.\n"}
-    assert house.broken_test_references(docs, files) == ["docs/m.md:1: no test tests/test_a.py::test_gone",
-                                                         "docs/m.md:2: no test tests/test_b.py::test_kept"]
+    docs = {
+        "docs/m.md": "Measured by: `tests/test_a.py::test_kept`, `tests/test_a.py::test_gone`,\n"
+        "`tests/test_b.py::test_kept`.\n"
+    }
+    assert house.broken_test_references(docs, files) == [
+        "docs/m.md:1: no test tests/test_a.py::test_gone",
+        "docs/m.md:2: no test tests/test_b.py::test_kept",
+    ]
 
 
 def test_a_loader_import_beyond_its_core_dependencies_is_found():
-    files = {"loader/a.py": "import os\nimport numpy as np\nfrom sapien import physx\nfrom . import b\n",
-             "loader/b.py": "def f():\n    import rerun\n    from tqdm import tqdm\n",
-             "loader/c.py": "try:\n    import threadpoolctl\nexcept ImportError:\n    threadpoolctl = None\n"
-                            "try:\n    import torch\nexcept ValueError:\n    pass\n"}
+    files = {
+        "loader/a.py": "import os\nimport numpy as np\nfrom sapien import physx\nfrom . import b\n",
+        "loader/b.py": "def f():\n    import rerun\n    from tqdm import tqdm\n",
+        "loader/c.py": "try:\n    import threadpoolctl\nexcept ImportError:\n    threadpoolctl = None\n"
+        "try:\n    import torch\nexcept ValueError:\n    pass\n",
+    }
     assert house.foreign_imports(files) == [
         "loader/b.py:2: imports rerun, which the loader's install does not have",
         "loader/b.py:3: imports tqdm, which the loader's install does not have",
-        "loader/c.py:6: imports torch, which the loader's install does not have"]  # not guarded by ImportError
+        "loader/c.py:6: imports torch, which the loader's install does not have",
+    ]  # not guarded by ImportError

@@ -57,10 +57,19 @@ def test_a_five_percent_kp_error_is_caught():
 
 
 @needs_menagerie
-@pytest.mark.parametrize("relative", ["aloha/scene.xml", "boston_dynamics_spot/spot.xml",
-                                      "franka_emika_panda/panda.xml", "google_barkour_vb/barkour_vb.xml",
-                                      "leap_hand/right_hand.xml", "robotiq_2f85_v4/2f85.xml",
-                                      "tetheria_aero_hand_open/right_hand.xml", "unitree_go1/go1.xml"])
+@pytest.mark.parametrize(
+    "relative",
+    [
+        "aloha/scene.xml",
+        "boston_dynamics_spot/spot.xml",
+        "franka_emika_panda/panda.xml",
+        "google_barkour_vb/barkour_vb.xml",
+        "leap_hand/right_hand.xml",
+        "robotiq_2f85_v4/2f85.xml",
+        "tetheria_aero_hand_open/right_hand.xml",
+        "unitree_go1/go1.xml",
+    ],
+)
 def test_every_menagerie_actuator_is_mapped_or_listed_with_its_reason(relative):
     result = MJCFLoader().load(menagerie_root() / relative)
     assert len(result.actuators) == result.model.nu
@@ -91,9 +100,14 @@ def _clamping_ctrl(step, data):
     return np.array([0.8 * np.sin(step * 0.01), 0.8 * np.sin(step * 0.01), np.sign(np.sin(step * 0.02))])
 
 
-@pytest.mark.parametrize("limits", [{"forcerange": 'forcerange="-3 3"', "joint_range": ""},
-                                    {"forcerange": "", "joint_range": 'actuatorfrcrange="-4 4"'}],
-                         ids=["actuator forcerange", "joint actuatorfrcrange"])
+@pytest.mark.parametrize(
+    "limits",
+    [
+        {"forcerange": 'forcerange="-3 3"', "joint_range": ""},
+        {"forcerange": "", "joint_range": 'actuatorfrcrange="-4 4"'},
+    ],
+    ids=["actuator forcerange", "joint actuatorfrcrange"],
+)
 def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     """Servos driven far into their force limits (forcerange, or the joint's actuatorfrcrange): MuJoCo clamps the
     explicit actuator force and drops a saturated actuator's kv from its implicit step; the loader applies the
@@ -105,8 +119,9 @@ def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     for step in range(200):
         data.ctrl[:] = _clamping_ctrl(step, data)
         mujoco.mj_forward(model, data)
-        saturated += bool(np.abs(data.qfrc_actuator[0]) >= 2.999 if limits["forcerange"] else
-                          np.abs(data.qfrc_actuator[0]) >= 3.999)
+        saturated += bool(
+            np.abs(data.qfrc_actuator[0]) >= 2.999 if limits["forcerange"] else np.abs(data.qfrc_actuator[0]) >= 3.999
+        )
         mujoco.mj_step(model, data)
     assert saturated > 50  # the run really sits on the limit
     errors = replay(result, model, _clamping_ctrl, 1.0)
@@ -161,11 +176,15 @@ SERVO_ARM = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
 </mujoco>"""
 
 
-@pytest.mark.parametrize("integrator, damping, kp, kv", [
-    ("Euler", 0.1, 20, 0.5),  # kv explicit, kp in the drive (the passive damping absorbs kp dt)
-    ("Euler", 0.0, 20, 0.5),  # kv and kp explicit (no implicit damping left for kp)
-    ("implicitfast", 0.0, 200, 0.1),  # kv implicit, kp explicit: kv < kp dt
-], ids=["euler-kp-in-drive", "euler-kp-explicit", "implicitfast-kp-explicit"])
+@pytest.mark.parametrize(
+    "integrator, damping, kp, kv",
+    [
+        ("Euler", 0.1, 20, 0.5),  # kv explicit, kp in the drive (the passive damping absorbs kp dt)
+        ("Euler", 0.0, 20, 0.5),  # kv and kp explicit (no implicit damping left for kp)
+        ("implicitfast", 0.0, 200, 0.1),  # kv implicit, kp explicit: kv < kp dt
+    ],
+    ids=["euler-kp-in-drive", "euler-kp-explicit", "implicitfast-kp-explicit"],
+)
 def test_servo_gains_follow_the_models_integrator(tmp_path, integrator, damping, kp, kv):
     """Under Euler MuJoCo applies kv explicitly, under implicitfast implicitly; kp is always explicit. The loader
     follows the model's integrator (measured 5.6e-7, 8.9e-7, 1.9e-6 rad over 1 s). Mutation: the SAPIEN side told
@@ -182,8 +201,10 @@ def test_servo_gains_follow_the_models_integrator(tmp_path, integrator, damping,
     flipped = "IMPLICITFAST" if integrator == "Euler" else "EULER"
     other.model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{flipped}")
     other.replan()  # the edit reaches the steps only now
-    assert replay(other, other.model, lambda step, data: targets[step // 50], 1.0,
-                   reference=reference).max() > 10 * SERVO_TOLERANCE
+    assert (
+        replay(other, other.model, lambda step, data: targets[step // 50], 1.0, reference=reference).max()
+        > 10 * SERVO_TOLERANCE
+    )
 
 
 ACTIVATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>

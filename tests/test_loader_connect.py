@@ -47,13 +47,16 @@ SOLREF_SOLIMP = """<mujoco><option timestep="{dt}"/><worldbody><body pos="0 0 1"
 </mujoco>"""
 
 
-@pytest.mark.parametrize("solref, solimp, dt", [
-    ("0.02 1", "0.9 0.95 0.001 0.5 2", 0.002),  # MuJoCo's defaults
-    ("0.001 1", "0.5 0.99 0.01 0.3 3", 0.002),  # refsafe clamps the time constant to 2 dt
-    ("-1000 -10", "0.8 0.9 0.05 0.7 1", 0.001),  # the direct (stiffness, damping) form, linear sigmoid
-    ("0.05 0.3", "0.9 0.9 0.001 0.5 2", 0.002),  # flat impedance
-    ("0.02 1", "0.2 0.8 0 0.5 2", 0.002),  # zero width
-])
+@pytest.mark.parametrize(
+    "solref, solimp, dt",
+    [
+        ("0.02 1", "0.9 0.95 0.001 0.5 2", 0.002),  # MuJoCo's defaults
+        ("0.001 1", "0.5 0.99 0.01 0.3 3", 0.002),  # refsafe clamps the time constant to 2 dt
+        ("-1000 -10", "0.8 0.9 0.05 0.7 1", 0.001),  # the direct (stiffness, damping) form, linear sigmoid
+        ("0.05 0.3", "0.9 0.9 0.001 0.5 2", 0.002),  # flat impedance
+        ("0.02 1", "0.2 0.8 0 0.5 2", 0.002),  # zero width
+    ],
+)
 def test_soft_row_reproduces_mujocos_stiffness_damping_impedance_and_regularizer(solref, solimp, dt):
     model = mujoco.MjModel.from_xml_string(SOLREF_SOLIMP.format(solref=solref, solimp=solimp, dt=dt))
     data = mujoco.MjData(model)
@@ -132,6 +135,7 @@ def test_taking_both_ends_at_the_pin_matters_for_an_open_moving_loop(monkeypatch
 
     def own_anchors(child, parent, pin):
         return child.velocity - parent.velocity
+
     monkeypatch.setattr(SoftConnect, "measured", staticmethod(own_anchors))
     result = MJCFLoader().load(FIXTURE)
     uncorrected = _one_step_errors(result, result.model, states)
@@ -162,8 +166,9 @@ def test_after_release_the_loop_stays_closed_without_set_ctrl():
         connect = result.controller.term("equalities").connects[0]
         for _ in range(500):
             result.scene.step()
-        gap = np.linalg.norm(_anchor(connect.child, connect.child_anchor)
-                             - _anchor(connect.parent, connect.parent_anchor))
+        gap = np.linalg.norm(
+            _anchor(connect.child, connect.child_anchor) - _anchor(connect.parent, connect.parent_anchor)
+        )
         assert (gap < 1e-4) == release, (release, gap)
 
 
@@ -194,8 +199,9 @@ def _gripper_one_step_worst(damping: bool) -> float:
     for step in range(300):
         data.ctrl[:] = 100.0 + 100.0 * np.sin(0.02 * step)
         if step % 5 == 0:
-            worst = max(worst, float(one_step(result, model, data.qpos, data.qvel, data.ctrl, data=probe,
-                                              advance=False).max()))
+            worst = max(
+                worst, float(one_step(result, model, data.qpos, data.qvel, data.ctrl, data=probe, advance=False).max())
+            )
         mujoco.mj_step(model, data)
     return worst
 
@@ -212,14 +218,14 @@ def test_the_grippers_loops_are_left_off_mujoco_by_their_joint_damping():
 EDGE_CASES = {
     # the world as body1: SAPIEN takes the world only as the D6's first end, the law is odd in r and v
     "world first": '<body name="a" pos="0 0 1"><joint axis="0 1 0"/><geom size=".1" pos=".3 0 0"/></body>'
-                   '</worldbody><equality><connect body1="world" body2="a" anchor=".3 0 1"/>',
+    '</worldbody><equality><connect body1="world" body2="a" anchor=".3 0 1"/>',
     # a body of the static actor with a pose of its own: its anchor is in its frame, not the world's
     "static body": '<body name="s" pos="0 0 1" euler="0 0 90"><geom size=".05"/></body><body name="a" pos="0 0 1">'
-                   '<joint axis="0 1 0"/><geom size=".1" pos=".3 0 0"/></body></worldbody><equality>'
-                   '<connect body1="a" body2="s" anchor=".3 0 0"/>',
+    '<joint axis="0 1 0"/><geom size=".1" pos=".3 0 0"/></body></worldbody><equality>'
+    '<connect body1="a" body2="s" anchor=".3 0 0"/>',
     # a floating body hung from the world by its edge
     "free body": '<body name="a" pos="0 0 1"><freejoint/><geom size=".1"/></body></worldbody><equality>'
-                 '<connect body1="a" body2="world" anchor=".1 0 0"/>',
+    '<connect body1="a" body2="world" anchor=".1 0 0"/>',
 }
 
 
@@ -237,10 +243,12 @@ def test_a_connect_between_two_static_bodies_is_listed_not_built():
     spec = mujoco.MjSpec.from_string(
         '<mujoco><worldbody><body name="s" pos="0 0 1"><geom size=".05"/></body><body name="t" pos="0 0 2">'
         '<geom size=".05"/></body><body name="a"><joint axis="0 1 0"/><geom size=".1"/></body></worldbody>'
-        '<equality><connect body1="t" body2="s" anchor="0 0 0"/></equality></mujoco>')
+        '<equality><connect body1="t" body2="s" anchor="0 0 0"/></equality></mujoco>'
+    )
     result = MJCFLoader().load(spec)
     assert [(e.mapped, e.reason) for e in result.equalities] == [
-        (False, "joins two bodies fixed to the world: it constrains no degree of freedom")]
+        (False, "joins two bodies fixed to the world: it constrains no degree of freedom")
+    ]
     assert any(entry.kind == "equality" for entry in result.unsupported)
 
 
@@ -272,9 +280,11 @@ def test_without_the_rotation_frames_rate_a_moving_weld_misses(monkeypatch):
 def test_a_weld_without_its_rotational_rows_lets_the_feet_turn(monkeypatch):
     """What the loader did before: a D6 whose translation and twist are locked leaves swing free in PhysX (SAPIEN
     sets no motion for a cone limit); here: the rotational rows dropped, the feet's relative rotation drifts."""
+
     def translation_only(self, child, parent, imp, timestep, rotation):
         self.drive.set_drive_property_slerp(0.0, 0.0, 1e30, "force")
         return np.zeros(3)
+
     monkeypatch.setattr(SoftWeld, "angular_target", translation_only)
     result = MJCFLoader().load(WELD)
     assert max(_one_step_errors(result, result.model, _weld_states((0.0, 1.0)))) > 10 * ONE_STEP
@@ -288,8 +298,9 @@ def _released_weld_angles() -> tuple[float, float]:
     paired_rollout(result, model, data, 500, set_ctrl=False)
     links = {link.name: link for link in result.articulations[0].links}
     left, right = (np.asarray(links[n].entity_pose.q) for n in ("left_lower", "right_lower"))
-    mujoco_angle = 2 * np.arccos(min(1.0, abs(float(np.dot(data.xquat[model.body("left_lower").id],
-                                                           data.xquat[model.body("right_lower").id])))))
+    mujoco_angle = 2 * np.arccos(
+        min(1.0, abs(float(np.dot(data.xquat[model.body("left_lower").id], data.xquat[model.body("right_lower").id]))))
+    )
     return 2 * np.arccos(min(1.0, abs(float(np.dot(left, right))))), mujoco_angle
 
 
@@ -343,8 +354,11 @@ def test_a_joint_coupling_switches_as_eq_active_does_in_mujoco():
         data.eq_active[0] = 0
         if switch_sapien:
             result.set_equality_active(0, False)
-        return float(paired_rollout(result, model, data, 500, lambda step, data: np.array(
-            [np.sin(step * 0.01), 0.3 * np.cos(step * 0.005)])).qpos.max())
+        return float(
+            paired_rollout(
+                result, model, data, 500, lambda step, data: np.array([np.sin(step * 0.01), 0.3 * np.cos(step * 0.005)])
+            ).qpos.max()
+        )
 
     assert run(switch_sapien=True) < 1e-5
     assert run(switch_sapien=False) > 1e-3

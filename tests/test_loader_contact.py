@@ -18,8 +18,10 @@ def _separation_after(result, steps: int) -> tuple[float, float]:
     for _ in range(steps):
         result.scene.step()
     poses = {art.name: art.root_pose.p for art in result.articulations}
-    return (float(np.linalg.norm(poses["right"] - poses["left"])),
-            float(np.linalg.norm(poses["fourth"] - poses["third"])))
+    return (
+        float(np.linalg.norm(poses["right"] - poses["left"])),
+        float(np.linalg.norm(poses["fourth"] - poses["third"])),
+    )
 
 
 def test_excluded_pair_never_touches_in_physx_while_others_do(load):
@@ -46,8 +48,10 @@ def test_a_chain_of_40_bodies_collides_like_mujoco(load):
     assert model.nbody == 41 and model.njnt == 48
     assert not [e for e in result.unsupported if e.kind == "contact"]
     assert not collision_filter_mismatches(result)
-    words = {tuple(component_of(result, result.mapping.geoms[g]).collision_shapes[0].get_collision_groups()[2:])
-             for g in range(model.ngeom)}
+    words = {
+        tuple(component_of(result, result.mapping.geoms[g]).collision_shapes[0].get_collision_groups()[2:])
+        for g in range(model.ngeom)
+    }
     assert len(words) > 1  # bits are really spent on the chain's weld-parent pairs
 
 
@@ -114,8 +118,13 @@ def _switch_contacts(mistake: str) -> int:
 
     from support.corpus import suite_path
 
-    proc = subprocess.run([sys.executable, "-c", SWITCH_CONTACTS, str(suite_path("manipulator")), mistake],
-                          capture_output=True, text=True, timeout=120, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-c", SWITCH_CONTACTS, str(suite_path("manipulator")), mistake],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert proc.returncode != 0 or "survived" in proc.stdout, proc.stderr
     return proc.returncode
 

@@ -77,8 +77,16 @@ def _shape_size(shape):
     return "triangles", None
 
 
-EXPECTED_KIND = {"sphere": "sphere", "box": "box", "capsule": "capsule", "cylinder": "cylinder", "plane": "plane",
-                 "ellipsoid": "convex", "mesh": "convex", "hfield": "triangles"}
+EXPECTED_KIND = {
+    "sphere": "sphere",
+    "box": "box",
+    "capsule": "capsule",
+    "cylinder": "cylinder",
+    "plane": "plane",
+    "ellipsoid": "convex",
+    "mesh": "convex",
+    "hfield": "triangles",
+}
 
 
 @pytest.mark.parametrize("path", CORPUS)

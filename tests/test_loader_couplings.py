@@ -40,8 +40,11 @@ def test_set_ctrl_clamps_to_ctrlrange():
     assert errors.max() < COUPLING_TOLERANCE
 
 
-@pytest.mark.parametrize("edit", [('gear="2"', 'gear="-2"'), ('polycoef="0 2 0 0 0"', 'polycoef="0 0.5 0 0 0"')],
-                         ids=["gear sign", "inverted coupling ratio"])
+@pytest.mark.parametrize(
+    "edit",
+    [('gear="2"', 'gear="-2"'), ('polycoef="0 2 0 0 0"', 'polycoef="0 0.5 0 0 0"')],
+    ids=["gear sign", "inverted coupling ratio"],
+)
 def test_a_wrong_gear_sign_or_coupling_ratio_is_caught(tmp_path, edit):
     text = (FIXTURES / "coupled_joints.xml").read_text()
     assert edit[0] in text
@@ -102,6 +105,7 @@ def test_a_fixed_base_loop_is_mujocos_own_row(fixture):
     """A five-bar closed by a connect, and two legs held by a weld, on fixed bases: their rows are MuJoCo's own,
     solved with the limits beside them, so a loop falling from qpos0 follows MuJoCo. Mutation: the rows term off
     (the D6 beside them stands locked, rigid where MuJoCo is soft)."""
+
     def run(rows: bool) -> float:
         result, model = contact_free(LOOPS / fixture)
         assert {e.kind for e in result.equalities} == {"MuJoCo row"}
@@ -121,8 +125,8 @@ def test_after_release_a_fixed_base_loop_is_held_by_its_locked_d6():
         data = mujoco.MjData(result.model)
         data.qpos[:], data.qvel[:] = result.mapping.get_state(result.articulations)
         mujoco.mj_forward(result.model, data)
-        rows = data.efc_type[:data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-        return float(np.abs(data.efc_pos[:data.nefc][rows]).max())
+        rows = data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        return float(np.abs(data.efc_pos[: data.nefc][rows]).max())
 
     def opened(lock: bool) -> float:
         result = MJCFLoader().load(LOOPS / "closed_chain.xml")
@@ -151,7 +155,9 @@ CARRIED_PACK = """<mujoco><option timestep="0.002" gravity="4 0 -9.81"/>
   <equality><joint joint1="elbow" joint2="shoulder" polycoef="0 0.5 0 0 0"/><weld body1="pack" body2="lower"/>
   </equality>
 </mujoco>"""
-CARRIED_TOLERANCE = 1e-5  # rad over 1 s; measured 4.3e-7 as MuJoCo's rows, 0.30 as a D6 joint (mujoco 3.17.0, sapien 3.0.3)
+CARRIED_TOLERANCE = (
+    1e-5  # rad over 1 s; measured 4.3e-7 as MuJoCo's rows, 0.30 as a D6 joint (mujoco 3.17.0, sapien 3.0.3)
+)
 
 
 def test_a_floating_body_welded_to_an_arm_is_mujocos_own_row(tmp_path, monkeypatch):

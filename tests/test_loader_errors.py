@@ -45,19 +45,28 @@ def _arm_state(result) -> tuple:
     import numpy as np
 
     art, joint = result.articulations[0], result.articulations[0].active_joints[0]
-    return (np.array(art.qf), float(joint.drive_target[0]), float(joint.drive_velocity_target[0]),
-            result.act.copy(), np.array(art.qpos), np.array(art.qvel))
+    return (
+        np.array(art.qf),
+        float(joint.drive_target[0]),
+        float(joint.drive_velocity_target[0]),
+        result.act.copy(),
+        np.array(art.qpos),
+        np.array(art.qvel),
+    )
 
 
-@pytest.mark.parametrize("ctrl,qfrc,message", [
-    ([0.3], None, r"ctrl has shape \(1,\); the model has 2 actuators"),
-    ([0.3, 0.1, 0.0], None, "ctrl has shape"),
-    ([float("nan"), 0.1], None, r"ctrl\[0\] is nan"),
-    ([0.3, float("inf")], None, r"ctrl\[1\] is inf"),
-    ([2e10, 0.1], None, r"ctrl\[0\] is 2e\+10: MuJoCo refuses"),  # MuJoCo zeroes it as unstable
-    ([0.3, 0.1], [float("nan")], r"qfrc_applied\[0\] is nan"),
-    ([0.3, 0.1], [1.0, 2.0], r"qfrc_applied has shape \(2,\); the model has 1 DoFs"),
-])
+@pytest.mark.parametrize(
+    "ctrl,qfrc,message",
+    [
+        ([0.3], None, r"ctrl has shape \(1,\); the model has 2 actuators"),
+        ([0.3, 0.1, 0.0], None, "ctrl has shape"),
+        ([float("nan"), 0.1], None, r"ctrl\[0\] is nan"),
+        ([0.3, float("inf")], None, r"ctrl\[1\] is inf"),
+        ([2e10, 0.1], None, r"ctrl\[0\] is 2e\+10: MuJoCo refuses"),  # MuJoCo zeroes it as unstable
+        ([0.3, 0.1], [float("nan")], r"qfrc_applied\[0\] is nan"),
+        ([0.3, 0.1], [1.0, 2.0], r"qfrc_applied has shape \(2,\); the model has 1 DoFs"),
+    ],
+)
 def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, message):
     import mujoco
     import numpy as np
@@ -81,28 +90,42 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
     assert np.isfinite(result.articulations[0].qvel).all()
 
 
-UNHOLDABLE = ('<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
-              '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="-3 3"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
-              '</mujoco>')
-HOLDABLE = {"pos": "0 0 1", "damping": "0.1", "size": ".02", "ref": "0", "gravcomp": "0", "timestep": "0.002",
-            "tolerance": "1e-8", "margin": "0"}
+UNHOLDABLE = (
+    '<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
+    '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="-3 3"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
+    "</mujoco>"
+)
+HOLDABLE = {
+    "pos": "0 0 1",
+    "damping": "0.1",
+    "size": ".02",
+    "ref": "0",
+    "gravcomp": "0",
+    "timestep": "0.002",
+    "tolerance": "1e-8",
+    "margin": "0",
+}
 
 
-@pytest.mark.parametrize("field, value, element, message", [
-    ("pos", "1e30 0 0", "body 'arm'", "body_pos .* is beyond"),  # MuJoCo compiles it silently
-    ("damping", "nan", "joint 'hinge'", "dof_damping .* is non-finite"),  # MuJoCo warns only
-    ("damping", "1e39", "joint 'hinge'", r"is beyond 1e\+15"),
-    ("damping", "1e16", "joint 'hinge'", r"is beyond 1e\+15"),  # times a gain, a float32 overflow
-    ("size", "2e7", "geom 'rod'", "geom_size .* is beyond"),
-    ("ref", "1e30", "joint 'hinge'", r"qpos0 \(ref\) .* is beyond 10000 rad"),  # float32 holds no angle there
-    ("gravcomp", "1e39", "body 'arm'", r"body_gravcomp .* is beyond 1e\+15"),
-    ("timestep", "-1", "option 'timestep'", r"is not within \(0, 1\] s"),  # MuJoCo steps backwards
-    ("timestep", "1e30", "option 'timestep'", r"is not within \(0, 1\] s"),  # float32 states overflow
-    ("tolerance", "inf", "option 'tolerance'", "opt.tolerance .* is non-finite"),  # MuJoCo's solver stops at once
-    ("margin", "1e30", "joint 'hinge'", "jnt_margin .* is beyond"),  # MuJoCo's own run reached 4e11 rad/s
-])
-def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(field, value, element, message,
-                                                                                monkeypatch):
+@pytest.mark.parametrize(
+    "field, value, element, message",
+    [
+        ("pos", "1e30 0 0", "body 'arm'", "body_pos .* is beyond"),  # MuJoCo compiles it silently
+        ("damping", "nan", "joint 'hinge'", "dof_damping .* is non-finite"),  # MuJoCo warns only
+        ("damping", "1e39", "joint 'hinge'", r"is beyond 1e\+15"),
+        ("damping", "1e16", "joint 'hinge'", r"is beyond 1e\+15"),  # times a gain, a float32 overflow
+        ("size", "2e7", "geom 'rod'", "geom_size .* is beyond"),
+        ("ref", "1e30", "joint 'hinge'", r"qpos0 \(ref\) .* is beyond 10000 rad"),  # float32 holds no angle there
+        ("gravcomp", "1e39", "body 'arm'", r"body_gravcomp .* is beyond 1e\+15"),
+        ("timestep", "-1", "option 'timestep'", r"is not within \(0, 1\] s"),  # MuJoCo steps backwards
+        ("timestep", "1e30", "option 'timestep'", r"is not within \(0, 1\] s"),  # float32 states overflow
+        ("tolerance", "inf", "option 'tolerance'", "opt.tolerance .* is non-finite"),  # MuJoCo's solver stops at once
+        ("margin", "1e30", "joint 'hinge'", "jnt_margin .* is beyond"),  # MuJoCo's own run reached 4e11 rad/s
+    ],
+)
+def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(
+    field, value, element, message, monkeypatch
+):
     """A number MuJoCo compiles but PhysX's float32 cannot hold raises MJCFError naming the element and the field,
     before anything is built: a user's scene is left as it was. Mutation: the check skipped (the model loads
     silently wrong, or fails deep inside the mapping with another exception)."""
@@ -144,7 +167,7 @@ def test_a_constraint_solver_without_iterations_is_a_typed_error(iterations, mon
 
     import loader.mjcf_loader
 
-    xml = UNHOLDABLE.format(**HOLDABLE).replace('<option ', f'<option iterations="{iterations}" ')
+    xml = UNHOLDABLE.format(**HOLDABLE).replace("<option ", f'<option iterations="{iterations}" ')
     with pytest.raises(MJCFError, match="option 'iterations'.*no constraint force"):
         MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     monkeypatch.setattr(loader.mjcf_loader, "check_numbers", lambda model, path: None)
@@ -168,7 +191,7 @@ def test_a_model_mujoco_compiles_but_cannot_run_is_a_typed_error(tmp_path):
     gives) the same model loads. Mutation: the check removed is a FatalError here."""
     import mujoco
 
-    bodies = "".join(f'<body pos="{i % 20 * .1} {i // 20 * .1} 1"><geom size=".02"/></body>' for i in range(200))
+    bodies = "".join(f'<body pos="{i % 20 * 0.1} {i // 20 * 0.1} 1"><geom size=".02"/></body>' for i in range(200))
     path = tmp_path / "crowd.xml"
     path.write_text(f'<mujoco><size memory="20K"/><worldbody>{bodies}</worldbody></mujoco>')
     mujoco.MjModel.from_xml_path(str(path))  # MuJoCo compiles it

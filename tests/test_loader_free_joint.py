@@ -31,8 +31,11 @@ def _fixture(tmp_path: Path, integrator: str | None) -> Path:
     if integrator is None:
         return FIXTURE
     path = tmp_path / f"damped_{integrator}.xml"
-    path.write_text(FIXTURE.read_text().replace('<option timestep="0.002"/>',
-                                                f'<option timestep="0.002" integrator="{integrator}"/>'))
+    path.write_text(
+        FIXTURE.read_text().replace(
+            '<option timestep="0.002"/>', f'<option timestep="0.002" integrator="{integrator}"/>'
+        )
+    )
     return path
 
 
@@ -108,8 +111,9 @@ def test_the_spin_derivative_is_mujocos():
     mass = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, mass)
     rotation = data.xmat[body].reshape(3, 3)
-    analytic = gyroscopic_derivative(float(model.body_mass[body]), model.body_ipos[body], rotation, mass[3:6, 3:6],
-                                     data.qvel[3:6])
+    analytic = gyroscopic_derivative(
+        float(model.body_mass[body]), model.body_ipos[body], rotation, mass[3:6, 3:6], data.qvel[3:6]
+    )
     assert np.abs(analytic - numeric).max() < 1e-6 * np.abs(numeric).max()
 
 

@@ -23,8 +23,9 @@ FRICTIONAL = """<mujoco><option timestep="0.002" integrator="implicitfast"/>
 FRICTION_TOLERANCE = 1e-5  # rad over 1 s; measured 1.3e-6 sliding, 3.6e-7 sticking (dropped: 0.93, 2.6)
 
 
-@pytest.mark.parametrize("friction", [{"upper": 0.3, "lower": 0.05}, {"upper": 2.0, "lower": 1.0}],
-                         ids=["sliding", "sticking"])
+@pytest.mark.parametrize(
+    "friction", [{"upper": 0.3, "lower": 0.05}, {"upper": 2.0, "lower": 1.0}], ids=["sliding", "sticking"]
+)
 def test_frictionloss_matches_mujoco_on_free_and_damped_joints(tmp_path, friction):
     """A two-link pendulum falling against joint frictionloss (sliding, or mostly stuck) and a damped frictional
     hinge beside it: a PhysX drive (damping s/(R dt), velocity target v (1 - B dt/s), force limit F) solves
@@ -48,8 +49,11 @@ SERVO_FRICTION = """<mujoco><option timestep="0.002" integrator="implicitfast"/>
 </mujoco>"""
 
 
-@pytest.mark.parametrize("damping, kv, friction", [(0.1, 0.0, 0.5), (0.1, 0.05, 0.5), (0.0, 0.05, 0.01)],
-                         ids=["damped", "damped-servo-kv", "servo-kv"])
+@pytest.mark.parametrize(
+    "damping, kv, friction",
+    [(0.1, 0.0, 0.5), (0.1, 0.05, 0.5), (0.0, 0.05, 0.01)],
+    ids=["damped", "damped-servo-kv", "servo-kv"],
+)
 def test_frictionloss_on_a_damped_servo_joint_matches_mujoco(tmp_path, monkeypatch, damping, kv, friction):
     """A servo on a damped frictional hinge, stepping between random targets: MuJoCo solves the friction row with
     the servo's force in the unconstrained acceleration, and so must the loader. Mutation: the row solved without
@@ -79,8 +83,9 @@ def test_a_motor_on_a_frictional_joint_keeps_its_force(tmp_path, forcerange):
     still reach the joint (explicit, as MuJoCo's a0 holds it), clamped or not (the clamped steps once dropped the
     friction: 0.73 rad)."""
     text = FRICTIONAL.format(upper=0.3, lower=0.05).replace(
-        "</worldbody>", f'</worldbody><actuator><motor joint="upper" gear="2" ctrlrange="-1 1" {forcerange}/>'
-        '</actuator>')
+        "</worldbody>",
+        f'</worldbody><actuator><motor joint="upper" gear="2" ctrlrange="-1 1" {forcerange}/></actuator>',
+    )
     path = mjcf_file(tmp_path, text, "motor.xml")
     result, model = contact_free(path)
     assert ("joint", "upper") not in {(e.kind, e.name) for e in result.unsupported + result.approximations}

@@ -37,8 +37,11 @@ def _bounce(name: str, hard: bool = False) -> float:
     result = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     if hard:  # the mapping before: PhysX's hard limit at MuJoCo's range
         result.controller.without("rows")
-    worst = float(paired_rollout(result, model, data, 600, lambda step, data: np.full(
-        model.nu, np.sin(0.02 * step)) if model.nu else None).qpos.max())
+    worst = float(
+        paired_rollout(
+            result, model, data, 600, lambda step, data: np.full(model.nu, np.sin(0.02 * step)) if model.nu else None
+        ).qpos.max()
+    )
     assert data.qpos.min() < -0.5 or data.qpos.max() > 0.5 or name == "servo"  # it reached a soft end
     return worst
 
@@ -136,7 +139,9 @@ def _humanoid_collapse_speed() -> tuple[float, float]:
     return float(run.sapien_speed.max()), float(run.mujoco_speed.max())
 
 
-COLLAPSE_SPEED_RATIO = 1.25  # measured 0.99 (13.1 against 13.3 rad/s; contacts counted twice: 1.47; mujoco 3.17.0, sapien 3.0.3)
+COLLAPSE_SPEED_RATIO = (
+    1.25  # measured 0.99 (13.1 against 13.3 rad/s; contacts counted twice: 1.47; mujoco 3.17.0, sapien 3.0.3)
+)
 
 
 def test_limit_rows_under_contact_stay_finite():
@@ -150,7 +155,7 @@ def _whole_constraint_force(self):
     """MuJoCo's whole constraint force on the joints: its contact rows' share with the joint rows'."""
     force = self.data.qfrc_constraint.copy()
     for *_, dof, _ in self.push.roots:
-        force[dof:dof + 6] = 0.0  # a joint row never pushes a free joint
+        force[dof : dof + 6] = 0.0  # a joint row never pushes a free joint
     return force
 
 
@@ -181,8 +186,10 @@ def test_a_joint_spun_past_a_full_turn_is_not_wrapped_into_its_far_limit(monkeyp
     original = joint.plan_joint
 
     def wrapping(model, j, notes):
-        return [dataclasses.replace(p, type="revolute") if p.type == "revolute_unwrapped" else p
-                for p in original(model, j, notes)]
+        return [
+            dataclasses.replace(p, type="revolute") if p.type == "revolute_unwrapped" else p
+            for p in original(model, j, notes)
+        ]
 
     monkeypatch.setattr(joint, "plan_joint", wrapping)
     from loader.plan import tree
@@ -207,12 +214,18 @@ def test_a_urdf_style_arm_started_with_four_limits_active_follows_mujoco():
         data = mujoco.MjData(model)
         mujoco.mj_resetDataKeyframe(model, data, 0)
         mujoco.mj_forward(model, data)
-        assert int((data.efc_type[:data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)).sum()) == 4
+        assert int((data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)).sum()) == 4
         if not rows:
             result.controller.without("rows")
         low, high = model.actuator_ctrlrange.T
-        return float(replay(result, model, lambda step, data: low + (high - low) * (
-            0.5 + 0.4 * np.sin(0.005 * step + np.arange(model.nu))), 1.0).max())
+        return float(
+            replay(
+                result,
+                model,
+                lambda step, data: low + (high - low) * (0.5 + 0.4 * np.sin(0.005 * step + np.arange(model.nu))),
+                1.0,
+            ).max()
+        )
 
     assert run(rows=True) < URDF_ARM_TOLERANCE
     assert run(rows=False) > 100 * URDF_ARM_TOLERANCE
@@ -258,8 +271,9 @@ def test_a_robot_started_deep_in_the_floor_stays_calm(deep_rule, monkeypatch):
         monkeypatch.setattr(rows, "deep_contact", lambda data, timestep, cap: False)
     model = result.model
     rng = np.random.default_rng(0)
-    paired = paired_rollout(result, model, mujoco.MjData(model), 20,
-                            lambda step, data: rng.uniform(-1.0, 1.0, model.nu))
+    paired = paired_rollout(
+        result, model, mujoco.MjData(model), 20, lambda step, data: rng.uniform(-1.0, 1.0, model.nu)
+    )
     calm = paired.sapien_speed.max() <= paired.mujoco_speed.max()
     assert calm == deep_rule, (paired.sapien_speed.max(), paired.mujoco_speed.max())
 
@@ -291,8 +305,10 @@ def test_a_gripper_with_a_part_jammed_inside_another_stays_calm(jam_rule, monkey
     rng = np.random.default_rng(5157)
     low, high = model.actuator_ctrlrange.T
     paired = paired_rollout(result, model, mujoco.MjData(model), 50, lambda step, data: rng.uniform(low, high))
-    assert (paired.sapien_speed.max() < JAMMED_SPEED_FLOOR) == jam_rule, (paired.sapien_speed.max(),
-                                                                         paired.mujoco_speed.max())
+    assert (paired.sapien_speed.max() < JAMMED_SPEED_FLOOR) == jam_rule, (
+        paired.sapien_speed.max(),
+        paired.mujoco_speed.max(),
+    )
 
 
 LENT = """<mujoco><option timestep="0.002"/><worldbody>
@@ -318,8 +334,12 @@ def test_the_rows_solve_with_the_loaded_model_and_leave_it_as_it_was():
         for _ in range(10):
             result.set_ctrl(np.array([0.2, -0.1]))
             result.scene.step()
-    changed = [name for name in dir(before) if isinstance(getattr(before, name), np.ndarray)
-               and not np.array_equal(getattr(before, name), getattr(runtime, name), equal_nan=True)]
+    changed = [
+        name
+        for name in dir(before)
+        if isinstance(getattr(before, name), np.ndarray)
+        and not np.array_equal(getattr(before, name), getattr(runtime, name), equal_nan=True)
+    ]
     assert not changed, changed
     assert runtime.opt.disableflags == before.opt.disableflags
     assert runtime.opt.timestep == before.opt.timestep

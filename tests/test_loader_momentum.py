@@ -34,9 +34,11 @@ def _variant(tmp_path: Path, name: str, *edits: tuple[str, str]) -> Path:
     return path
 
 
-TILTED = (('<body name="torso" pos="0 0 1">', '<body name="torso" pos="0 0 1" euler="20 30 10">'),
-          ('axis="0 -1 0"', 'axis="0.3 -1 0.2"'),
-          ('<body name="left" pos="0.2 0 0">', '<body name="left" pos="0.2 0 0" gravcomp="0.5">'))
+TILTED = (
+    ('<body name="torso" pos="0 0 1">', '<body name="torso" pos="0 0 1" euler="20 30 10">'),
+    ('axis="0 -1 0"', 'axis="0.3 -1 0.2"'),
+    ('<body name="left" pos="0.2 0 0">', '<body name="left" pos="0.2 0 0" gravcomp="0.5">'),
+)
 FLUID = (('<option timestep="0.01"/>', '<option timestep="0.01" density="1.2" viscosity="0.2"/>'),)
 
 

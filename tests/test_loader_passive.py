@@ -61,8 +61,11 @@ FLUID = """<mujoco><option timestep="0.002" integrator="Euler" density="{density
 </mujoco>"""
 
 
-@pytest.mark.parametrize("density, viscosity, wind", [(1000, 0, "0 0 0"), (0, 0.5, "0 0 0"), (1200, 0.1, "1 -2 0")],
-                         ids=["drag", "viscous", "both-with-wind"])
+@pytest.mark.parametrize(
+    "density, viscosity, wind",
+    [(1000, 0, "0 0 0"), (0, 0.5, "0 0 0"), (1200, 0.1, "1 -2 0")],
+    ids=["drag", "viscous", "both-with-wind"],
+)
 def test_fluid_forces_match_mujoco(tmp_path, density, viscosity, wind):
     """A blade spinning on a hinge through MuJoCo's inertia-box fluid: the loader's per-step link forces equal
     MuJoCo's qfrc_fluid (one step from 2 rad/s: 4e-8 rad/s on a 4e-2 change). Mutation: fluid dropped."""
@@ -163,8 +166,10 @@ def test_a_springref_without_stiffness_is_no_spring():
 
     from loader import MJCFLoader
 
-    xml = ('<mujoco><worldbody><body pos="0 0 1"><joint name="a" axis="0 1 0" springref="-inf" damping=".1"/>'
-           '<geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass="1"/></body></worldbody></mujoco>')
+    xml = (
+        '<mujoco><worldbody><body pos="0 0 1"><joint name="a" axis="0 1 0" springref="-inf" damping=".1"/>'
+        '<geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass="1"/></body></worldbody></mujoco>'
+    )
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     with warnings.catch_warnings():

@@ -35,6 +35,7 @@ def _finger(iterations):
         if iterations is not None:
             for articulation in result.articulations:
                 articulation.solver_position_iterations = iterations
+
     return contact_free(suite_path("finger"), mutate)
 
 
@@ -84,7 +85,9 @@ FOLDING_ARM = FIXTURES / "folding_servo_arm.xml"
 
 
 def _arm_ctrl(step, data):
-    return np.array([0.1, -2.618, 0.0]) + 0.3 * np.array([np.sin(step * 0.02), np.cos(step * 0.03), np.sin(step * 0.05)])
+    return np.array([0.1, -2.618, 0.0]) + 0.3 * np.array(
+        [np.sin(step * 0.02), np.cos(step * 0.03), np.sin(step * 0.05)]
+    )
 
 
 def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at_qpos0():
@@ -100,6 +103,7 @@ def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at
 
     def qpos0_only(loaded):
         loaded.articulations[0].solver_position_iterations = at_qpos0
+
     result, model = contact_free(FOLDING_ARM, qpos0_only)
     assert replay(result, model, _arm_ctrl, 1.0).max() > ROLLOUT_TOLERANCE
 

@@ -81,14 +81,19 @@ def test_a_spatial_tendon_damper_under_implicitfast_is_noted_and_close(tmp_path)
 
 def floating_finger(tmp_path):
     """The finger on a floating 50 g palm, its tendons anchored on the world, contact-free on both sides."""
-    floating = FINGER.format(integrator="Euler", damping=0.02).replace(
-        '<site name="anchor" pos="-0.02 0 0.05"/>',
-        '<site name="anchor" pos="-0.02 0 0.05"/><body name="palm"><freejoint/>'
-        '<geom type="box" size=".02 .03 .01" pos="-.03 0 0" mass="0.05"/>').replace(
-        "</worldbody>", "</body></worldbody>").replace(
-        '<key qpos="0.5 0.9" qvel="2 -3"/>', '<key qpos="0 0 0 1 0 0 0 0.5 0.9" qvel="0 0 0 0 0 0 2 -3"/>')
-    result = MJCFLoader().load(mjcf_file(tmp_path, floating.replace('gravity="0 0 -9.81"', 'gravity="0 0 0"'),
-                                         "floating.xml"))
+    floating = (
+        FINGER.format(integrator="Euler", damping=0.02)
+        .replace(
+            '<site name="anchor" pos="-0.02 0 0.05"/>',
+            '<site name="anchor" pos="-0.02 0 0.05"/><body name="palm"><freejoint/>'
+            '<geom type="box" size=".02 .03 .01" pos="-.03 0 0" mass="0.05"/>',
+        )
+        .replace("</worldbody>", "</body></worldbody>")
+        .replace('<key qpos="0.5 0.9" qvel="2 -3"/>', '<key qpos="0 0 0 1 0 0 0 0.5 0.9" qvel="0 0 0 0 0 0 2 -3"/>')
+    )
+    result = MJCFLoader().load(
+        mjcf_file(tmp_path, floating.replace('gravity="0 0 -9.81"', 'gravity="0 0 0"'), "floating.xml")
+    )
     result.set_contacts(False)
     result.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     return result
@@ -110,9 +115,9 @@ def test_a_spatial_tendon_over_a_ball_joint_is_reported_unsupported(tmp_path):
     """A spatial tendon whose path crosses a ball joint would need a ball joint torque, which the loader does not
     carry for tendons: it says so."""
     ball = FINGER.format(integrator="Euler", damping=0.0).replace(
-        '<joint name="mcp" axis="0 1 0" range="-0.2 1.6" damping="0.002"/>', '<joint name="mcp" type="ball"/>')
-    result = MJCFLoader().load(mjcf_file(tmp_path, ball.replace('<key qpos="0.5 0.9" qvel="2 -3"/>', ""),
-                                         "ball.xml"))
+        '<joint name="mcp" axis="0 1 0" range="-0.2 1.6" damping="0.002"/>', '<joint name="mcp" type="ball"/>'
+    )
+    result = MJCFLoader().load(mjcf_file(tmp_path, ball.replace('<key qpos="0.5 0.9" qvel="2 -3"/>', ""), "ball.xml"))
     assert any("extensor" in str(note) and "ball joint" in str(note) for note in result.unsupported)
 
 
@@ -139,17 +144,22 @@ def test_the_tendon_jacobian_is_mujocos_dense_row(tmp_path):
         np.testing.assert_allclose(jacobian[:, column], derivative, atol=1e-5)
 
 
-SERVO = FINGER.replace("</tendon>", """</tendon>
+SERVO = FINGER.replace(
+    "</tendon>",
+    """</tendon>
   <actuator><position name="pull" tendon="extensor" kp="300" kv="{kv}" ctrlrange="0.07 0.11" forcerange="-4 4"/>
-  </actuator>""")
+  </actuator>""",
+)
 
 
 def servo_ctrl(step, data):
     return np.array([0.09 + 0.02 * np.sin(step * 0.01)])
 
 
-@pytest.mark.parametrize("integrator, kv, tolerance", [("Euler", 2.0, SPATIAL_TOLERANCE),
-                                                        ("implicitfast", IMPLICIT_DAMPING, IMPLICIT_TOLERANCE)])
+@pytest.mark.parametrize(
+    "integrator, kv, tolerance",
+    [("Euler", 2.0, SPATIAL_TOLERANCE), ("implicitfast", IMPLICIT_DAMPING, IMPLICIT_TOLERANCE)],
+)
 def test_a_spatial_tendon_servo_matches_mujoco(tmp_path, monkeypatch, integrator, kv, tolerance):
     """A position servo (with kv and a forcerange) on the extensor's length: MuJoCo's law along the path at every
     step, kv explicit under Euler; under implicitfast the drives hold kv's diagonal (noted). Measured 4.7e-7 (Euler)

@@ -60,8 +60,10 @@ SPATIAL_SPRING = """<mujoco><worldbody><site name="top" pos="0 0 1"/><body><join
   </tendon></mujoco>"""
 
 
-CYLINDERS = SPATIAL_SPRING.replace('<geom size=".1" pos=".2 0 0"/>', "".join(
-    f'<geom type="cylinder" size=".05 .1" pos=".{k} 0 0"/>' for k in (2, 3, 4)))  # each a convex approximation
+CYLINDERS = SPATIAL_SPRING.replace(
+    '<geom size=".1" pos=".2 0 0"/>',
+    "".join(f'<geom type="cylinder" size=".05 .1" pos=".{k} 0 0"/>' for k in (2, 3, 4)),
+)  # each a convex approximation
 
 
 def test_unsupported_features_are_listed_and_warned_once_per_kind(tmp_path):
@@ -71,8 +73,9 @@ def test_unsupported_features_are_listed_and_warned_once_per_kind(tmp_path):
         result = MJCFLoader().load(tmp_path / "rope.xml")
     assert ("tendon", "rope") in {(entry.kind, entry.name) for entry in result.unsupported}  # its armature
     ours = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
-    kinds = {("unsupported", e.kind) for e in result.unsupported} | {("approximated", e.kind)
-                                                                      for e in result.approximations}
+    kinds = {("unsupported", e.kind) for e in result.unsupported} | {
+        ("approximated", e.kind) for e in result.approximations
+    }
     assert len(ours) == len(kinds) < len(result.unsupported) + len(result.approximations)
     geoms = [str(w.message) for w in ours if str(w.message).startswith("rope.xml: approximated geom x3: ")]
     assert len(geoms) == 1 and "2 more in result.approximations" in geoms[0]
@@ -94,7 +97,8 @@ def test_nonlinear_damping_and_actuator_passive_terms_are_listed_not_dropped_sil
         '<mujoco><worldbody><body><joint name="poly" damping="1 2" stiffness="3 4"/><geom size=".1"/></body>'
         '<body pos="1 0 0"><joint name="plain" damping="1"/><geom size=".1"/></body></worldbody>'
         '<actuator><position name="damped" joint="plain" kp="5" damping="0.3"/>'
-        '<position name="bare" joint="plain" kp="5"/></actuator></mujoco>')
+        '<position name="bare" joint="plain" kp="5"/></actuator></mujoco>'
+    )
     result = MJCFLoader().load(spec)
     listed = {(entry.kind, entry.name) for entry in result.unsupported}
     assert {("joint", "poly"), ("actuator", "damped")} <= listed
@@ -109,7 +113,8 @@ def test_tendon_armature_is_listed_not_dropped_silently():
         '<geom size=".1"/></body></worldbody><tendon>'
         '<fixed name="rough" frictionloss="0.5" damping="0.2"><joint joint="a" coef="1"/><joint joint="b" coef="-1"/>'
         '</fixed><fixed name="heavy" armature="0.1" damping="0.2"><joint joint="a" coef="1"/></fixed>'
-        '<fixed name="plain" damping="0.2"><joint joint="b" coef="1"/></fixed></tendon></mujoco>')
+        '<fixed name="plain" damping="0.2"><joint joint="b" coef="1"/></fixed></tendon></mujoco>'
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = MJCFLoader().load(spec)
@@ -157,11 +162,14 @@ TREES = """<mujoco{named}><worldbody>
   {second}</worldbody></mujoco>"""
 
 
-@pytest.mark.parametrize("named,second,names", [
-    (' model="picker"', "", ["picker"]),
-    ("", "", ["arm"]),  # a document without a model name: the root body's
-    (' model="picker"', '<body name="cube"><freejoint/><geom size="0.1" contype="0"/></body>', ["arm", "cube"]),
-])
+@pytest.mark.parametrize(
+    "named,second,names",
+    [
+        (' model="picker"', "", ["picker"]),
+        ("", "", ["arm"]),  # a document without a model name: the root body's
+        (' model="picker"', '<body name="cube"><freejoint/><geom size="0.1" contype="0"/></body>', ["arm", "cube"]),
+    ],
+)
 def test_articulations_are_named_after_the_model_or_their_root(tmp_path, named, second, names):
     (tmp_path / "scene.xml").write_text(TREES.format(named=named, second=second))
     with warnings.catch_warnings():
@@ -177,7 +185,9 @@ def test_no_render_device_skips_visuals_but_keeps_physics():
         pytest.skip("a render device exists here: visuals are built")
     result = MJCFLoader(visual_groups=[0, 1, 2]).load(suite_path("pendulum"))
     assert result.articulations and not any(
-        type(c).__name__ == "RenderBodyComponent" for art in result.articulations for link in art.links
+        type(c).__name__ == "RenderBodyComponent"
+        for art in result.articulations
+        for link in art.links
         for c in link.entity.components
     )
 
@@ -226,7 +236,8 @@ def test_solver_iterations_reach_every_articulation():
     loader.solver_iterations = (50, 4)
     result = loader.load(suite_path("finger"))
     assert [(a.solver_position_iterations, a.solver_velocity_iterations) for a in result.articulations] == [
-        (50, 4)] * len(result.articulations)
+        (50, 4)
+    ] * len(result.articulations)
 
 
 def test_an_mjspec_edited_in_python_loads_as_compiled():
@@ -253,12 +264,15 @@ def test_an_mjspec_built_from_scratch_loads():
     assert np.isclose(sum(link.mass for link in result.articulations[0].links if link.mass > 1e-6), 1.0)
 
 
-@pytest.mark.parametrize("integrator, listed", [("RK4", True), ("implicit", True), ("Euler", False),
-                                                ("implicitfast", False)])
+@pytest.mark.parametrize(
+    "integrator, listed", [("RK4", True), ("implicit", True), ("Euler", False), ("implicitfast", False)]
+)
 def test_an_integrator_physx_cannot_follow_is_listed(tmp_path, integrator, listed):
     path = tmp_path / "integrator.xml"
-    path.write_text(f'<mujoco><option integrator="{integrator}"/><worldbody><body><joint/><geom size=".1"/>'
-                    '</body></worldbody></mujoco>')
+    path.write_text(
+        f'<mujoco><option integrator="{integrator}"/><worldbody><body><joint/><geom size=".1"/>'
+        "</body></worldbody></mujoco>"
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = MJCFLoader().load(path)
@@ -287,9 +301,11 @@ def test_a_joint_space_inertia_float32_cannot_resolve_is_listed(monkeypatch):
 
     (note,) = listed(COAXIAL)
     assert float(note.reason.split("condition number ")[1].split()[0]) > features.FLOAT32_CONDITION
-    assert not listed(COAXIAL.replace('mass="1e-9" diaginertia="3e-13 3e-13 6e-13"',
-                                      'mass=".5" diaginertia="1e-3 1e-3 1e-3"').replace('axis="1 0 0"/>\n  <inertial',
-                                                                                        'axis="0 1 0"/>\n  <inertial'))
+    assert not listed(
+        COAXIAL.replace(
+            'mass="1e-9" diaginertia="3e-13 3e-13 6e-13"', 'mass=".5" diaginertia="1e-3 1e-3 1e-3"'
+        ).replace('axis="1 0 0"/>\n  <inertial', 'axis="0 1 0"/>\n  <inertial')
+    )
     monkeypatch.setattr(features, "note_ill_conditioned", lambda model, notes: None)
     assert not listed(COAXIAL)
 
@@ -334,12 +350,15 @@ def test_a_load_reads_one_forward_pass_at_qpos0(monkeypatch):
     assert original(result.model) is not made[0]
 
 
-@pytest.mark.parametrize("element, where", [
-    ('<body name="b" pos=".2 0 0" quat="1e-30 0 1e-30 0"><joint/><geom size=".1"/></body>', "body 'b'"),
-    ('<inertial pos="0 0 0" mass="1" diaginertia="1 2 3" quat="1e-30 1e-30 1e-30 1e-30"/>', "body 'a' <inertial>"),
-    ('<geom size=".1" quat="1e-8 0 0 0"/>', "geom 'g'"),
-    ('<site name="s" quat="1e-10 0 1e-10 0"/>', "site 's'"),
-])
+@pytest.mark.parametrize(
+    "element, where",
+    [
+        ('<body name="b" pos=".2 0 0" quat="1e-30 0 1e-30 0"><joint/><geom size=".1"/></body>', "body 'b'"),
+        ('<inertial pos="0 0 0" mass="1" diaginertia="1 2 3" quat="1e-30 1e-30 1e-30 1e-30"/>', "body 'a' <inertial>"),
+        ('<geom size=".1" quat="1e-8 0 0 0"/>', "geom 'g'"),
+        ('<site name="s" quat="1e-10 0 1e-10 0"/>', "site 's'"),
+    ],
+)
 def test_a_frame_quaternion_the_compiler_left_unnormalized_is_a_typed_error(element, where, monkeypatch):
     """MuJoCo's compiler leaves a quaternion shorter than about 1e-6 as written, and its kinematics rotate a geom,
     site, camera or inertia frame by it unnormalized (a scaled, degenerate rotation: the inertia tensor of a
@@ -350,9 +369,11 @@ def test_a_frame_quaternion_the_compiler_left_unnormalized_is_a_typed_error(elem
     import loader.mjcf_loader
     from loader import MJCFError, MJCFLoader
 
-    element = element.replace('<geom size', '<geom name="g" size')
-    xml = (f'<mujoco><worldbody><body name="a" euler="0 90 0"><joint/><geom size=".1" mass="1"/>{element}</body>'
-           '</worldbody></mujoco>')
+    element = element.replace("<geom size", '<geom name="g" size')
+    xml = (
+        f'<mujoco><worldbody><body name="a" euler="0 90 0"><joint/><geom size=".1" mass="1"/>{element}</body>'
+        "</worldbody></mujoco>"
+    )
     with pytest.raises(MJCFError, match="is not a unit quaternion") as caught:
         MJCFLoader().load(mujoco.MjSpec.from_string(xml))
     assert where in str(caught.value)
@@ -387,6 +408,7 @@ def test_a_shared_mesh_is_cooked_once(tmp_path, monkeypatch):
         def make(*args, **kwargs):
             sources.append(args[0] if isinstance(args[0], str) else "memory")
             return kind(*args, **kwargs)
+
         return make
 
     monkeypatch.setattr(sapien.physx, "PhysxCollisionShapeConvexMesh", recorded(convex))
@@ -404,8 +426,11 @@ def test_a_shared_mesh_is_cooked_once(tmp_path, monkeypatch):
     for g, shape in enumerate(shapes, start=1):
         mesh = int(model.geom_dataid[g])
         start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
-        cooked = convex(np.ascontiguousarray(model.mesh_vert[start:start + count], np.float32), np.ones(3, np.float32),
-                        shape.physical_material)
+        cooked = convex(
+            np.ascontiguousarray(model.mesh_vert[start : start + count], np.float32),
+            np.ones(3, np.float32),
+            shape.physical_material,
+        )
         assert np.array_equal(shape.get_vertices(), cooked.get_vertices())
         assert np.array_equal(shape.get_triangles(), cooked.get_triangles())
     ground = result.actors[0].components[-1].collision_shapes[0]
@@ -421,7 +446,9 @@ DAMPED_SLIDER = """<mujoco><option timestep="0.002" gravity="0 0 -9.81"/>
       <geom type="box" size=".03 .03 .03" mass=".2"/></body></body></worldbody>
   <actuator><position name="servo" joint="hinge" kp="4" kv="0.3"/></actuator>
 </mujoco>"""
-TERM_TOLERANCE = 1e-5  # rad over 0.5 s; measured 1.7e-7 to 2.6e-7, mutations 0.18 and 0.23 (mujoco 3.17.0, sapien 3.0.3)
+TERM_TOLERANCE = (
+    1e-5  # rad over 0.5 s; measured 1.7e-7 to 2.6e-7, mutations 0.18 and 0.23 (mujoco 3.17.0, sapien 3.0.3)
+)
 PUSH = np.array([0.3, -0.5])  # N m on the hinge, N on the slide
 
 

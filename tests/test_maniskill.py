@@ -56,8 +56,12 @@ def _cpu_scene(timestep: float) -> ManiSkillScene:
         sub_scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
     finally:
         sapien.physx.set_scene_config(previous)
-    scene = ManiSkillScene([sub_scene], sim_config=SimConfig(), device=torch.device("cpu"),
-                           backend=parse_sim_and_render_backend("physx_cpu", "none"))
+    scene = ManiSkillScene(
+        [sub_scene],
+        sim_config=SimConfig(),
+        device=torch.device("cpu"),
+        backend=parse_sim_and_render_backend("physx_cpu", "none"),
+    )
     scene.timestep = timestep
     return scene
 
@@ -70,9 +74,15 @@ def agents():
 
 
 def _env(uid: str, mode: str, sim_freq: int, control_freq: int):
-    return gym.make("Empty-v1", robot_uids=uid, sim_backend="physx_cpu", render_backend="none", obs_mode="state",
-                    control_mode=mode, sim_config={"sim_freq": sim_freq, "control_freq": control_freq,
-                                                       "scene_config": {"enable_tgs": False}})
+    return gym.make(
+        "Empty-v1",
+        robot_uids=uid,
+        sim_backend="physx_cpu",
+        render_backend="none",
+        obs_mode="state",
+        control_mode=mode,
+        sim_config={"sim_freq": sim_freq, "control_freq": control_freq, "scene_config": {"enable_tgs": False}},
+    )
 
 
 @pytest.mark.parametrize("robot", ROBOTS)
@@ -193,15 +203,26 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
     model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        env = gym.make("Empty-v1", robot_uids=agent_class.uid, sim_backend="physx_cuda", render_backend="none",
-                       obs_mode="state", num_envs=2, control_mode="pd_joint_delta_pos")
+        env = gym.make(
+            "Empty-v1",
+            robot_uids=agent_class.uid,
+            sim_backend="physx_cuda",
+            render_backend="none",
+            obs_mode="state",
+            num_envs=2,
+            control_mode="pd_joint_delta_pos",
+        )
     try:
         env.reset(seed=0)
         assert "mujoco_ctrl" not in env.unwrapped.agent.supported_control_modes
         assert sum("CPU-only" in str(w.message) for w in caught) == 1
         for sub_scene in env.unwrapped.scene.sub_scenes:
-            links = [c for entity in sub_scene.entities for c in entity.components
-                     if isinstance(c, sapien.physx.PhysxArticulationLinkComponent)]
+            links = [
+                c
+                for entity in sub_scene.entities
+                for c in entity.components
+                if isinstance(c, sapien.physx.PhysxArticulationLinkComponent)
+            ]
             articulation = links[0].articulation  # Empty-v1's only articulation: the robot
             armature = [joint.armature[0] for joint in articulation.active_joints]
             np.testing.assert_allclose(armature, model.dof_armature, rtol=1e-6)
@@ -306,8 +327,7 @@ def test_maniskills_loader_turns_an_euler_pitch_the_other_way(tmp_path):
     from mani_skill.utils.building import _mjcf_loader
 
     half = np.radians(PITCH) / 2
-    for name, orientation in (("euler", f'euler="0 {PITCH} 0"'),
-                              ("quat", f'quat="{np.cos(half)} 0 {np.sin(half)} 0"')):
+    for name, orientation in (("euler", f'euler="0 {PITCH} 0"'), ("quat", f'quat="{np.cos(half)} 0 {np.sin(half)} 0"')):
         (tmp_path / f"{name}.xml").write_text(TILTED.format(orientation=orientation))
     euler = _tier(tmp_path, tmp_path / "euler.xml", "kinematics")
     assert euler["status"] == "fail"
@@ -343,8 +363,17 @@ def test_the_loader_maniskill_runs_corpus_models_and_fails_where_maniskill_is_wr
     MuJoCo's. The pendulum's actuator is skipped with why; nothing raises."""
     import json
 
-    code, run = _run(tmp_path, "--loader", "maniskill", "--model", "manipulator", "--model", "pendulum",
-                     "--tiers", "kinematics,actuated")
+    code, run = _run(
+        tmp_path,
+        "--loader",
+        "maniskill",
+        "--model",
+        "manipulator",
+        "--model",
+        "pendulum",
+        "--tiers",
+        "kinematics,actuated",
+    )
     assert code in (0, 1)  # judged, not a usage error
     doc = json.loads((run / "summary.json").read_text())
     models = {m["id"]: m for m in doc["models"]}
@@ -361,8 +390,9 @@ def test_the_loader_maniskill_runs_corpus_models_and_fails_where_maniskill_is_wr
 def test_a_comparison_puts_both_loaders_side_by_side(tmp_path):
     import json
 
-    code, folder = _run(tmp_path, "--compare", "ours,maniskill", "--model", "pendulum",
-                        "--tiers", "structure,inertia,actuated")
+    code, folder = _run(
+        tmp_path, "--compare", "ours,maniskill", "--model", "pendulum", "--tiers", "structure,inertia,actuated"
+    )
     assert code == 0  # ours is judged against the manifest: the pendulum passes these
     doc = json.loads((folder / "compare.json").read_text())
     assert doc["loaders"] == ["ours", "maniskill"]

@@ -22,10 +22,16 @@ def wheel(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("wheel")
     source = out / "source"  # a clean copy: a build folder left in the checkout would hide what the wheel lacks
     skipped = {".git", ".nox", "build", "reports", ".hypothesis", ".ruff_cache"}
-    shutil.copytree(ROOT, source, ignore=lambda folder, names: [
-        n for n in names if (Path(folder) == ROOT and n in skipped) or n.endswith(".egg-info") or n == "__pycache__"])
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(out), str(source)],
-                   check=True, cwd=out)
+    shutil.copytree(
+        ROOT,
+        source,
+        ignore=lambda folder, names: [
+            n for n in names if (Path(folder) == ROOT and n in skipped) or n.endswith(".egg-info") or n == "__pycache__"
+        ],
+    )
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(out), str(source)], check=True, cwd=out
+    )
     return next(out.glob("*.whl"))
 
 
@@ -41,8 +47,12 @@ def test_the_core_install_requires_only_what_the_loader_imports(wheel):
 def test_the_wheel_holds_every_module_of_the_source(wheel):
     """pyproject.toml lists the packages by hand (the corpus is mapped into one): a package folder left off the
     list would install a harness that fails the first time it records."""
-    source = {str(path.relative_to(ROOT)) for top in ("loader", "conformance") for path in (ROOT / top).rglob("*.py")
-              if "__pycache__" not in path.parts}
+    source = {
+        str(path.relative_to(ROOT))
+        for top in ("loader", "conformance")
+        for path in (ROOT / top).rglob("*.py")
+        if "__pycache__" not in path.parts
+    }
     with zipfile.ZipFile(wheel) as archive:
         packed = {name for name in archive.namelist() if name.endswith(".py")}
     assert source - packed == set()
@@ -56,11 +66,36 @@ def test_an_installed_wheel_runs_the_cli_from_another_folder(wheel, tmp_path):
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     env = {**os.environ, "PYTHONPATH": str(site)}
-    done = subprocess.run([sys.executable, "-m", "conformance", "run", "--model", "cartpole", "--tiers", "structure",
-                           "--no-record", "--quiet", "--out", str(elsewhere / "out")], cwd=elsewhere, env=env,
-                          capture_output=True, text=True, timeout=600, check=False)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "conformance",
+            "run",
+            "--model",
+            "cartpole",
+            "--tiers",
+            "structure",
+            "--no-record",
+            "--quiet",
+            "--out",
+            str(elsewhere / "out"),
+        ],
+        cwd=elsewhere,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert list((elsewhere / "out").glob("*/summary.json"))
-    probe = subprocess.run([sys.executable, "-c", "import conformance.corpus as c; print(c.corpus_root())"],
-                           cwd=elsewhere, env=env, capture_output=True, text=True, check=True)
+    probe = subprocess.run(
+        [sys.executable, "-c", "import conformance.corpus as c; print(c.corpus_root())"],
+        cwd=elsewhere,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert Path(probe.stdout.strip()).is_relative_to(site)  # the wheel's copy, not the checkout's

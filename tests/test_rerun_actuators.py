@@ -22,15 +22,19 @@ def recorded(tmp_path_factory):
     tol = tolerances.load()
     reports = {name: tier(session.result, session.model, 3, tol) for name, tier in TIERS.items()}
     rrd = folder / "arm.rrd"
-    recording.write_recording(rrd, session, reports, {"model": "arm", "seed": 3,
-                                                      "versions": {"mujoco": mujoco.__version__}})
+    recording.write_recording(
+        rrd, session, reports, {"model": "arm", "seed": 3, "versions": {"mujoco": mujoco.__version__}}
+    )
     return session, reports, read_rrd(rrd)
 
 
 def _plot_of(rrd, tier: str, quantity: str, name: str) -> str:
     """The one plot of `quantity` (ctrl, force) in `tier` that has a line called `name`."""
-    (entity,) = [e for e, cols in rrd.items() if e.startswith(f"/actuators/{tier}/") and e.endswith(f"/{quantity}")
-                 and name in cols["SeriesLines:names"][-1]]
+    (entity,) = [
+        e
+        for e, cols in rrd.items()
+        if e.startswith(f"/actuators/{tier}/") and e.endswith(f"/{quantity}") and name in cols["SeriesLines:names"][-1]
+    ]
     return entity
 
 

@@ -76,8 +76,9 @@ def recorded(tmp_path_factory):
     tol = tolerances.load()
     reports = {name: tier(session.result, session.model, 7, tol) for name, tier in TIERS.items()}
     path = tmp_path_factory.mktemp("rrd") / "pendulum.rrd"
-    recording.write_recording(path, session, reports, {"model": "pendulum", "seed": 7,
-                                                       "versions": {"mujoco": mujoco.__version__}})
+    recording.write_recording(
+        path, session, reports, {"model": "pendulum", "seed": 7, "versions": {"mujoco": mujoco.__version__}}
+    )
     return session, reports, read_rrd(path), path
 
 
@@ -100,14 +101,24 @@ def judged(tmp_path_factory):
     expecting that failure (at the value a first run measured) with a reason."""
     folder = tmp_path_factory.mktemp("run")
     tight = {"contact.final_pose_band": 1e-12}
-    probe = ModelEntry(id="instanced_meshes", source=str(MESHES), tiers=("contact", "dynamics"), tolerances=tight,
-                       override_reason="the recording test: contact must fail")
+    probe = ModelEntry(
+        id="instanced_meshes",
+        source=str(MESHES),
+        tiers=("contact", "dynamics"),
+        tolerances=tight,
+        override_reason="the recording test: contact must fail",
+    )
     first = evaluate(Job(probe, str(MESHES), str(folder), 0, probe.tiers, record=False))
     seen = next(m["max"] for m in first.tiers["contact"]["metrics"] if m["name"] == "final_pose_band")
     reason = "a band no run can meet, so that the contact tier fails"
-    entry = ModelEntry(id="instanced_meshes", source=str(MESHES), tiers=("contact", "dynamics"), tolerances=tight,
-                       override_reason="the recording test: contact must fail",
-                       expect={"contact": Expectation("contact", "fail", reason, metric="final_pose_band", seen=seen)})
+    entry = ModelEntry(
+        id="instanced_meshes",
+        source=str(MESHES),
+        tiers=("contact", "dynamics"),
+        tolerances=tight,
+        override_reason="the recording test: contact must fail",
+        expect={"contact": Expectation("contact", "fail", reason, metric="final_pose_band", seen=seen)},
+    )
     result = evaluate(Job(entry, str(MESHES), str(folder), 0, entry.tiers, record=True))
     path = folder / "instanced_meshes.rrd"
     return entry, result, reason, read_rrd(path), path
@@ -156,8 +167,9 @@ def test_each_distinct_mesh_is_logged_once_with_normals(meshed):
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-5)
     assert np.all(np.einsum("ij,ij->i", normals, vertices - vertices.mean(axis=0)) > 0)
     trace = recording.recorded_trace(reports)
-    colliding = [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH
-                 and model.geom_contype[g]]
+    colliding = [
+        g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH and model.geom_contype[g]
+    ]
     assert len(colliding) == 3
     data = mujoco.MjData(model)
     poses = cols["InstancePoses3D:translations"]
@@ -165,8 +177,9 @@ def test_each_distinct_mesh_is_logged_once_with_normals(meshed):
     for step in (0, trace.time.size // 2, trace.time.size - 1):
         data.qpos[:] = trace.mujoco_qpos[step]
         mujoco.mj_kinematics(model, data)
-        np.testing.assert_allclose(sorted(map(tuple, poses[step])), sorted(map(tuple, data.geom_xpos[colliding])),
-                                   atol=1e-5)  # float32 poses of a robot within 1 m
+        np.testing.assert_allclose(
+            sorted(map(tuple, poses[step])), sorted(map(tuple, data.geom_xpos[colliding])), atol=1e-5
+        )  # float32 poses of a robot within 1 m
     visual_only = [e for e, c in visual.items() if "Mesh3D:vertex_positions" in c and e not in rrd]
     assert len(visual_only) == 1 and len(visual[visual_only[0]]["InstancePoses3D:translations"][0]) == 1
     assert visual[visual_only[0]]["Mesh3D:albedo_factor"][-1] == [packed((51, 153, 102, 255))]  # the fixture's rgba
@@ -175,8 +188,10 @@ def test_each_distinct_mesh_is_logged_once_with_normals(meshed):
 def _mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's faces for a cloud of vertices (it triangulates their convex hull)."""
     vertex = " ".join(f"{x:.9g}" for x in np.asarray(points).ravel())
-    model = mujoco.MjModel.from_xml_string(f'<mujoco><asset><mesh name="m" vertex="{vertex}"/></asset><worldbody>'
-                                           '<geom type="mesh" mesh="m"/></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco><asset><mesh name="m" vertex="{vertex}"/></asset><worldbody>'
+        '<geom type="mesh" mesh="m"/></worldbody></mujoco>'
+    )
     return model.mesh_vert.copy(), model.mesh_face.copy()
 
 
@@ -204,8 +219,11 @@ def test_joint_series_are_grouped_batches_in_both_colours(meshed):
     session, reports, rrd, _ = meshed
     model = session.model
     trace = recording.recorded_trace(reports)
-    plots = {e: cols["SeriesLines:names"][-1] for e, cols in rrd.items()
-             if e.startswith("/joints/") and e.endswith("/position")}
+    plots = {
+        e: cols["SeriesLines:names"][-1]
+        for e, cols in rrd.items()
+        if e.startswith("/joints/") and e.endswith("/position")
+    }
     (shared,) = [e for e, names in plots.items() if "MuJoCo shoulder" in names]
     assert "MuJoCo elbow" in plots[shared], "shoulder and elbow are one limb (with the base: 3 joints)"
     every = [n for names in plots.values() for n in names]
@@ -219,8 +237,11 @@ def test_joint_series_are_grouped_batches_in_both_colours(meshed):
         np.testing.assert_array_equal(line(rrd, entity, f"SAPIEN {line_name}"), trace.sapien_qpos[:, adr + offset])
         assert every.count(f"MuJoCo {line_name}") == 1
     mesh_colour = next(c["Mesh3D:albedo_factor"][-1] for c in rrd.values() if "Mesh3D:albedo_factor" in c)
-    sapien_colour = next(c["LineStrips3D:colors"][-1][0] for e, c in rrd.items()
-                         if e.startswith("/sapien/") and "LineStrips3D:colors" in c)
+    sapien_colour = next(
+        c["LineStrips3D:colors"][-1][0]
+        for e, c in rrd.items()
+        if e.startswith("/sapien/") and "LineStrips3D:colors" in c
+    )
     names, colours = plots[shared], rrd[shared]["SeriesLines:colors"][-1]
     assert {c for n, c in zip(names, colours, strict=True) if n.startswith("MuJoCo")} == {mesh_colour[0]}
     assert {c for n, c in zip(names, colours, strict=True) if n.startswith("SAPIEN")} == {sapien_colour}
@@ -312,8 +333,9 @@ def test_the_verdict_panel_shows_the_expected_outcome_and_reason(judged):
     assert verdicts["contact"].outcome == "expected-fail"
     for tier, v in verdicts.items():
         rows = [r for r in text.splitlines() if r.startswith(f"| {tier} |")]
-        assert rows and all(r.startswith(f"| {tier} | {v.outcome} |") and r.endswith(f"| {v.expected} |")
-                            for r in rows), rows
+        assert rows and all(
+            r.startswith(f"| {tier} | {v.outcome} |") and r.endswith(f"| {v.expected} |") for r in rows
+        ), rows
     assert reason in text
 
 
@@ -368,8 +390,9 @@ def test_static_geometry_of_both_sides(recorded):
     entity = f"/{recording.body_path(model, int(model.geom_bodyid[capsule]))}/geom/rod"
     assert rrd[entity]["Capsules3D:radii"][-1] == pytest.approx([model.geom_size[capsule][0]], rel=1e-6)
     # SAPIEN's shapes come from the components PhysX simulates
-    shapes = [(a, link, k, s) for a, link in sapien_side.links(session.result)
-              for k, s in enumerate(link.collision_shapes)]
+    shapes = [
+        (a, link, k, s) for a, link in sapien_side.links(session.result) for k, s in enumerate(link.collision_shapes)
+    ]
     assert shapes
     for a, link, k, shape in shapes:
         cols = rrd[f"/{recording.link_path(a, link)}/shape/{k}"]
@@ -387,8 +410,11 @@ def test_default_blueprint_pins_sim_time_and_separates_units(recorded):
     *_, path = recorded
     blueprint = read_blueprint(path)
     assert blueprint["/time_panel"]["TimePanelBlueprint:timeline"] == ["sim_time"]
-    views = [(v["ViewBlueprint:class_identifier"][0], v["ViewBlueprint:space_origin"][0])
-             for v in blueprint.values() if "ViewBlueprint:class_identifier" in v]
+    views = [
+        (v["ViewBlueprint:class_identifier"][0], v["ViewBlueprint:space_origin"][0])
+        for v in blueprint.values()
+        if "ViewBlueprint:class_identifier" in v
+    ]
     kinds = {}
     for kind, origin in views:
         kinds.setdefault(kind, set()).add(origin)
@@ -427,9 +453,11 @@ def test_every_plot_the_blueprint_opens_has_data(tmp_path):
     reports = {name: tier(session.result, session.model, 0, tol) for name, tier in TIERS.items()}
     recording.write_recording(tmp_path / "ball.rrd", session, reports, {"model": "ball", "seed": 0})
     rrd = read_rrd(tmp_path / "ball.rrd")
-    origins = [v["ViewBlueprint:space_origin"][0] for v in read_blueprint(tmp_path / "ball.rrd").values()
-               if v.get("ViewBlueprint:class_identifier") == ["TimeSeries"]]
+    origins = [
+        v["ViewBlueprint:space_origin"][0]
+        for v in read_blueprint(tmp_path / "ball.rrd").values()
+        if v.get("ViewBlueprint:class_identifier") == ["TimeSeries"]
+    ]
     assert "/joints/swivel/difference" in origins
     for origin in origins:
         assert any(e.startswith(origin) and "Scalars:scalars" in cols for e, cols in rrd.items()), origin
-

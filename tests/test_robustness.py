@@ -57,8 +57,11 @@ def _raise(real, path):
 
 
 def _moved_body(real, path):
-    text = Path(path).read_text().replace('<body name="pole_1" childclass="pole">',
-                                          '<body name="pole_1" childclass="pole" pos="0 0 .05">')
+    text = (
+        Path(path)
+        .read_text()
+        .replace('<body name="pole_1" childclass="pole">', '<body name="pole_1" childclass="pole" pos="0 0 .05">')
+    )
     assert text != Path(path).read_text()
     moved = Path(path).with_name(".moved.xml")
     moved.write_text(text)
@@ -73,12 +76,14 @@ def _diverging(real, path):
         step(*args, **kwargs)
         art = result.articulations[0]
         art.set_qvel(np.full(art.dof, 1e6, dtype=np.float32))
+
     result.step = blow_up
     return result
 
 
-@pytest.mark.parametrize("mistake, expected", [(_raise, "untyped_error"), (_moved_body, "silently_wrong"),
-                                               (_diverging, "divergence")])
+@pytest.mark.parametrize(
+    "mistake, expected", [(_raise, "untyped_error"), (_moved_body, "silently_wrong"), (_diverging, "divergence")]
+)
 def test_a_deliberate_mistake_is_a_bad_outcome(mistake, expected, monkeypatch, workspace):
     """A loader that raises an untyped error, one that moves a body 5 cm, one whose state runs off: each is the
     bad outcome it is; the real loader on the same document is `loaded_right`."""
@@ -166,6 +171,7 @@ def test_saved_mutants_are_registered():
 def test_an_interrupted_run_reports_the_mutants_it_judged():
     """Ctrl-C during a run: the running children are stopped and the tally of what was judged comes back, marked
     interrupted (the CLI writes it and exits 1)."""
+
     def interrupt(tally):
         raise KeyboardInterrupt
 

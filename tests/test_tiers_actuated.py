@@ -118,8 +118,9 @@ def test_a_five_percent_kp_error_is_caught(arm):
     assert {"one_step_qvel", "rollout_qpos"} <= _failed(report)
 
 
-@pytest.mark.parametrize("edit", [('gear="2"', 'gear="-2"'), ('coef="2"', 'coef="0.5"')],
-                         ids=["gear sign", "inverted coupling ratio"])
+@pytest.mark.parametrize(
+    "edit", [('gear="2"', 'gear="-2"'), ('coef="2"', 'coef="0.5"')], ids=["gear sign", "inverted coupling ratio"]
+)
 def test_a_mistake_in_the_sapien_copy_only_is_caught(tmp_path, arm, edit):
     assert edit[0] in ARM
     mutated = _session(_write(tmp_path, ARM.replace(*edit), "mutated.xml"))
@@ -136,8 +137,12 @@ def test_the_scene_is_left_as_the_other_tiers_expect(arm):
     contact = _tier(session, "actuated_contact")
     assert contact.status == "pass", contact.to_dict()
     assert "actuators" not in result.controller.names  # actuators off again (the dynamics tier commands forces itself)
-    groups = [list(s.get_collision_groups()) for art in result.articulations for link in art.links
-              for s in link.collision_shapes]
+    groups = [
+        list(s.get_collision_groups())
+        for art in result.articulations
+        for link in art.links
+        for s in link.collision_shapes
+    ]
     assert any(g[0] or g[1] for g in groups), "actuated_contact keeps contacts on for dynamics"
     _tier(session, "actuated")
     assert "actuators" not in result.controller.names
@@ -149,8 +154,10 @@ def test_the_scene_is_left_as_the_other_tiers_expect(arm):
 
 
 def test_unmapped_actuators_skip_the_tier_by_name(tmp_path):
-    text = ARM.replace('<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
-                       '<muscle name="filtered" joint="elbow" ctrlrange="0 1"/>')
+    text = ARM.replace(
+        '<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
+        '<muscle name="filtered" joint="elbow" ctrlrange="0 1"/>',
+    )
     session = _session(_write(tmp_path, text))
     for tier in ("actuated", "actuated_contact"):
         report = _tier(session, tier)
@@ -163,7 +170,8 @@ def test_a_saturating_servo_is_judged_unscaled_and_passes(tmp_path):
     # the loader clamps as MuJoCo does, so the tier needs no scaling and still passes (implicitfast: under Euler
     # an explicit kv of 60 on this arm makes MuJoCo itself amplify a 1e-6 perturbation 1.4e4 times)
     text = ARM.replace('kp="40" kv="2"', 'kp="4000" kv="60" forcerange="-5 5"').replace(
-        'integrator="Euler"', 'integrator="implicitfast"')
+        'integrator="Euler"', 'integrator="implicitfast"'
+    )
     session = _session(_write(tmp_path, text))
     report = _tier(session, "actuated")
     assert report.settings["ctrl_scale"] == 1.0
@@ -207,14 +215,18 @@ def _halve_servo_gains(session) -> None:
         drive.stiffness *= 0.5
 
 
-@pytest.mark.parametrize("mutation,tier,metric", [
-    (None, "actuated", None),
-    (None, "actuated_contact", None),
-    (_kp_five_percent, "actuated", "one_step_qvel"),
-    (_flip_gears, "actuated", "rollout_qpos"),
-    (_flip_gears, "actuated_contact", "final_pose_band"),
-    (_halve_servo_gains, "actuated_contact", "rest_height"),
-], ids=["clean", "clean-contact", "kp-5%", "gear-sign", "gear-sign-contact", "half-gains-contact"])
+@pytest.mark.parametrize(
+    "mutation,tier,metric",
+    [
+        (None, "actuated", None),
+        (None, "actuated_contact", None),
+        (_kp_five_percent, "actuated", "one_step_qvel"),
+        (_flip_gears, "actuated", "rollout_qpos"),
+        (_flip_gears, "actuated_contact", "final_pose_band"),
+        (_halve_servo_gains, "actuated_contact", "rest_height"),
+    ],
+    ids=["clean", "clean-contact", "kp-5%", "gear-sign", "gear-sign-contact", "half-gains-contact"],
+)
 def test_spot_standing_on_its_servos(mutation, tier, metric):
     session = _session(_spot())
     if mutation is not None:
@@ -227,8 +239,10 @@ def test_spot_standing_on_its_servos(mutation, tier, metric):
 
 
 def test_the_manifest_can_take_unmapped_actuators_out_of_both_sides(tmp_path):
-    text = ARM.replace('<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
-                       '<muscle name="filtered" joint="elbow" ctrlrange="0 1"/>')
+    text = ARM.replace(
+        '<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
+        '<muscle name="filtered" joint="elbow" ctrlrange="0 1"/>',
+    )
     session = _session(_write(tmp_path, text))
     removed = TOL.with_overrides(settings={"actuated": {"unmapped": "remove"}})
     report = TIERS["actuated"](session.result, session.model, 0, removed)
@@ -247,8 +261,9 @@ def test_an_inverted_equality_coupling_stands_far_above_the_soft_equality_gap(tm
     edit = ('polycoef="0 2 0 0 0"', 'polycoef="0 0.5 0 0 0"')
     assert edit[0] in text
     clean = _tier(_session(fixture), "actuated")
-    mutated = _tier(_session(_write(tmp_path, text.replace(*edit), "inverted.xml")), "actuated",
-                    model=_session(fixture).model)
+    mutated = _tier(
+        _session(_write(tmp_path, text.replace(*edit), "inverted.xml")), "actuated", model=_session(fixture).model
+    )
     for name in ("one_step_qvel", "rollout_qpos"):
         before = next(m.max for m in clean.metrics if m.name == name)
         after = next(m.max for m in mutated.metrics if m.name == name)

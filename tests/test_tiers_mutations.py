@@ -111,8 +111,10 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("mutation,tier,metric_name,model", [
-    pytest.param(m, t, n, model, id=f"{m.__name__}-{model}") for m, t, n, models in CASES for model in models])
+@pytest.mark.parametrize(
+    "mutation,tier,metric_name,model",
+    [pytest.param(m, t, n, model, id=f"{m.__name__}-{model}") for m, t, n, models in CASES for model in models],
+)
 def test_mutation_is_caught(mutation, tier, metric_name, model):
     clean = _tier(_session(model), tier)
     assert clean.status == "pass", f"{model} {tier} must pass before the mutation: {clean.to_dict()}"
@@ -207,6 +209,7 @@ def test_a_run_after_another_starts_with_no_link_force_left(monkeypatch):
     from conformance import sapien_side
 
     assert _tier(_session("swimmer"), "dynamics").status == "pass"
-    monkeypatch.setattr(sapien_side, "clear_command",
-                        lambda result, nv: result.set_ctrl(None, qfrc_applied=np.zeros(nv)))
+    monkeypatch.setattr(
+        sapien_side, "clear_command", lambda result, nv: result.set_ctrl(None, qfrc_applied=np.zeros(nv))
+    )
     assert _tier(_session("swimmer"), "dynamics").status == "fail"

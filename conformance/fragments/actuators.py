@@ -27,8 +27,15 @@ def expected_gains(model: mujoco.MjModel, a: int) -> tuple[float, float]:
     return -float(bias[1]) * gear**2, -float(bias[2]) * gear**2
 
 
-_DYNAMICS = tuple(int(d) for d in (mujoco.mjtDyn.mjDYN_NONE, mujoco.mjtDyn.mjDYN_FILTER,
-                                   mujoco.mjtDyn.mjDYN_FILTEREXACT, mujoco.mjtDyn.mjDYN_INTEGRATOR))
+_DYNAMICS = tuple(
+    int(d)
+    for d in (
+        mujoco.mjtDyn.mjDYN_NONE,
+        mujoco.mjtDyn.mjDYN_FILTER,
+        mujoco.mjtDyn.mjDYN_FILTEREXACT,
+        mujoco.mjtDyn.mjDYN_INTEGRATOR,
+    )
+)
 
 
 def _mappable(model: mujoco.MjModel, a: int) -> bool:
@@ -37,11 +44,12 @@ def _mappable(model: mujoco.MjModel, a: int) -> bool:
     if int(model.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT):
         return False
     joint = int(model.actuator_trnid[a][0])
-    return (int(model.jnt_type[joint]) in (int(_JT.mjJNT_HINGE), int(_JT.mjJNT_SLIDE))
-            and int(model.actuator_dyntype[a]) in _DYNAMICS
-            and int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
-            and int(model.actuator_biastype[a]) in (int(mujoco.mjtBias.mjBIAS_NONE),
-                                                    int(mujoco.mjtBias.mjBIAS_AFFINE)))
+    return (
+        int(model.jnt_type[joint]) in (int(_JT.mjJNT_HINGE), int(_JT.mjJNT_SLIDE))
+        and int(model.actuator_dyntype[a]) in _DYNAMICS
+        and int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
+        and int(model.actuator_biastype[a]) in (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE))
+    )
 
 
 def _close(a: float, b: float) -> bool:
@@ -75,20 +83,26 @@ def actuator_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], list[
         joint = int(model.actuator_trnid[a][0])
         target = result.mapping.joints[joint]
         if (entry.articulation, tuple(entry.dofs)) != (target.articulation, tuple(target.dofs)):
-            out.append(f"actuator {name!r}: drives articulation {entry.articulation} dofs {entry.dofs}, joint "
-                       f"{joint} is articulation {target.articulation} dofs {target.dofs}")
+            out.append(
+                f"actuator {name!r}: drives articulation {entry.articulation} dofs {entry.dofs}, joint "
+                f"{joint} is articulation {target.articulation} dofs {target.dofs}"
+            )
         if not _close(entry.gear, float(model.actuator_gear[a][0])):
             out.append(f"actuator {name!r}: gear {entry.gear}, MuJoCo {model.actuator_gear[a][0]}")
-        for field, want in (("ctrlrange", _range(model.actuator_ctrllimited[a], model.actuator_ctrlrange[a])),
-                            ("forcerange", _range(model.actuator_forcelimited[a], model.actuator_forcerange[a]))):
+        for field, want in (
+            ("ctrlrange", _range(model.actuator_ctrllimited[a], model.actuator_ctrlrange[a])),
+            ("forcerange", _range(model.actuator_forcelimited[a], model.actuator_forcerange[a])),
+        ):
             got = getattr(entry, field)
             if (got is None) != (want is None) or (got is not None and not all(map(_close, got, want))):
                 out.append(f"actuator {name!r}: {field} {got}, MuJoCo {want}")
         stiffness, damping = expected_gains(model, a)
         if not (_close(entry.stiffness, stiffness) and _close(entry.damping, damping)):
-            out.append(f"actuator {name!r}: drive stiffness {entry.stiffness:.9g} damping {entry.damping:.9g}, "
-                       f"MuJoCo compiled stiffness {stiffness:.9g} damping {damping:.9g} (kp={model.actuator_gainprm[a][0]:g}, "
-                       f"bias={list(model.actuator_biasprm[a][:3])}, gear={model.actuator_gear[a][0]:g})")
+            out.append(
+                f"actuator {name!r}: drive stiffness {entry.stiffness:.9g} damping {entry.damping:.9g}, "
+                f"MuJoCo compiled stiffness {stiffness:.9g} damping {damping:.9g} (kp={model.actuator_gainprm[a][0]:g}, "
+                f"bias={list(model.actuator_biasprm[a][:3])}, gear={model.actuator_gear[a][0]:g})"
+            )
     return out, skipped, checked
 
 
@@ -113,8 +127,10 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
             stiffness[key] = float(model.jnt_stiffness[j])
             damping[key] = float(model.dof_damping[model.jnt_dofadr[j]])
     enabled = not (model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION))
-    implicit_kv = int(model.opt.integrator) in (int(mujoco.mjtIntegrator.mjINT_IMPLICIT),
-                                                int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST))
+    implicit_kv = int(model.opt.integrator) in (
+        int(mujoco.mjtIntegrator.mjINT_IMPLICIT),
+        int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST),
+    )
     for a in range(model.nu):
         if enabled and _mappable(model, a):
             target = result.mapping.joints[int(model.actuator_trnid[a][0])]
@@ -131,8 +147,10 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
             want_k, want_d = 0.0, damping[key]
         got_k, got_d = float(joint.stiffness), float(joint.damping)
         if not (_close32(got_k, want_k) and _close32(got_d, want_d)):
-            out.append(f"joint {joint.name!r}: PhysX drive stiffness {got_k:.7g} damping {got_d:.7g}, MuJoCo's "
-                       f"terms give stiffness {want_k:.7g} damping {want_d:.7g} (dt {dt:g})")
+            out.append(
+                f"joint {joint.name!r}: PhysX drive stiffness {got_k:.7g} damping {got_d:.7g}, MuJoCo's "
+                f"terms give stiffness {want_k:.7g} damping {want_d:.7g} (dt {dt:g})"
+            )
     return out, len(stiffness)
 
 

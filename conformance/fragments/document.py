@@ -87,7 +87,7 @@ class Document:
     def render(self, mesh_prefix: str = "") -> tuple[str, dict[str, str]]:
         """(XML text, {file name: OBJ text}) with mesh files named `<mesh_prefix><mesh name>.obj`."""
         files = {f"{mesh_prefix}{m.name}.obj": m.obj_text() for m in self.meshes}
-        lines = ["<mujoco model=\"fragment\">"]
+        lines = ['<mujoco model="fragment">']
         if self.compiler:
             lines.append(f"  <compiler{_attrs(self.compiler)}/>")
         if self.option:
@@ -176,8 +176,17 @@ def _render_main(main: DefaultClass, split: bool) -> list[str]:
     keys = list(main.geom)
     half = len(keys) // 2
     first = DefaultClass(None, geom={k: main.geom[k] for k in keys[:half]})
-    rest = DefaultClass(None, {k: main.geom[k] for k in keys[half:]}, main.joint, main.site, main.mesh,
-                        main.material, main.actuator, main.children, main.children_first)
+    rest = DefaultClass(
+        None,
+        {k: main.geom[k] for k in keys[half:]},
+        main.joint,
+        main.site,
+        main.mesh,
+        main.material,
+        main.actuator,
+        main.children,
+        main.children_first,
+    )
     return _render_class(first, 1) + _render_class(rest, 1)
 
 

@@ -38,13 +38,24 @@ _HEALTH = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_
 
 
 def ci_settings(examples: int) -> settings:
-    return settings(max_examples=examples, derandomize=True, database=None, deadline=None,
-                    suppress_health_check=_HEALTH, print_blob=False)
+    return settings(
+        max_examples=examples,
+        derandomize=True,
+        database=None,
+        deadline=None,
+        suppress_health_check=_HEALTH,
+        print_blob=False,
+    )
 
 
 def fuzz_settings(examples: int, database: Path = DATABASE) -> settings:
-    return settings(max_examples=examples, database=DirectoryBasedExampleDatabase(str(database)), deadline=None,
-                    suppress_health_check=_HEALTH, print_blob=True)
+    return settings(
+        max_examples=examples,
+        database=DirectoryBasedExampleDatabase(str(database)),
+        deadline=None,
+        suppress_health_check=_HEALTH,
+        print_blob=True,
+    )
 
 
 def mutation_settings(examples: int) -> settings:
@@ -64,8 +75,14 @@ def error_parity_property(document, tally: Tally) -> None:
 
 def kinematics_property(document, tally: Tally) -> None:
     """Random orientations and joint axes: structure and forward kinematics agree with MuJoCo."""
-    assert_conforms(document, tiers=("structure", "kinematics"), dynamics=False, actuators=False,
-                    property_name="kinematics", tally=tally)
+    assert_conforms(
+        document,
+        tiers=("structure", "kinematics"),
+        dynamics=False,
+        actuators=False,
+        property_name="kinematics",
+        tally=tally,
+    )
 
 
 def robot_classes_property(document, tally: Tally) -> None:
@@ -87,8 +104,9 @@ def corner_examples(error: bool) -> list[RawDocument]:
     return [case.document for case in CORNER_CASES if (case.expect is None) == error]
 
 
-def hypothesis_test(name: str, profile: settings, with_examples: bool = True,
-                    tally: Tally | None = None) -> Callable[[], None]:
+def hypothesis_test(
+    name: str, profile: settings, with_examples: bool = True, tally: Tally | None = None
+) -> Callable[[], None]:
     """The named property as a runnable hypothesis test under `profile`, seeded with the corner cases; what it
     exercises is counted in `tally` (None: not counted)."""
     strategy, prop = PROPERTIES[name]
@@ -181,22 +199,32 @@ def run(examples: int, names: list[str], database: Path = DATABASE, workers: int
     rate = count / elapsed if elapsed else 0.0
     for key, value in sorted(tally.items()):
         print(f"  {key}: {value}")
-    print(f"fuzz: {count} examples in {elapsed:.1f} s = {rate:.1f} examples/s, {workers} worker(s), "
-          f"{cpu:.0f} CPU s ({', '.join(names)})")
+    print(
+        f"fuzz: {count} examples in {elapsed:.1f} s = {rate:.1f} examples/s, {workers} worker(s), "
+        f"{cpu:.0f} CPU s ({', '.join(names)})"
+    )
     if errors:
         raise AssertionError("a property failed in a worker:\n" + "\n".join(errors))
     return rate
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m conformance.fragments",
-                                     description="Fuzz the loader with generated MJCF fragments.")
-    parser.add_argument("--examples", type=int, default=1000, help="examples in total, shared among the properties (default 1000)")
-    parser.add_argument("--properties", default=",".join(PROPERTIES),
-                        help=f"comma-separated subset of {', '.join(PROPERTIES)}")
+    parser = argparse.ArgumentParser(
+        prog="python -m conformance.fragments", description="Fuzz the loader with generated MJCF fragments."
+    )
+    parser.add_argument(
+        "--examples", type=int, default=1000, help="examples in total, shared among the properties (default 1000)"
+    )
+    parser.add_argument(
+        "--properties", default=",".join(PROPERTIES), help=f"comma-separated subset of {', '.join(PROPERTIES)}"
+    )
     parser.add_argument("--database", type=Path, default=DATABASE, help="hypothesis example database folder")
-    parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
-                        help="processes sharing the examples (default: 2, or 1 on a single core)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=min(2, os.cpu_count() or 1),
+        help="processes sharing the examples (default: 2, or 1 on a single core)",
+    )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     names = [n.strip() for n in args.properties.split(",") if n.strip()]
@@ -207,5 +235,17 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-__all__ = ["CI_EXAMPLES", "PROPERTIES", "STATIC_TIERS", "ci_settings", "divide", "fuzz_settings", "hypothesis_test",
-           "main", "mutation_settings", "run", "run_shares", "split"]
+__all__ = [
+    "CI_EXAMPLES",
+    "PROPERTIES",
+    "STATIC_TIERS",
+    "ci_settings",
+    "divide",
+    "fuzz_settings",
+    "hypothesis_test",
+    "main",
+    "mutation_settings",
+    "run",
+    "run_shares",
+    "split",
+]

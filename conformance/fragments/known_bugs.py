@@ -59,8 +59,6 @@ def _slender_about_a_hinge(result, model: mujoco.MjModel) -> bool:
     return False
 
 
-
-
 LIGHT_LINK = 1e-6  # kg: a jointed body this light, started past a limit
 
 
@@ -71,8 +69,7 @@ def _light_link_started_past_its_end(result, model: mujoco.MjModel) -> bool:
     for j in range(model.njnt):
         body, adr = int(model.jnt_bodyid[j]), int(model.jnt_qposadr[j])
         lo, hi = model.jnt_range[j]
-        if (model.jnt_limited[j] and model.body_mass[body] < LIGHT_LINK
-                and not lo <= model.key_qpos[0][adr] <= hi):
+        if model.jnt_limited[j] and model.body_mass[body] < LIGHT_LINK and not lo <= model.key_qpos[0][adr] <= hi:
             return True
     return False
 

@@ -36,8 +36,10 @@ from .tally import Tally
 
 STATIC_TIERS = ("structure", "kinematics", "inertia", "collision")
 # A short contact-free run is enough to see joint damping/armature/inertia mistakes in the one-step error.
-DYNAMICS_SETTINGS = {"dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2},
-                     "actuated": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2}}
+DYNAMICS_SETTINGS = {
+    "dynamics": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2},
+    "actuated": {"horizon_s": 0.02, "max_steps": 20, "one_step_every": 2},
+}
 # Contact-free rollouts, with MuJoCo as the reference: passive (generalized forces) and under the same ctrl.
 DYNAMIC_TIERS = ("actuated", "dynamics")
 # Loader notes about joints change joint dynamics (springs implicit, ball joints as Euler angles): the dynamic
@@ -56,15 +58,25 @@ ACTUATED_STABILITY_STEPS = 500
 # 1.1e-6 of its extent off (corpus/regressions/deep_chain_long_slide_float32.xml; 1e-6 before). The harness's own
 # (larger) tolerance stays the floor.
 FLOAT32_RELATIVE = 2e-6
-EXTENT_SCALED = ("kinematics.position", "inertia.com", "collision.position", "structure.anchor",
-                 "dynamics.one_step_qpos_fixed", "dynamics.one_step_qpos_floating")  # slide q of 21 m: float32
+EXTENT_SCALED = (
+    "kinematics.position",
+    "inertia.com",
+    "collision.position",
+    "structure.anchor",
+    "dynamics.one_step_qpos_fixed",
+    "dynamics.one_step_qpos_floating",
+)  # slide q of 21 m: float32
 # Likewise the one-step acceleration tolerances are absolute, measured where accelerations are tens of rad/s^2;
 # a 0.1 kg sphere on two hinges accelerates at 1100 rad/s^2 and float32 alone gives 2e-6 of that. 1e-5 of the
 # largest acceleration MuJoCo computes at the start (and that times dt for velocities) is the floor here.
 ACCEL_RELATIVE = 1e-5
 ACCEL_SCALED = ("dynamics.one_step_qacc_fixed", "dynamics.one_step_qacc_floating")
-VELOCITY_SCALED = ("dynamics.one_step_qvel_fixed", "dynamics.one_step_qvel_floating",
-                   "actuated.one_step_qvel_fixed", "actuated.one_step_qvel_floating")
+VELOCITY_SCALED = (
+    "dynamics.one_step_qvel_fixed",
+    "dynamics.one_step_qvel_floating",
+    "actuated.one_step_qvel_fixed",
+    "actuated.one_step_qvel_floating",
+)
 SINGULAR_TOLERANCE = 1e-9  # singular value of the stacked body Jacobians below which DoFs are redundant
 _FREE_SPAN = 0.5  # m: how far the kinematics tier moves a free joint (conformance.sampling)
 _SLIDE_SPAN = 0.2  # m: its span for an unlimited slide
@@ -97,12 +109,13 @@ def tolerances() -> Tolerances:
 
 def extent(model: mujoco.MjModel) -> float:
     """An upper bound of how far from the origin any body or geom gets in the kinematics tier's samples."""
-    reach = 1.0 + float(np.abs(model.body_pos).sum() + np.abs(model.geom_pos).sum() + model.geom_rbound.max(
-        initial=0.0))
+    reach = 1.0 + float(
+        np.abs(model.body_pos).sum() + np.abs(model.geom_pos).sum() + model.geom_rbound.max(initial=0.0)
+    )
     for j in range(model.njnt):
         kind = int(model.jnt_type[j])
         if kind == int(mujoco.mjtJoint.mjJNT_FREE):
-            reach += _FREE_SPAN + float(np.abs(model.qpos0[model.jnt_qposadr[j]:][:3]).sum())
+            reach += _FREE_SPAN + float(np.abs(model.qpos0[model.jnt_qposadr[j] :][:3]).sum())
         elif kind == int(mujoco.mjtJoint.mjJNT_SLIDE):
             span = np.abs(model.jnt_range[j]).max() if model.jnt_limited[j] else _SLIDE_SPAN
             reach += float(span) + abs(float(model.qpos0[model.jnt_qposadr[j]]))
@@ -130,9 +143,11 @@ def scaled_tolerances(model: mujoco.MjModel, base: Tolerances | None = None) -> 
     base = base or tolerances()
     reach = extent(model)
     accel = ACCEL_RELATIVE * start_acceleration(model)
-    floors = {**{key: FLOAT32_RELATIVE * reach for key in EXTENT_SCALED},
-              **{key: accel for key in ACCEL_SCALED},
-              **{key: accel * float(model.opt.timestep) for key in VELOCITY_SCALED}}
+    floors = {
+        **{key: FLOAT32_RELATIVE * reach for key in EXTENT_SCALED},
+        **{key: accel for key in ACCEL_SCALED},
+        **{key: accel * float(model.opt.timestep) for key in VELOCITY_SCALED},
+    }
     raised = {key: value for key, value in floors.items() if key in base.entries and value > base[key]}
     why = f"float32 over a {reach:.3g} m extent and {accel / ACCEL_RELATIVE:.3g} rad/s^2 accelerations"
     return base.with_overrides(raised, why=why) if raised else base
@@ -161,9 +176,11 @@ def joint_servos(model: mujoco.MjModel) -> list[tuple[int, int, float]]:
     out = []
     for a in range(model.nu):
         joint = int(model.actuator_trnid[a, 0])
-        if int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT) and \
-                int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE) and \
-                int(model.jnt_type[joint]) in scalar:
+        if (
+            int(model.actuator_trntype[a]) == int(mujoco.mjtTrn.mjTRN_JOINT)
+            and int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_AFFINE)
+            and int(model.jnt_type[joint]) in scalar
+        ):
             out.append((a, int(model.jnt_dofadr[joint]), float(model.actuator_gear[a, 0]) ** 2))
     return out
 
@@ -187,8 +204,10 @@ def explicit_damping_unstable(model: mujoco.MjModel, data: mujoco.MjData) -> str
     for a, dof, gear2 in servos:
         factor = model.opt.timestep * -float(model.actuator_biasprm[a, 2]) * gear2 * inverse[dof]
         if factor > region:
-            return (f"MuJoCo itself is unstable with its actuators on (an explicit velocity gain past the "
-                    f"integrator's stability region: actuator {a}, dt kv/M = {factor:.3g} > {region:g})")
+            return (
+                f"MuJoCo itself is unstable with its actuators on (an explicit velocity gain past the "
+                f"integrator's stability region: actuator {a}, dt kv/M = {factor:.3g} > {region:g})"
+            )
     return None
 
 
@@ -212,12 +231,14 @@ def explicit_stiffness_unstable(model: mujoco.MjModel, data: mujoco.MjData, actu
         stiffness[dof] += max(-float(model.actuator_biasprm[a, 1]) * gear2, 0.0)
     if not stiffness.any():
         return None
-    factor = model.opt.timestep ** 2 * stiffness * inverse_inertia(model, data)
+    factor = model.opt.timestep**2 * stiffness * inverse_inertia(model, data)
     dof = int(np.argmax(factor))
     if factor[dof] > region:
-        return (f"MuJoCo itself is unstable{' with its actuators on' if actuated else ' on the model'} (an explicit "
-                f"stiffness past the integrator's stability region: dof {dof}, dt^2 K/M = {factor[dof]:.3g} > "
-                f"{region:g})")
+        return (
+            f"MuJoCo itself is unstable{' with its actuators on' if actuated else ' on the model'} (an explicit "
+            f"stiffness past the integrator's stability region: dof {dof}, dt^2 K/M = {factor[dof]:.3g} > "
+            f"{region:g})"
+        )
     return None
 
 
@@ -296,16 +317,22 @@ def check_error_parity(path: Path, mujoco_error: str) -> list[str]:
     except MJCFError as error:
         failures = []
         if error.mujoco_message.strip() != mujoco_error.strip():
-            failures.append(f"loader error message {error.mujoco_message!r} differs from MuJoCo's "
-                            f"{mujoco_error.strip()!r}")
+            failures.append(
+                f"loader error message {error.mujoco_message!r} differs from MuJoCo's {mujoco_error.strip()!r}"
+            )
         missing_file = "error opening file" in mujoco_error.lower()
         if missing_file and not isinstance(error, MissingAssetError):
-            failures.append(f"MuJoCo could not open a file but the loader raised {type(error).__name__}, "
-                            "not MissingAssetError")
+            failures.append(
+                f"MuJoCo could not open a file but the loader raised {type(error).__name__}, not MissingAssetError"
+            )
         return failures
     except Exception as error:  # noqa: BLE001 - any other exception is exactly the bug to report
-        return [(f"MuJoCo rejects the document ({mujoco_error.splitlines()[0]}) and the loader crashed with "
-                f"{type(error).__name__}: {error}")]
+        return [
+            (
+                f"MuJoCo rejects the document ({mujoco_error.splitlines()[0]}) and the loader crashed with "
+                f"{type(error).__name__}: {error}"
+            )
+        ]
     return [f"MuJoCo rejects the document ({mujoco_error.splitlines()[0]}) but the loader returned a model"]
 
 
@@ -322,8 +349,15 @@ def _excusable(report: TierReport, noted: set[str]) -> bool:
     return bool(problems) and all(note.split(":", 1)[0] in noted for note in problems)
 
 
-def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: bool = True, seed: int = 0,
-                tol: Tolerances | None = None, known_bugs: bool = True):
+def check_tiers(
+    result,
+    model: mujoco.MjModel,
+    tiers=STATIC_TIERS,
+    dynamics: bool = True,
+    seed: int = 0,
+    tol: Tolerances | None = None,
+    known_bugs: bool = True,
+):
     """Run the harness's tiers on a load result: (reports, failures, excused, skipped, tier errors).
 
     A tier that raises is a harness problem: it is returned apart (callers count it, regressions fail on it).
@@ -333,8 +367,11 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
     noted = _noted_names(result)
     names = list(tiers)
     if dynamics:
-        joint_notes = [e for e in [*result.unsupported, *result.approximations] if e.kind in DYNAMICS_NOTE_KINDS
-                       and not _about_limits(e)]
+        joint_notes = [
+            e
+            for e in [*result.unsupported, *result.approximations]
+            if e.kind in DYNAMICS_NOTE_KINDS and not _about_limits(e)
+        ]
         if joint_notes:
             skipped.append(f"dynamics and actuated: loader notes on joints ({_reason(joint_notes[0])})")
         elif model.nv and (ill := mujoco_ill_posed(model, tol.horizon_steps("dynamics", model.opt.timestep))):
@@ -364,11 +401,12 @@ def check_tiers(result, model: mujoco.MjModel, tiers=STATIC_TIERS, dynamics: boo
             elif bug is not None:
                 excused.append(f"{name}: known bug {bug}")
             elif _qacc_only(report):
-                excused.append(f"{name}: one_step_qacc only; one_step_qvel (the same velocity increment, "
-                               "not divided by dt) is within its tolerance")
+                excused.append(
+                    f"{name}: one_step_qacc only; one_step_qvel (the same velocity increment, "
+                    "not divided by dt) is within its tolerance"
+                )
             else:
-                failing = [f"{m.name} {m.max:.3g} > {m.tolerance:.3g} {m.unit}" for m in report.metrics
-                           if not m.passed]
+                failing = [f"{m.name} {m.max:.3g} > {m.tolerance:.3g} {m.unit}" for m in report.metrics if not m.passed]
                 failures.append(f"{name} tier fails: {', '.join(failing)}; notes: {report.notes[:5]}")
     return reports, failures, excused, skipped, errors
 
@@ -393,8 +431,14 @@ def _reason(entry) -> str:
     return "".join(c if not c.isdigit() else "#" for c in entry.reason.split(":")[0]).replace("#.#", "#")
 
 
-def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators: bool = True,
-               strict: bool = False, tally: Tally | None = None) -> Outcome:
+def check_path(
+    path: Path,
+    tiers=STATIC_TIERS,
+    dynamics: bool = True,
+    actuators: bool = True,
+    strict: bool = False,
+    tally: Tally | None = None,
+) -> Outcome:
     """Every property on the document at `path` (meshes beside it). `strict` (regression replays): a tier that
     raises is a failure and open bugs on record are not excused; otherwise both are counted in `tally` (the
     run's; None: not counted)."""
@@ -417,8 +461,9 @@ def check_path(path: Path, tiers=STATIC_TIERS, dynamics: bool = True, actuators:
         tally["actuators checked"] += checked
         tally["drive gains checked (dofs)"] += dofs
     result.disable_actuators()  # the tiers' reference runs with actuation disabled (conformance.reference)
-    reports, failures, excused, skipped, errors = check_tiers(result, result.model, tiers, dynamics,
-                                                              known_bugs=not strict)
+    reports, failures, excused, skipped, errors = check_tiers(
+        result, result.model, tiers, dynamics, known_bugs=not strict
+    )
     outcome.tier_errors = errors
     if strict:
         outcome.failures += errors
@@ -454,8 +499,13 @@ def _scratch() -> tuple[Path, str]:
     return folder, f"fragment{next(numbers)}"
 
 
-def check_document(document: Document | RawDocument, tiers=STATIC_TIERS, dynamics: bool = True,
-                   actuators: bool = True, tally: Tally | None = None) -> Outcome:
+def check_document(
+    document: Document | RawDocument,
+    tiers=STATIC_TIERS,
+    dynamics: bool = True,
+    actuators: bool = True,
+    tally: Tally | None = None,
+) -> Outcome:
     """Write `document` (meshes beside it) into the scratch folder under a new name, check it with `check_path`,
     and delete its files: no document sees another's."""
     folder, stem = _scratch()
@@ -468,8 +518,14 @@ def check_document(document: Document | RawDocument, tiers=STATIC_TIERS, dynamic
             path.unlink()
 
 
-def assert_conforms(document: Document | RawDocument, tiers=STATIC_TIERS, dynamics: bool = True,
-                    actuators: bool = True, property_name: str = "fragment", tally: Tally | None = None) -> Outcome:
+def assert_conforms(
+    document: Document | RawDocument,
+    tiers=STATIC_TIERS,
+    dynamics: bool = True,
+    actuators: bool = True,
+    property_name: str = "fragment",
+    tally: Tally | None = None,
+) -> Outcome:
     """`check_document`, raising AssertionError with the document on failure (and saving the shrunk
     counterexample into the regression corpus on hypothesis's final replay)."""
     outcome = check_document(document, tiers, dynamics, actuators, tally)

@@ -32,12 +32,16 @@ def _link(draw, index: int) -> tuple[str, str, float, float, bool]:
         inertial = '<inertial pos="0 0 0" mass="1e-9" diaginertia="3e-13 3e-13 6e-13"/>'
     else:
         mass = draw(st.floats(0.1, 2.0))
-        inertial = (f'<inertial pos="{_f(draw(st.floats(0.02, 0.15)))} 0 0" mass="{_f(mass)}" '
-                    f'diaginertia="{_f(mass * 1e-3)} {_f(mass * 4e-3)} {_f(mass * 4e-3)}"/>')
+        inertial = (
+            f'<inertial pos="{_f(draw(st.floats(0.02, 0.15)))} 0 0" mass="{_f(mass)}" '
+            f'diaginertia="{_f(mass * 1e-3)} {_f(mass * 4e-3)} {_f(mass * 4e-3)}"/>'
+        )
     name = f"j{index}"
-    joint = (f'<joint name="{name}" type="{"slide" if slide else "hinge"}" axis="{draw(st.sampled_from(AXES))}" '
-             f'range="{_f(lo)} {_f(hi)}" frictionloss="{friction}" damping="{damping}" armature="{armature}"/>')
-    pos = f'{_f(draw(st.floats(0.1, 0.3)))} 0 0' if index else "0 0 1"
+    joint = (
+        f'<joint name="{name}" type="{"slide" if slide else "hinge"}" axis="{draw(st.sampled_from(AXES))}" '
+        f'range="{_f(lo)} {_f(hi)}" frictionloss="{friction}" damping="{damping}" armature="{armature}"/>'
+    )
+    pos = f"{_f(draw(st.floats(0.1, 0.3)))} 0 0" if index else "0 0 1"
     return f'<body name="l{index}" pos="{pos}">{joint}{inertial}', name, lo, hi, slide
 
 
@@ -59,22 +63,28 @@ def robot_classes(draw) -> RawDocument:
         body += '<body name="sensor" pos=".05 0 0"><inertial pos="0 0 0" mass=".05" diaginertia="0 0 0"/></body>'
     gripper = draw(st.booleans())
     if gripper:
-        body += ('<body name="palm" pos=".05 0 0"><inertial pos="0 0 0" mass=".1" diaginertia="1e-4 1e-4 1e-4"/>'
-                 '<body name="left"><joint name="left" type="slide" axis="0 1 0" range="0 .04" damping=".1"/>'
-                 '<geom type="box" size=".01 .01 .03" pos="0 .02 0" mass=".02"/></body>'
-                 '<body name="right"><joint name="right" type="slide" axis="0 -1 0" range="0 .04" damping=".1"/>'
-                 '<geom type="box" size=".01 .01 .03" pos="0 -.02 0" mass=".02"/></body></body>')
+        body += (
+            '<body name="palm" pos=".05 0 0"><inertial pos="0 0 0" mass=".1" diaginertia="1e-4 1e-4 1e-4"/>'
+            '<body name="left"><joint name="left" type="slide" axis="0 1 0" range="0 .04" damping=".1"/>'
+            '<geom type="box" size=".01 .01 .03" pos="0 .02 0" mass=".02"/></body>'
+            '<body name="right"><joint name="right" type="slide" axis="0 -1 0" range="0 .04" damping=".1"/>'
+            '<geom type="box" size=".01 .01 .03" pos="0 -.02 0" mass=".02"/></body></body>'
+        )
     body += "</body>" * count
     floating = draw(st.booleans())  # the arm on a floating base, its free joint damped
     if floating:
-        body = (f'<body name="base" pos="0 0 1"><joint name="base" type="free" {_free_joint(draw)}/>'
-                f'<inertial pos="0 0 0" mass="2" diaginertia=".02 .03 .04"/>{body}</body>')
+        body = (
+            f'<body name="base" pos="0 0 1"><joint name="base" type="free" {_free_joint(draw)}/>'
+            f'<inertial pos="0 0 0" mass="2" diaginertia=".02 .03 .04"/>{body}</body>'
+        )
     tossed = draw(st.booleans())  # a free object thrown spinning, its centre of mass off its origin
     if tossed:
         size = " ".join(_f(draw(st.floats(0.01, 0.05))) for _ in range(3))
-        body += (f'<body name="object" pos="1 0 1"><joint name="object" type="free" {_free_joint(draw)}/>'
-                 f'<geom type="ellipsoid" size="{size}" pos="{_f(draw(st.floats(0, 0.02)))} 0 0" '
-                 f'mass="{_f(draw(st.floats(0.02, 0.5)))}"/></body>')
+        body += (
+            f'<body name="object" pos="1 0 1"><joint name="object" type="free" {_free_joint(draw)}/>'
+            f'<geom type="ellipsoid" size="{size}" pos="{_f(draw(st.floats(0, 0.02)))} 0 0" '
+            f'mass="{_f(draw(st.floats(0.02, 0.5)))}"/></body>'
+        )
     qpos = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0] if floating else []
     past = draw(st.lists(st.integers(0, count - 1), min_size=1, max_size=min(3, count), unique=True))
     for i, (_, _, lo, hi, slide) in enumerate(links):
@@ -84,8 +94,10 @@ def robot_classes(draw) -> RawDocument:
     for i, (_, name, lo, hi, _) in enumerate(links):
         if draw(st.booleans()):
             kp = draw(st.floats(5.0, 200.0))
-            actuators.append(f'<position joint="{name}" kp="{_f(kp)}" kv="{_f(draw(st.floats(0, 0.1)) * kp)}" '
-                             f'ctrlrange="{_f(lo)} {_f(hi)}"/>')
+            actuators.append(
+                f'<position joint="{name}" kp="{_f(kp)}" kv="{_f(draw(st.floats(0, 0.1)) * kp)}" '
+                f'ctrlrange="{_f(lo)} {_f(hi)}"/>'
+            )
         elif draw(st.booleans()):
             actuators.append(f'<motor joint="{name}" gear="{_f(draw(st.floats(1, 50)))}" ctrlrange="-1 1"/>')
     equality = ""
@@ -100,9 +112,13 @@ def robot_classes(draw) -> RawDocument:
         qpos += [1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
         qvel += [draw(st.floats(-1, 1)) for _ in range(3)] + [draw(st.floats(-5, 5)) for _ in range(3)]
     ctrl = f' ctrl="{" ".join("0" for _ in actuators)}"' if actuators else ""
-    key = (f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}" qvel="{" ".join(_f(float(v)) for v in qvel)}"{ctrl}/>'
-           '</keyframe>')
+    key = (
+        f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}" qvel="{" ".join(_f(float(v)) for v in qvel)}"{ctrl}/>'
+        "</keyframe>"
+    )
     solver = ' iterations="1" ls_iterations="5"' if draw(st.integers(0, 3)) == 0 else ""  # Playground's setting
-    xml = (f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"{solver}/>'
-           f'<worldbody>{body}</worldbody><actuator>{"".join(actuators)}</actuator>{equality}{key}</mujoco>')
+    xml = (
+        f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"{solver}/>'
+        f"<worldbody>{body}</worldbody><actuator>{''.join(actuators)}</actuator>{equality}{key}</mujoco>"
+    )
     return RawDocument(xml, label="robot class")

@@ -43,6 +43,8 @@ _THIRD = st.integers(0, 2)
 @cache
 def _chunks(size: int) -> st.SearchStrategy[bytes]:
     return st.binary(min_size=size, max_size=size)
+
+
 # Lengths 1, 2, 3 of `st.lists(min_size=1, max_size=3)` in thousandths: hypothesis continues such a list with
 # p = 0.617 (an average length of 2)
 _ONE_TO_THREE = (383, 236 + 383)
@@ -314,8 +316,7 @@ def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
         else:
             lo = r.integer(-170, -10) if below_zero else 0  # 0 also suits a ball from a class
             hi = r.integer(10, 170)
-            attrs["range"] = (f"{lo} {hi}" if ctx.unit == "degree"
-                              else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}")
+            attrs["range"] = f"{lo} {hi}" if ctx.unit == "degree" else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}"
     if limited:
         attrs["limited"] = r.pick(("true", "false", "auto") if "range" in attrs else ("false", "auto"))
     if damping:
@@ -438,8 +439,20 @@ def default_class(draw, ctx: _Context, name: str | None, depth: int) -> DefaultC
     return cls
 
 
-BOX_FACES = [(0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6), (0, 1, 4), (1, 5, 4),
-             (2, 6, 3), (3, 6, 7), (0, 4, 2), (2, 4, 6), (1, 3, 5), (3, 7, 5)]
+BOX_FACES = [
+    (0, 2, 1),
+    (1, 2, 3),
+    (4, 5, 6),
+    (5, 7, 6),
+    (0, 1, 4),
+    (1, 5, 4),
+    (2, 6, 3),
+    (3, 6, 7),
+    (0, 4, 2),
+    (2, 4, 6),
+    (1, 3, 5),
+    (3, 7, 5),
+]
 TETRA_FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
 
 
@@ -507,8 +520,12 @@ def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) ->
         if draw(_COIN):
             body.elements.append(Element("freejoint", {"name": name}))
         else:
-            body.elements.append(Element("joint", {"name": name, "type": "free",
-                                                   **_drop(draw(ctx.strategy(joint_attrs, False)), "type", "range")}))
+            body.elements.append(
+                Element(
+                    "joint",
+                    {"name": name, "type": "free", **_drop(draw(ctx.strategy(joint_attrs, False)), "type", "range")},
+                )
+            )
     else:
         for _ in range(draw(_NOT_FREE)):
             name = ctx.name("j")
@@ -519,8 +536,9 @@ def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) ->
     if draw(_SITE) == 3:
         body.elements.append(Element("site", {"name": ctx.name("s"), **draw(ctx.strategy(site_attrs, False))}))
     if depth < max_depth:
-        body.children = [draw(ctx.strategy(body_tree, depth + 1, False, max_depth))
-                         for _ in range(draw(_CHILDREN[max_depth <= 3]))]
+        body.children = [
+            draw(ctx.strategy(body_tree, depth + 1, False, max_depth)) for _ in range(draw(_CHILDREN[max_depth <= 3]))
+        ]
     return body
 
 
@@ -574,8 +592,10 @@ def documents(draw, max_bodies: int = 3) -> Document:
     r = _Reader(draw, 8, flags=4)
     split_main, coloured = r.flags.one_in(5), [r.flags.coin() for _ in ctx.materials]
     materials = [{"name": name, **({"rgba": r.rgba()} if rgba else {})} for name, rgba in zip(ctx.materials, coloured)]
-    world = [Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False, True))})
-             for _ in range(draw(_UP_TO_TWO))]
+    world = [
+        Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False, True))})
+        for _ in range(draw(_UP_TO_TWO))
+    ]
     bodies = [draw(ctx.strategy(body_tree, 0, True)) for _ in range(draw(st.integers(1, max_bodies)))]
     actuators = [draw(_actuator(ctx)) for _ in range(draw(_ACTUATORS))] if ctx.joints else []
     return Document(compiler, defaults, bool(defaults) and split_main, meshes, materials, world, bodies, actuators)
@@ -596,15 +616,22 @@ BREAKAGES = {
     "unknown_class": ("world", '<geom class="nope" size=".1"/>'),
     "duplicate_class": ("top", '<default><default class="dup"/><default class="dup"/></default>'),
     "short_rgba": ("world", '<geom size=".1" rgba="0 1"/>'),
-    "two_geoms_in_class": ("top", ('<default><default class="two"><geom size=".1"/><geom size=".2"/></default>'
-                                  '</default>')),
+    "two_geoms_in_class": (
+        "top",
+        ('<default><default class="two"><geom size=".1"/><geom size=".2"/></default></default>'),
+    ),
     "named_default_element": ("top", '<default><default class="named"><site name="s"/></default></default>'),
     "body_in_default": ("top", "<default><body/></default>"),
     "renamed_main": ("top", '<default class="x"><geom size=".1"/></default>'),
     "worldbody_childclass": ("worldbody_attr", ' childclass="main"'),
     "body_class": ("world", '<body class="main"><geom size=".1"/></body>'),
-    "missing_mesh_file": ("top", ('<asset><mesh name="absent" file="absent.obj"/></asset>'
-                                 '<worldbody><geom type="mesh" mesh="absent"/></worldbody>')),
+    "missing_mesh_file": (
+        "top",
+        (
+            '<asset><mesh name="absent" file="absent.obj"/></asset>'
+            '<worldbody><geom type="mesh" mesh="absent"/></worldbody>'
+        ),
+    ),
     "reversed_range": ("world", '<body><joint range="1 -1" limited="true"/><geom size=".1"/></body>'),
     "fromto_sphere": ("world", '<geom type="sphere" size=".1" fromto="0 0 0 0 0 .2"/>'),
     "nested_freejoint": ("world", '<body><geom size=".1"/><body><freejoint/><geom size=".1"/></body></body>'),

@@ -40,8 +40,18 @@ from .poses import Motion, xyzw
 from .series import joint_groups
 from .verdict import verdict_markdown
 
-__all__ = ["MUJOCO_COLOR", "SAPIEN_COLOR", "body_path", "joint_groups", "link_path", "part", "recorded_trace",
-           "verdict_markdown", "write_recording", "xyzw"]
+__all__ = [
+    "MUJOCO_COLOR",
+    "SAPIEN_COLOR",
+    "body_path",
+    "joint_groups",
+    "link_path",
+    "part",
+    "recorded_trace",
+    "verdict_markdown",
+    "write_recording",
+    "xyzw",
+]
 
 PREFERRED = ("pd", "torque", "zero", "actuated", "contact", "actuated_contact")  # when no rollout failed
 FAILED = ("fail", "diverged")
@@ -67,8 +77,9 @@ def _tier_of(reports: dict[str, TierReport], trace: Trace) -> str:
     return next(tier for tier, r in reports.items() if any(t is trace for t in r.traces))
 
 
-def write_recording(path: str | Path, session, reports: dict[str, TierReport], meta: dict,
-                    visual: bool = False) -> Path:
+def write_recording(
+    path: str | Path, session, reports: dict[str, TierReport], meta: dict, visual: bool = False
+) -> Path:
     """Write `<model>.rrd`: geometry, the shown rollout, plots and the verdict text. `visual` also draws MuJoCo's
     visual-only geoms."""
     path = Path(path)
@@ -79,7 +90,7 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
     motion = Motion.of(trace) if trace is not None else Motion.still(model, result)
     box = geometry.bounding_box(model, motion)
     scale = scene.magnification(motion, box)
-    shown = (f"the {trace.name} rollout of {_tier_of(reports, trace)}" if trace is not None else "the start state")
+    shown = f"the {trace.name} rollout of {_tier_of(reports, trace)}" if trace is not None else "the start state"
     shown += f", contacts {'on' if motion.contact else 'off'}"
     if trace is not None:
         shown += f"; red arrows: SAPIEN's bodies off MuJoCo's x{scale}"
@@ -97,8 +108,11 @@ def write_recording(path: str | Path, session, reports: dict[str, TierReport], m
     layout.actuated = series.log_actuators(rec, model, reports)
     every = int(reports["dynamics"].settings.get("one_step_every", 1)) if "dynamics" in reports else 1
     layout.raw_series = series.log_tiers(rec, reports, float(model.opt.timestep), every)
-    rec.log("verdict", rr.TextDocument(verdict_markdown(reports, {**meta, "shown": shown}),
-                                       media_type=rr.MediaType.MARKDOWN), static=True)
+    rec.log(
+        "verdict",
+        rr.TextDocument(verdict_markdown(reports, {**meta, "shown": shown}), media_type=rr.MediaType.MARKDOWN),
+        static=True,
+    )
     rec.send_blueprint(blueprint(layout), make_active=True, make_default=True)
     rec.flush()
     rec.disconnect()

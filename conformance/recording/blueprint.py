@@ -33,24 +33,42 @@ def _plot(name: str, origin: str) -> rrb.TimeSeriesView:
 def blueprint(layout: Layout) -> rrb.Blueprint:
     tabs = [_plot("tier error / tolerance (1 = tolerance)", "/tiers")]
     if layout.groups:
-        tabs.append(rrb.Grid(*[_plot(f"{g}: position (rad or m)", f"/joints/{part(g)}/position")
-                               for g in layout.positioned], name="joint positions"))
-        tabs.append(rrb.Grid(*[_plot(f"{g}: SAPIEN - MuJoCo (rad or m)", f"/joints/{part(g)}/difference")
-                               for g in layout.groups], name="joint differences"))
+        tabs.append(
+            rrb.Grid(
+                *[_plot(f"{g}: position (rad or m)", f"/joints/{part(g)}/position") for g in layout.positioned],
+                name="joint positions",
+            )
+        )
+        tabs.append(
+            rrb.Grid(
+                *[_plot(f"{g}: SAPIEN - MuJoCo (rad or m)", f"/joints/{part(g)}/difference") for g in layout.groups],
+                name="joint differences",
+            )
+        )
     if layout.commanded:
-        tabs.append(rrb.Grid(*[_plot(f"{g}: command (N m or N)", f"/commands/{part(g)}") for g in layout.commanded],
-                             name="commands"))
+        tabs.append(
+            rrb.Grid(
+                *[_plot(f"{g}: command (N m or N)", f"/commands/{part(g)}") for g in layout.commanded], name="commands"
+            )
+        )
     for tier, groups in layout.actuated.items():
-        views = [_plot(f"{g}: {what}", f"/actuators/{part(tier)}/{part(g)}/{entity}") for g in groups
-                 for what, entity in (("ctrl", "ctrl"), ("actuator force (N m or N)", "force"))]
+        views = [
+            _plot(f"{g}: {what}", f"/actuators/{part(tier)}/{part(g)}/{entity}")
+            for g in groups
+            for what, entity in (("ctrl", "ctrl"), ("actuator force (N m or N)", "force"))
+        ]
         tabs.append(rrb.Grid(*views, name=f"{tier} actuators"))
     if layout.raw_series:
         tabs.append(_plot("series without a tolerance", "/tier_series"))
     return rrb.Blueprint(
         rrb.Vertical(
             rrb.Horizontal(
-                rrb.Spatial3DView(name=layout.title, origin="/", eye_controls=layout.eye,
-                                  contents=["+ /mujoco/**", "+ /sapien/**", "+ /deviation"]),
+                rrb.Spatial3DView(
+                    name=layout.title,
+                    origin="/",
+                    eye_controls=layout.eye,
+                    contents=["+ /mujoco/**", "+ /sapien/**", "+ /deviation"],
+                ),
                 rrb.TextDocumentView(name="verdict", origin="/verdict"),
                 column_shares=[3, 2],
             ),

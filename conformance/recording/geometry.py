@@ -78,8 +78,9 @@ def _mujoco_primitive(model: mujoco.MjModel, g: int):
     if kind == G.mjGEOM_BOX:
         return rr.Boxes3D(half_sizes=[size[:3]], colors=color, fill_mode="solid")
     if kind == G.mjGEOM_CAPSULE:
-        return rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]], translations=[[0, 0, -size[1]]],
-                             colors=color, fill_mode="solid")
+        return rr.Capsules3D(
+            lengths=[2 * size[1]], radii=[size[0]], translations=[[0, 0, -size[1]]], colors=color, fill_mode="solid"
+        )
     if kind == G.mjGEOM_CYLINDER:
         return rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], colors=color, fill_mode="solid")
     return None  # meshes are instanced, planes fitted; height fields and SDFs are not drawn
@@ -121,8 +122,16 @@ def log_mujoco(rec: rr.RecordingStream, model: mujoco.MjModel, motion: Motion, b
                 world = geom_world(model, motion, g)[0]
                 center, half = fitted_rectangle(world, (0, 1), model.geom_size[g][:2], box)
                 _static_pose(rec, geom_path(model, g), geom_local(model, g))
-                rec.log(geom_path(model, g), rr.Boxes3D(half_sizes=[[*half, _THIN]], centers=[[*center, -_THIN]],
-                                                        colors=[MUJOCO_COLOR], fill_mode="solid"), static=True)
+                rec.log(
+                    geom_path(model, g),
+                    rr.Boxes3D(
+                        half_sizes=[[*half, _THIN]],
+                        centers=[[*center, -_THIN]],
+                        colors=[MUJOCO_COLOR],
+                        fill_mode="solid",
+                    ),
+                    static=True,
+                )
         elif (shape := _mujoco_primitive(model, g)) is not None:
             _static_pose(rec, geom_path(model, g), geom_local(model, g))
             rec.log(geom_path(model, g), shape, static=True)
@@ -134,8 +143,9 @@ def log_mujoco(rec: rr.RecordingStream, model: mujoco.MjModel, motion: Motion, b
         rec.log(path, meshes.mesh(vertices, faces, color), static=True)
         poses = np.stack([geom_world(model, motion, g) for g in geoms], axis=1)  # (T, k, 7)
         if motion.time is None:
-            rec.log(path, rr.InstancePoses3D(translations=poses[0, :, :3], quaternions=xyzw(poses[0, :, 3:])),
-                    static=True)
+            rec.log(
+                path, rr.InstancePoses3D(translations=poses[0, :, :3], quaternions=xyzw(poses[0, :, 3:])), static=True
+            )
         else:
             rec.send_columns(path, indexes=times(motion.time), columns=meshes.instance_columns(poses))
     return framed
@@ -149,12 +159,22 @@ def _sapien_shape(shape, plane_world: np.ndarray | None, box):
     if isinstance(shape, P.PhysxCollisionShapeBox):
         return rr.Boxes3D(half_sizes=[shape.half_size], colors=color, fill_mode=OUTLINE)
     if isinstance(shape, P.PhysxCollisionShapeCapsule):  # SAPIEN's axis is +X
-        return rr.Capsules3D(lengths=[2 * shape.half_length], radii=[shape.radius],
-                             translations=[[-shape.half_length, 0, 0]], quaternions=[_Z_TO_X], colors=color,
-                             fill_mode=OUTLINE)
+        return rr.Capsules3D(
+            lengths=[2 * shape.half_length],
+            radii=[shape.radius],
+            translations=[[-shape.half_length, 0, 0]],
+            quaternions=[_Z_TO_X],
+            colors=color,
+            fill_mode=OUTLINE,
+        )
     if isinstance(shape, P.PhysxCollisionShapeCylinder):
-        return rr.Cylinders3D(lengths=[2 * shape.half_length], radii=[shape.radius], quaternions=[_Z_TO_X],
-                              colors=color, fill_mode=OUTLINE)
+        return rr.Cylinders3D(
+            lengths=[2 * shape.half_length],
+            radii=[shape.radius],
+            quaternions=[_Z_TO_X],
+            colors=color,
+            fill_mode=OUTLINE,
+        )
     if isinstance(shape, P.PhysxCollisionShapePlane):  # SAPIEN's normal is +X
         if plane_world is None:
             return None

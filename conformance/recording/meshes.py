@@ -54,7 +54,7 @@ def hull(model, m: int) -> tuple[np.ndarray, np.ndarray] | None:
     graph = model.mesh_graph[adr:]
     nv, nf = int(graph[0]), int(graph[1])
     start = 2 + 3 * nv + 3 * nf
-    faces = graph[start:start + 3 * nf].reshape(-1, 3)
+    faces = graph[start : start + 3 * nf].reshape(-1, 3)
     used, faces = np.unique(faces, return_inverse=True)
     v0 = int(model.mesh_vertadr[m])
     return model.mesh_vert[v0 + used], faces.reshape(-1, 3)
@@ -64,13 +64,17 @@ def surface(model, m: int) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) of mesh `m` as authored."""
     v0, nv = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
     f0, nf = int(model.mesh_faceadr[m]), int(model.mesh_facenum[m])
-    return model.mesh_vert[v0:v0 + nv], model.mesh_face[f0:f0 + nf]
+    return model.mesh_vert[v0 : v0 + nv], model.mesh_face[f0 : f0 + nf]
 
 
 def mesh(vertices: np.ndarray, faces: np.ndarray, color) -> rr.Mesh3D:
     v, f, n = creased(vertices, faces)
-    return rr.Mesh3D(vertex_positions=v.astype(np.float32), triangle_indices=f.astype(np.uint32),
-                     vertex_normals=n.astype(np.float32), albedo_factor=color)
+    return rr.Mesh3D(
+        vertex_positions=v.astype(np.float32),
+        triangle_indices=f.astype(np.uint32),
+        vertex_normals=n.astype(np.float32),
+        albedo_factor=color,
+    )
 
 
 def feature_edges(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -106,5 +110,6 @@ def instance_columns(poses: np.ndarray) -> rr.ComponentColumnList:
     """Per-step instance poses (T, k, 7) as columns: k instances in every row."""
     steps, k = poses.shape[:2]
     flat = poses.reshape(-1, 7)
-    return rr.InstancePoses3D.columns(translations=flat[:, :3].astype(np.float32),
-                                      quaternions=xyzw(flat[:, 3:]).astype(np.float32)).partition([k] * steps)
+    return rr.InstancePoses3D.columns(
+        translations=flat[:, :3].astype(np.float32), quaternions=xyzw(flat[:, 3:]).astype(np.float32)
+    ).partition([k] * steps)

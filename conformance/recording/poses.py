@@ -21,8 +21,15 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product of wxyz quaternions, broadcast over leading axes."""
     aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
     bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
 
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -55,8 +62,14 @@ class Motion:
 
     @classmethod
     def of(cls, trace: Trace) -> Motion:
-        return cls(trace.name, trace.time, trace.mujoco_body_pose, trace.sapien_body_pose, trace.sapien_link_pose,
-                   trace.contact)
+        return cls(
+            trace.name,
+            trace.time,
+            trace.mujoco_body_pose,
+            trace.sapien_body_pose,
+            trace.sapien_link_pose,
+            trace.contact,
+        )
 
     @classmethod
     def still(cls, model: mujoco.MjModel, result) -> Motion:

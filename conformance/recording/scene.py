@@ -29,12 +29,18 @@ def _transforms(rec: rr.RecordingStream, path: str, motion: Motion, pose: np.nda
     if motion.time is None:
         rec.log(path, rr.Transform3D(translation=pose[0, :3], quaternion=xyzw(pose[0, 3:])), static=True)
     else:
-        rec.send_columns(path, indexes=times(motion.time), columns=rr.Transform3D.columns(
-            translation=pose[:, :3].astype(np.float32), quaternion=xyzw(pose[:, 3:]).astype(np.float32)))
+        rec.send_columns(
+            path,
+            indexes=times(motion.time),
+            columns=rr.Transform3D.columns(
+                translation=pose[:, :3].astype(np.float32), quaternion=xyzw(pose[:, 3:]).astype(np.float32)
+            ),
+        )
 
 
-def log_frames(rec: rr.RecordingStream, model: mujoco.MjModel, result, motion: Motion, bodies: set[int],
-               links: set[int]) -> None:
+def log_frames(
+    rec: rr.RecordingStream, model: mujoco.MjModel, result, motion: Motion, bodies: set[int], links: set[int]
+) -> None:
     """The world transform along the motion of each MuJoCo body in `bodies` and each SAPIEN link (row of
     `sapien_side.links`) in `links`: those that carry something drawn."""
     for b in sorted(bodies - {0}):
@@ -64,8 +70,9 @@ def log_deviation(rec: rr.RecordingStream, motion: Motion, scale: int) -> None:
     origins = motion.mujoco_body_pose[:, have, :3]
     vectors = (motion.sapien_body_pose[:, have, :3] - origins) * scale
     k = int(have.sum())
-    columns = rr.Arrows3D.columns(origins=origins.reshape(-1, 3).astype(np.float32),
-                                  vectors=vectors.reshape(-1, 3).astype(np.float32)).partition([k] * origins.shape[0])
+    columns = rr.Arrows3D.columns(
+        origins=origins.reshape(-1, 3).astype(np.float32), vectors=vectors.reshape(-1, 3).astype(np.float32)
+    ).partition([k] * origins.shape[0])
     rec.log("deviation", rr.Arrows3D.from_fields(colors=[DEVIATION_COLOR]), static=True)
     rec.send_columns("deviation", indexes=times(motion.time), columns=columns)
 

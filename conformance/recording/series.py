@@ -83,13 +83,16 @@ def _columns(model: mujoco.MjModel, joints: list[int], adr, count, labels=("x", 
 
 def _plot(rec, path: str, index_columns, values: np.ndarray, names: list[str], colors=None) -> None:
     rec.log(path, rr.SeriesLines(names=names, colors=colors), static=True)
-    rec.send_columns(path, indexes=index_columns,
-                     columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)).partition(
-                         [values.shape[1]] * values.shape[0]))
+    rec.send_columns(
+        path,
+        indexes=index_columns,
+        columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)).partition(
+            [values.shape[1]] * values.shape[0]
+        ),
+    )
 
 
-def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel,
-               trace: Trace) -> tuple[list[str], list[str], list[str]]:
+def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> tuple[list[str], list[str], list[str]]:
     """Per joint group: positions of both sides (none for ball joints), SAPIEN - MuJoCo per DoF, and the command
     when there is one. Returns the groups, those with positions and those with a command."""
     idx = times(trace.time)
@@ -100,8 +103,14 @@ def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel,
         q, names = _columns(model, joints, model.jnt_qposadr, positions)
         if q:
             values = np.concatenate([trace.mujoco_qpos[:, q], trace.sapien_qpos[:, q]], axis=1)
-            _plot(rec, f"joints/{group}/position", idx, values, [f"MuJoCo {n}" for n in names] +
-                  [f"SAPIEN {n}" for n in names], [MUJOCO_COLOR] * len(q) + [SAPIEN_COLOR] * len(q))
+            _plot(
+                rec,
+                f"joints/{group}/position",
+                idx,
+                values,
+                [f"MuJoCo {n}" for n in names] + [f"SAPIEN {n}" for n in names],
+                [MUJOCO_COLOR] * len(q) + [SAPIEN_COLOR] * len(q),
+            )
             positioned.append(name)
         dof, names = _columns(model, joints, model.jnt_dofadr, lambda kind: _NV.get(kind, 1))
         _plot(rec, f"joints/{group}/difference", idx, trace.qpos_error[:, dof], names)
@@ -132,8 +141,9 @@ def actuator_groups(model: mujoco.MjModel, names: list[str]) -> list[tuple[str, 
     return [piece for name, rows in groups.items() for piece in _split(name, rows)]
 
 
-def log_actuators(rec: rr.RecordingStream, model: mujoco.MjModel,
-                  reports: dict[str, TierReport]) -> dict[str, list[str]]:
+def log_actuators(
+    rec: rr.RecordingStream, model: mujoco.MjModel, reports: dict[str, TierReport]
+) -> dict[str, list[str]]:
     """Per actuated tier and actuator group: the ctrl (as MuJoCo clamps it) and both sides' actuator force.
     Returns the groups per tier."""
     logged: dict[str, list[str]] = {}
@@ -147,8 +157,14 @@ def log_actuators(rec: rr.RecordingStream, model: mujoco.MjModel,
             base, label = f"actuators/{part(tier)}/{part(group)}", [names[r] for r in rows]
             _plot(rec, f"{base}/ctrl", idx, np.asarray(trace.ctrl, dtype=float)[:, rows], label)
             force = np.concatenate([trace.mujoco_force[:, rows], trace.sapien_force[:, rows]], axis=1)
-            _plot(rec, f"{base}/force", idx, force, [f"MuJoCo {x}" for x in label] + [f"SAPIEN {x}" for x in label],
-                  [MUJOCO_COLOR] * len(rows) + [SAPIEN_COLOR] * len(rows))
+            _plot(
+                rec,
+                f"{base}/force",
+                idx,
+                force,
+                [f"MuJoCo {x}" for x in label] + [f"SAPIEN {x}" for x in label],
+                [MUJOCO_COLOR] * len(rows) + [SAPIEN_COLOR] * len(rows),
+            )
             logged.setdefault(tier, []).append(group)
     return logged
 
@@ -169,12 +185,20 @@ def _batches(reports: dict[str, TierReport], every: int) -> dict[tuple[str, str,
         metrics = {m.name: m for m in report.metrics}
         for name, values in report.series.items():
             values = np.asarray(values, dtype=float)
-            stride = 0 if tier == "kinematics" else \
-                int(report.settings.get("one_step_every", every)) if name.startswith("one_step") else 1
+            stride = (
+                0
+                if tier == "kinematics"
+                else int(report.settings.get("one_step_every", every))
+                if name.startswith("one_step")
+                else 1
+            )
             m = _metric_of(name, metrics)
             if m is not None and m.tolerance > 0:
-                key, label, values = ("tiers", tier, stride), f"{tier} {name} / {m.tolerance:g} {m.unit}", \
-                    values / m.tolerance
+                key, label, values = (
+                    ("tiers", tier, stride),
+                    f"{tier} {name} / {m.tolerance:g} {m.unit}",
+                    values / m.tolerance,
+                )
             else:
                 key, label = ("tier_series", tier, stride), f"{tier} {name}"
             out.setdefault(key, []).append((label, values))
@@ -191,16 +215,16 @@ def log_tiers(rec: rr.RecordingStream, reports: dict[str, TierReport], dt: float
         length = max(v.size for _, v in lines)
         values = np.full((length, len(lines)), np.nan)
         for k, (_, v) in enumerate(lines):
-            values[:v.size, k] = v
+            values[: v.size, k] = v
         if stride == 0:
-            path, idx = f"{root}/{tier}/per_configuration", [rr.TimeColumn("configuration",
-                                                                            sequence=np.arange(length))]
+            path, idx = f"{root}/{tier}/per_configuration", [rr.TimeColumn("configuration", sequence=np.arange(length))]
         else:
             path, idx = f"{root}/{tier}/every_{stride}_steps", strided(length, stride, dt)
             last = max(last, (length - 1) * stride)
         _plot(rec, path, idx, values, [label for label, _ in lines])
     if last:
         rec.log("tiers/tolerance", rr.SeriesLines(names=["tolerance"], colors=[TOLERANCE_COLOR]), static=True)
-        rec.send_columns("tiers/tolerance", indexes=strided(2, last, dt),
-                         columns=rr.Scalars.columns(scalars=[1.0, 1.0]))
+        rec.send_columns(
+            "tiers/tolerance", indexes=strided(2, last, dt), columns=rr.Scalars.columns(scalars=[1.0, 1.0])
+        )
     return any(root == "tier_series" for root, _, _ in batches)

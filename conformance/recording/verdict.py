@@ -16,7 +16,10 @@ def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
     lines = [f"# {meta.get('model', '')}", ""]
     if meta.get("shown"):
         lines += [f"3D view: {meta['shown']}", ""]
-    lines += ["| tier | outcome | metric | max | tolerance | max / tolerance | expected |", "|---|---|---|---|---|---|---|"]
+    lines += [
+        "| tier | outcome | metric | max | tolerance | max / tolerance | expected |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for tier, report in reports.items():
         v = judged.get(tier, {})
         outcome = v.get("outcome", report.status) + (" (worse than expected)" if v.get("worse") else "")
@@ -27,8 +30,9 @@ def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
             lines.append(f"| {tier} | {outcome} | | | | | {expected} |")
         for m in report.metrics:
             ratio = f"{m.max / m.tolerance:.3g}" if m.tolerance > 0 else ""
-            lines.append(f"| {tier} | {outcome} | {m.name} | {m.max:.3g} | {m.tolerance:.3g} {m.unit} | {ratio} | "
-                         f"{expected} |")
+            lines.append(
+                f"| {tier} | {outcome} | {m.name} | {m.max:.3g} | {m.tolerance:.3g} {m.unit} | {ratio} | {expected} |"
+            )
     reasons = [(tier, v) for tier, v in judged.items() if v.get("reason")]
     if reasons:
         lines += ["", "## What the manifest expects, and why", ""]
@@ -39,8 +43,14 @@ def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
 
         lines += ["", "## Isolation (the failing tier rerun with known gaps removed on both sides)", ""]
         lines += [f"- {tier}: " + isolation_text(runs) for tier, runs in isolation.items()]
-    lines += ["", f"seed: {meta.get('seed')}", "", "versions: " + ", ".join(
-        f"{k} {v}" for k, v in meta.get("versions", {}).items()), "", "## Notes"]
+    lines += [
+        "",
+        f"seed: {meta.get('seed')}",
+        "",
+        "versions: " + ", ".join(f"{k} {v}" for k, v in meta.get("versions", {}).items()),
+        "",
+        "## Notes",
+    ]
     for tier, report in reports.items():
         lines += [f"- {tier}: {n}" for n in report.notes[:10]]
     lines += ["", "## Settings", "```json", json.dumps(meta.get("settings", {}), indent=1, default=str), "```"]

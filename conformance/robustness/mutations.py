@@ -19,10 +19,35 @@ NUMERIC = {
     "option": ("timestep", "gravity", "density", "viscosity", "wind", "impratio", "tolerance", "iterations"),
     "body": ("pos", "quat", "euler", "axisangle", "gravcomp"),
     "inertial": ("pos", "mass", "diaginertia", "fullinertia", "quat"),
-    "joint": ("pos", "axis", "range", "damping", "stiffness", "armature", "frictionloss", "springref", "ref",
-              "solreflimit", "solimplimit", "margin"),
-    "geom": ("pos", "quat", "size", "fromto", "mass", "density", "friction", "solref", "solimp", "margin", "gap",
-             "priority", "condim"),
+    "joint": (
+        "pos",
+        "axis",
+        "range",
+        "damping",
+        "stiffness",
+        "armature",
+        "frictionloss",
+        "springref",
+        "ref",
+        "solreflimit",
+        "solimplimit",
+        "margin",
+    ),
+    "geom": (
+        "pos",
+        "quat",
+        "size",
+        "fromto",
+        "mass",
+        "density",
+        "friction",
+        "solref",
+        "solimp",
+        "margin",
+        "gap",
+        "priority",
+        "condim",
+    ),
     "site": ("pos", "size", "quat"),
     "motor": ("gear", "ctrlrange", "forcerange"),
     "position": ("kp", "kv", "ctrlrange", "gear", "timeconst"),
@@ -35,27 +60,55 @@ NUMERIC = {
     "mesh": ("scale",),
     "camera": ("fovy", "pos"),
 }
-REFERENCES = ("joint", "body", "geom", "site", "mesh", "material", "texture", "class", "childclass", "tendon",
-              "body1", "body2", "joint1", "joint2", "geom1", "geom2", "site1", "site2", "target", "hfield")
+REFERENCES = (
+    "joint",
+    "body",
+    "geom",
+    "site",
+    "mesh",
+    "material",
+    "texture",
+    "class",
+    "childclass",
+    "tendon",
+    "body1",
+    "body2",
+    "joint1",
+    "joint2",
+    "geom1",
+    "geom2",
+    "site1",
+    "site2",
+    "target",
+    "hfield",
+)
 FILES = ("mesh", "texture", "hfield", "skin")
 # elements the loader does not map (or maps only in part), to be mixed into a real document; {body} is a body name
 UNSUPPORTED = {
-    "worldbody": (('<flexcomp name="mutant_flex" type="grid" count="3 3 1" spacing=".05 .05 .05" pos="0 0 2" '
-                  'dim="2" radius=".005"/>'),
-                  ('<body name="mutant_mocap" mocap="true" pos="0 0 2"><geom size=".05" contype="0" '
-                  'conaffinity="0"/></body>'),
-                  ('<replicate count="3" offset=".2 0 0"><body name="mutant_rep" pos="0 0 3"><freejoint/>'
-                  '<geom size=".03"/></body></replicate>'),
-                  '<light name="mutant_light" pos="0 0 3" mode="targetbody" target="{body}"/>',
-                  ('<body name="mutant_ball" pos="0 0 2"><joint type="ball" damping=".1" range="0 1"/>'
-                  '<geom size=".03" mass="1e-9"/></body>')),
-    "actuator": ('<adhesion body="{body}" ctrlrange="0 1" gain="5"/>',
-                 '<muscle name="mutant_muscle" tendon="mutant_tendon"/>',
-                 '<damper name="mutant_damper" joint="{joint}" kv="1" ctrlrange="0 1"/>',
-                 '<intvelocity joint="{joint}" kp="10" actrange="-1 1"/>'),
+    "worldbody": (
+        (
+            '<flexcomp name="mutant_flex" type="grid" count="3 3 1" spacing=".05 .05 .05" pos="0 0 2" '
+            'dim="2" radius=".005"/>'
+        ),
+        ('<body name="mutant_mocap" mocap="true" pos="0 0 2"><geom size=".05" contype="0" conaffinity="0"/></body>'),
+        (
+            '<replicate count="3" offset=".2 0 0"><body name="mutant_rep" pos="0 0 3"><freejoint/>'
+            '<geom size=".03"/></body></replicate>'
+        ),
+        '<light name="mutant_light" pos="0 0 3" mode="targetbody" target="{body}"/>',
+        (
+            '<body name="mutant_ball" pos="0 0 2"><joint type="ball" damping=".1" range="0 1"/>'
+            '<geom size=".03" mass="1e-9"/></body>'
+        ),
+    ),
+    "actuator": (
+        '<adhesion body="{body}" ctrlrange="0 1" gain="5"/>',
+        '<muscle name="mutant_muscle" tendon="mutant_tendon"/>',
+        '<damper name="mutant_damper" joint="{joint}" kv="1" ctrlrange="0 1"/>',
+        '<intvelocity joint="{joint}" kp="10" actrange="-1 1"/>',
+    ),
     "tendon": ('<spatial name="mutant_tendon"><site site="{site}"/><site site="{site2}"/></spatial>',),
-    "sensor": ('<jointpos joint="{joint}"/>', '<framepos objtype="body" objname="{body}"/>',
-               '<touch site="{site}"/>'),
+    "sensor": ('<jointpos joint="{joint}"/>', '<framepos objtype="body" objname="{body}"/>', '<touch site="{site}"/>'),
     "contact": ('<exclude body1="{body}" body2="{body2}"/>',),
     "equality": ('<weld body1="{body}"/>', '<joint joint1="{joint}" polycoef="0 2 0 0 0"/>'),
 }
@@ -99,7 +152,9 @@ def numeric_value(root: ET.Element, rng: random.Random) -> str:
     non-finite, huge, tiny, zero or negative value, on an element that has it or one of the class's elements."""
     present = sorted({(e.tag, a) for e in _elements(root) for a in e.attrib if a in NUMERIC.get(e.tag, ())})
     classes = sorted({(t, a) for t, attrs in NUMERIC.items() for a in attrs if any(True for _ in root.iter(t))})
-    tag, attr = rng.choice(present if present and rng.random() < 0.5 else (classes or present or [("option", "timestep")]))
+    tag, attr = rng.choice(
+        present if present and rng.random() < 0.5 else (classes or present or [("option", "timestep")])
+    )
     candidates = list(root.iter(tag)) or [_section(root, tag)]
     element = rng.choice(candidates)
     old = element.get(attr, "1")
@@ -150,7 +205,7 @@ def missing_file(root: ET.Element, rng: random.Random) -> str:
     if files:
         element = rng.choice(files)
         old = element.get("file")
-        element.set("file", "mutant_missing" + (old[old.rfind("."):] if "." in old else ".stl"))
+        element.set("file", "mutant_missing" + (old[old.rfind(".") :] if "." in old else ".stl"))
         return f"{element.tag}.file: {old!r} -> {element.get('file')!r}"
     asset = _section(root, "asset")
     ET.SubElement(asset, "mesh", name="mutant_mesh", file="mutant_missing.stl")
@@ -175,11 +230,15 @@ def unsupported_element(root: ET.Element, rng: random.Random) -> str:
     snippet = rng.choice(UNSUPPORTED[section])
     bodies = names["body"] or ["world"]
     sites = names["site"] or ["mutant_site"]
-    text = snippet.format(body=rng.choice(bodies), body2=rng.choice(bodies), joint=rng.choice(names["joint"] or
-                          ["mutant_joint"]), site=rng.choice(sites), site2=rng.choice(sites))
+    text = snippet.format(
+        body=rng.choice(bodies),
+        body2=rng.choice(bodies),
+        joint=rng.choice(names["joint"] or ["mutant_joint"]),
+        site=rng.choice(sites),
+        site2=rng.choice(sites),
+    )
     if "mutant_tendon" in text and section == "actuator":
-        _section(root, "tendon").append(ET.fromstring(UNSUPPORTED["tendon"][0].format(site=sites[0],
-                                                                                      site2=sites[-1])))
+        _section(root, "tendon").append(ET.fromstring(UNSUPPORTED["tendon"][0].format(site=sites[0], site2=sites[-1])))
     _section(root, section).append(ET.fromstring(text))
     return f"{section} gets {text}"
 
@@ -191,8 +250,9 @@ def _chain(count: int, prefix: str) -> ET.Element:
     body = top
     for i in range(count):
         ET.SubElement(body, "joint", name=f"{prefix}_j{i}", type="hinge", axis="0 1 0", damping="0.01")
-        ET.SubElement(body, "geom", type="capsule", fromto="0 0 0 0 0 -.02", size=".005", mass=".01",
-                      contype="0", conaffinity="0")
+        ET.SubElement(
+            body, "geom", type="capsule", fromto="0 0 0 0 0 -.02", size=".005", mass=".01", contype="0", conaffinity="0"
+        )
         if i + 1 < count:
             body = ET.SubElement(body, "body", name=f"{prefix}{i + 1}", pos="0 0 -.02")
     return top
@@ -214,7 +274,7 @@ def huge_model(root: ET.Element, rng: random.Random) -> str:
     free = rng.random() < 0.5
     count = 10_000 if not free else 2_000
     for i in range(count):
-        body = ET.SubElement(world, "body", name=f"mutant_b{i}", pos=f"{i % 100 * .1} {i // 100 * .1} 3")
+        body = ET.SubElement(world, "body", name=f"mutant_b{i}", pos=f"{i % 100 * 0.1} {i // 100 * 0.1} 3")
         if free:
             ET.SubElement(body, "freejoint")
         ET.SubElement(body, "geom", size=".02", contype="0", conaffinity="0")
@@ -232,22 +292,42 @@ def binary_garbage(data: bytes, rng: random.Random) -> tuple[bytes, str]:
     if where < 0.2:
         return junk * rng.randint(1, 64), "the whole file is binary garbage"
     at = rng.randrange(len(data))
-    return data[:at] + junk + data[at + len(junk):], f"{len(junk)} bytes of garbage at byte {at}"
+    return data[:at] + junk + data[at + len(junk) :], f"{len(junk)} bytes of garbage at byte {at}"
 
 
 TREE_KINDS: dict[str, Callable[[ET.Element, random.Random], str]] = {
-    "numeric_value": numeric_value, "dropped_attribute": dropped_attribute, "duplicate_name": duplicate_name,
-    "empty_name": empty_name, "dangling_reference": dangling_reference, "missing_file": missing_file,
-    "garbage_attribute": garbage_attribute, "unsupported_element": unsupported_element, "long_chain": long_chain,
-    "deep_chain": deep_chain, "huge_model": huge_model,
+    "numeric_value": numeric_value,
+    "dropped_attribute": dropped_attribute,
+    "duplicate_name": duplicate_name,
+    "empty_name": empty_name,
+    "dangling_reference": dangling_reference,
+    "missing_file": missing_file,
+    "garbage_attribute": garbage_attribute,
+    "unsupported_element": unsupported_element,
+    "long_chain": long_chain,
+    "deep_chain": deep_chain,
+    "huge_model": huge_model,
 }
 BYTE_KINDS: dict[str, Callable[[bytes, random.Random], tuple[bytes, str]]] = {
-    "truncated": truncated, "binary_garbage": binary_garbage,
+    "truncated": truncated,
+    "binary_garbage": binary_garbage,
 }
 # how often each kind is drawn: numbers most (many classes), the expensive huge models rarely
-WEIGHTS = {"numeric_value": 30, "dropped_attribute": 8, "duplicate_name": 5, "empty_name": 3,
-           "dangling_reference": 6, "missing_file": 4, "garbage_attribute": 6, "unsupported_element": 12,
-           "long_chain": 3, "deep_chain": 1, "huge_model": 0.3, "truncated": 4, "binary_garbage": 4}
+WEIGHTS = {
+    "numeric_value": 30,
+    "dropped_attribute": 8,
+    "duplicate_name": 5,
+    "empty_name": 3,
+    "dangling_reference": 6,
+    "missing_file": 4,
+    "garbage_attribute": 6,
+    "unsupported_element": 12,
+    "long_chain": 3,
+    "deep_chain": 1,
+    "huge_model": 0.3,
+    "truncated": 4,
+    "binary_garbage": 4,
+}
 
 
 def mutate(data: bytes, seed: int, index: int, kind: str | None = None) -> Mutant:

@@ -92,13 +92,23 @@ def _steps(result, model, seed: int, tolerances) -> Outcome:
         result.step(ctrl)
         q, v = result.get_state()
         qpos.append(q), qvel.append(v), reference.append(data.qvel.copy())
-    warned = {w: data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{w.upper()}")].number > 0
-              for w in ("badqacc", "inertia")}  # MuJoCo's own verdict on its run: it blew up, or M is singular
+    warned = {
+        w: data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{w.upper()}")].number > 0 for w in ("badqacc", "inertia")
+    }  # MuJoCo's own verdict on its run: it blew up, or M is singular
     if any(warned.values()) or not np.isfinite(data.qvel).all():
-        return Outcome("shared_divergence", "step", "MuJoCo's own run " + ("reports a singular inertia"
-                       if warned["inertia"] else "blows up (bad qacc)"))
-    found = first_divergence("random ctrl", np.array(qpos), np.array(qvel), np.array(reference),
-                             SpeedBound.from_tolerances(tolerances), model.opt.timestep)
+        return Outcome(
+            "shared_divergence",
+            "step",
+            "MuJoCo's own run " + ("reports a singular inertia" if warned["inertia"] else "blows up (bad qacc)"),
+        )
+    found = first_divergence(
+        "random ctrl",
+        np.array(qpos),
+        np.array(qvel),
+        np.array(reference),
+        SpeedBound.from_tolerances(tolerances),
+        model.opt.timestep,
+    )
     if found is not None:
         return Outcome("divergence", "step", found.text())
     return Outcome("loaded_right", "step")
@@ -127,19 +137,24 @@ def classify(path: str, seed: int = 0) -> Outcome:
             warnings.simplefilter("ignore")
             for tier in STATIC_TIERS:
                 report = TIERS[tier](result, model, seed, tolerances)  # against MuJoCo's own compile
-                worst = max(report.metrics, key=lambda m: m.max / m.tolerance if m.tolerance else
-                            (0.0 if m.max == 0 else np.inf), default=None)
+                worst = max(
+                    report.metrics,
+                    key=lambda m: m.max / m.tolerance if m.tolerance else (0.0 if m.max == 0 else np.inf),
+                    default=None,
+                )
                 if worst is not None and not worst.max <= WRONG_FACTOR * worst.tolerance:
-                    return Outcome("silently_wrong", "static", f"{tier} {worst.name} {worst.max:.3g} "
-                                   f"(tol {worst.tolerance:.3g})")
+                    return Outcome(
+                        "silently_wrong", "static", f"{tier} {worst.name} {worst.max:.3g} (tol {worst.tolerance:.3g})"
+                    )
             return _steps(result, model, seed, tolerances)
     except ControlError as error:  # a command MuJoCo refuses too (a ctrlrange beyond mjMAXVAL)
         return Outcome("typed_error", "step", _first_line(error))
     except MJCFError as error:
         return Outcome("untyped_error", "step", "a load error raised after the load: " + _first_line(error))
     except Exception as error:  # noqa: BLE001 - as at the load
-        return Outcome("untyped_error", "static/step", _first_line(error) + " | "
-                       + traceback.format_exc(limit=-3)[-600:])
+        return Outcome(
+            "untyped_error", "static/step", _first_line(error) + " | " + traceback.format_exc(limit=-3)[-600:]
+        )
 
 
 def _child(path: str, seed: int, conn) -> None:

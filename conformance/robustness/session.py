@@ -48,8 +48,14 @@ class Finding:
     saved: str = ""
 
     def to_dict(self) -> dict:
-        return {"source": self.source, "index": self.index, "kind": self.kind, "description": self.description,
-                **self.outcome.to_dict(), "saved": self.saved}
+        return {
+            "source": self.source,
+            "index": self.index,
+            "kind": self.kind,
+            "description": self.description,
+            **self.outcome.to_dict(),
+            "saved": self.saved,
+        }
 
 
 @dataclass
@@ -75,11 +81,16 @@ class Tally:
         return sum(self.outcomes[b] for b in BAD)
 
     def to_dict(self) -> dict:
-        return {"mutants": self.total, "interrupted": self.interrupted, "seconds": round(self.seconds, 1),
-                "mutants_per_second": round(self.total / self.seconds, 2) if self.seconds else None,
-                "bad": self.bad, "outcomes": dict(sorted(self.outcomes.items())),
-                "by_kind": {k: dict(sorted(v.items())) for k, v in sorted(self.by_kind.items())},
-                "findings": [f.to_dict() for f in self.findings]}
+        return {
+            "mutants": self.total,
+            "interrupted": self.interrupted,
+            "seconds": round(self.seconds, 1),
+            "mutants_per_second": round(self.total / self.seconds, 2) if self.seconds else None,
+            "bad": self.bad,
+            "outcomes": dict(sorted(self.outcomes.items())),
+            "by_kind": {k: dict(sorted(v.items())) for k, v in sorted(self.by_kind.items())},
+            "findings": [f.to_dict() for f in self.findings],
+        }
 
 
 class Workspace:
@@ -121,8 +132,9 @@ def timeout_for(mutant: Mutant) -> float:
     return HUGE_TIMEOUT_S if mutant.kind == "huge_model" else TIMEOUT_S
 
 
-def run(sources: list[Source], mutants: int, seed: int = 0, jobs: int = 2, save: Path | None = None,
-        progress=None) -> Tally:
+def run(
+    sources: list[Source], mutants: int, seed: int = 0, jobs: int = 2, save: Path | None = None, progress=None
+) -> Tally:
     """Mutants 0..mutants-1 under `seed`, source i % len(sources); bad ones shrunk and saved into `save`."""
     tally = Tally()
     workspace = Workspace()
@@ -144,16 +156,28 @@ def run(sources: list[Source], mutants: int, seed: int = 0, jobs: int = 2, save:
             for finding in tally.findings:
                 source = next(s for s in sources if s.source == finding.source)
                 mutant = mutate(data[source.path], seed, finding.index)
-                shrunk = mutant.data if tally.interrupted else shrink(source.path, mutant, finding.outcome,
-                                                                      seed + finding.index, workspace)
+                shrunk = (
+                    mutant.data
+                    if tally.interrupted
+                    else shrink(source.path, mutant, finding.outcome, seed + finding.index, workspace)
+                )
                 finding.saved = record(save, finding, source, shrunk, seed)
     finally:
         workspace.close()
     return tally
 
 
-def _advance(running: list, pending: list[int], jobs: int, sources: list[Source], data: dict, seed: int,
-             workspace: Workspace, tally: Tally, progress) -> list:
+def _advance(
+    running: list,
+    pending: list[int],
+    jobs: int,
+    sources: list[Source],
+    data: dict,
+    seed: int,
+    workspace: Workspace,
+    tally: Tally,
+    progress,
+) -> list:
     """Start mutants up to `jobs` at once, wait for one to end, tally what ended; the ones still running."""
     while pending and len(running) < jobs:
         index = pending.pop()
@@ -175,8 +199,9 @@ def _advance(running: list, pending: list[int], jobs: int, sources: list[Source]
     return still
 
 
-def shrink(source: Path, mutant: Mutant, outcome: Outcome, seed: int, workspace: Workspace,
-           tries: int = SHRINK_TRIES) -> bytes:
+def shrink(
+    source: Path, mutant: Mutant, outcome: Outcome, seed: int, workspace: Workspace, tries: int = SHRINK_TRIES
+) -> bytes:
     """The mutant with as many elements removed as keep its bad outcome (greedy, at most `tries` runs)."""
     try:
         root = ET.fromstring(mutant.data)
@@ -210,9 +235,11 @@ def record(folder: Path, finding: Finding, source: Source, data: bytes, seed: in
     (folder / name).write_bytes(data)
     registry = folder / REGISTRY
     with registry.open("a") as out:
-        out.write(f'\n[mutant."{name}"]\nsource = {json.dumps(source.source)}\nkind = {json.dumps(finding.kind)}\n'
-                  f'found = {json.dumps(finding.outcome.outcome + ": " + finding.outcome.detail[:200])}\n'
-                  f'description = {json.dumps(finding.description[:200])}\n')
+        out.write(
+            f'\n[mutant."{name}"]\nsource = {json.dumps(source.source)}\nkind = {json.dumps(finding.kind)}\n'
+            f"found = {json.dumps(finding.outcome.outcome + ': ' + finding.outcome.detail[:200])}\n"
+            f"description = {json.dumps(finding.description[:200])}\n"
+        )
     return name
 
 
@@ -243,9 +270,14 @@ def print_progress(total: int):
     def show(tally: Tally) -> None:
         nonlocal shown
         for finding in tally.findings[shown:]:
-            print(f"robustness: bad: {finding.outcome.outcome} {finding.source} #{finding.index} {finding.kind} "
-                  f"({finding.description}): {finding.outcome.detail[:200]}", file=sys.stderr, flush=True)
+            print(
+                f"robustness: bad: {finding.outcome.outcome} {finding.source} #{finding.index} {finding.kind} "
+                f"({finding.description}): {finding.outcome.detail[:200]}",
+                file=sys.stderr,
+                flush=True,
+            )
         shown = len(tally.findings)
         if tally.total % step == 0 or tally.total == total:
             print(f"robustness: {tally.total}/{total} mutants, bad {tally.bad}", file=sys.stderr, flush=True)
+
     return show

@@ -29,5 +29,15 @@ TIERS = {
     "maniskill": maniskill,  # opt-in (not a default tier): its own ManiSkill scene, no side effect on `result`
 }
 
-__all__ = ["TIERS", "actuated", "actuated_contact", "collision", "contact", "dynamics", "inertia", "kinematics",
-           "maniskill", "structure"]
+__all__ = [
+    "TIERS",
+    "actuated",
+    "actuated_contact",
+    "collision",
+    "contact",
+    "dynamics",
+    "inertia",
+    "kinematics",
+    "maniskill",
+    "structure",
+]

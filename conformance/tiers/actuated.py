@@ -74,8 +74,14 @@ def reference_model(result, model: mujoco.MjModel, contact: bool) -> tuple[mujoc
     for a in removed:
         ref.actuator_gainprm[a] = 0.0
         ref.actuator_biasprm[a] = 0.0
-    notes = ["unmapped actuators taken out of MuJoCo as well (manifest setting): "
-             + ", ".join(result.actuators[a].name for a in removed)] if removed else []
+    notes = (
+        [
+            "unmapped actuators taken out of MuJoCo as well (manifest setting): "
+            + ", ".join(result.actuators[a].name for a in removed)
+        ]
+        if removed
+        else []
+    )
     return ref, {**matched, "actuators_removed": [result.actuators[a].name for a in removed]}, notes
 
 
@@ -157,8 +163,15 @@ def sapien_ctrl_rollout(result, model: mujoco.MjModel, qpos0, qvel0, ctrl: np.nd
     return run
 
 
-def one_step_qvel(result, ref: mujoco.MjModel, run: reference.Rollout, every: int, bound: SpeedBound, dt: float,
-                  float32_relative: float = 0.0) -> tuple[np.ndarray, np.ndarray, Divergence | None]:
+def one_step_qvel(
+    result,
+    ref: mujoco.MjModel,
+    run: reference.Rollout,
+    every: int,
+    bound: SpeedBound,
+    dt: float,
+    float32_relative: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, Divergence | None]:
     """Every `every` steps: MuJoCo's state into SAPIEN, both from the state SAPIEN holds (float32), the same ctrl,
     one step; |SAPIEN - MuJoCo| velocity,
     less what float32 cannot resolve: `float32_relative` times the larger speed before or after the step (SAPIEN
@@ -174,8 +187,11 @@ def one_step_qvel(result, ref: mujoco.MjModel, run: reference.Rollout, every: in
         states.append(sapien_side.get_state(result))
         sampled.append(t + 1)
         out.append(np.abs(states[-1][1] - ref_v1))
-    found = first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt,
-                             sampled) if states else None
+    found = (
+        first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt, sampled)
+        if states
+        else None
+    )
     return np.array(out), np.array(floors), found
 
 
@@ -199,12 +215,14 @@ def limit_steps(model: mujoco.MjModel, qpos: np.ndarray) -> int:
     return int(hit.sum())
 
 
-def gentle_run(ref: mujoco.MjModel, qpos0, qvel0, steps: int, seed: int, tolerances: Tolerances,
-               smooth: bool) -> tuple[reference.Rollout, float, dict[str, int]]:
+def gentle_run(
+    ref: mujoco.MjModel, qpos0, qvel0, steps: int, seed: int, tolerances: Tolerances, smooth: bool
+) -> tuple[reference.Rollout, float, dict[str, int]]:
     """The MuJoCo run under the seeded ctrl, its deviations from the held ctrl halved (at most `max_halvings`
     times) until, for the contact-free run (`smooth`), no joint reaches a limit (with contact, bodies land and fold
     into their limits whatever the ctrl): there MuJoCo's soft and PhysX's hard limits part for reasons that are not
     the actuators'. Returns the run, the scale used and the steps with a forcerange bound reached / at a limit."""
+
     def s(name: str):
         return tolerances.setting("actuated", name)
 
@@ -226,11 +244,14 @@ def _ctrl_notes(scale: float, left: dict[str, int], steps: int, smooth: bool = T
     if scale < 1.0:
         notes.append(f"ctrl deviations scaled by {scale:g} so that no joint reaches a limit in MuJoCo")
     if left["saturated"]:
-        notes.append(f"an actuator sits on its forcerange on {left['saturated']} of {steps} steps (clamped on both "
-                     "sides)")
+        notes.append(
+            f"an actuator sits on its forcerange on {left['saturated']} of {steps} steps (clamped on both sides)"
+        )
     if left["at_limit"] and smooth:
-        notes.append(f"a joint is at its limit in MuJoCo on {left['at_limit']} of {steps} steps even at the held "
-                     "ctrl (its limit rows are MuJoCo's own on both sides)")
+        notes.append(
+            f"a joint is at its limit in MuJoCo on {left['at_limit']} of {steps} steps even at the held "
+            "ctrl (its limit rows are MuJoCo's own on both sides)"
+        )
     return notes
 
 
@@ -254,8 +275,9 @@ class ReferenceRun:
         return (getattr(self, f.name) for f in fields(self))
 
 
-def reference_run(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances, tier: str,
-                  contact: bool) -> ReferenceRun | TierReport:
+def reference_run(
+    result, model: mujoco.MjModel, seed: int, tolerances: Tolerances, tier: str, contact: bool
+) -> ReferenceRun | TierReport:
     """MuJoCo's run for `tier`, or the skip report when there is nothing to judge."""
     skip = unmapped_reason(result, model, tier, tolerances)
     if skip is not None:
@@ -284,14 +306,16 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     ref, matched, removal, steps, qpos0, qvel0, start, run, scale, left = mj_run
     kind = "floating" if is_floating(model) else "fixed"
     dt = ref.opt.timestep
-    gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
-                      tolerances.setting("chaos", "amplification_limit"))
+    gate = chaos.gate(
+        ref, run, seed, tolerances.setting("chaos", "perturbation"), tolerances.setting("chaos", "amplification_limit")
+    )
     every = int(tolerances.setting("actuated", "one_step_every"))
     bound = SpeedBound.from_tolerances(tolerances)
     mismatched = settings_mismatches(result, ref)
     with actuated_scene(result, qpos0, qvel0, contacts=False):
         one_step, one_step_floor, diverged = one_step_qvel(
-            result, ref, run, every, bound, dt, float(tolerances.setting("actuated", "float32_relative")))
+            result, ref, run, every, bound, dt, float(tolerances.setting("actuated", "float32_relative"))
+        )
         sp = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
     diverged = first_of(diverged, first_divergence("rollout", sp.qpos, sp.qvel, run.qvel, bound, dt))
     err = reference.qpos_difference(ref, run.qpos, sp.qpos)
@@ -302,27 +326,62 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     judged = gate.judged_steps + 1
     metrics: list[Metric] = [
         settings_metric(mismatched),
-        metric("one_step_qvel", one_step, tolerances[f"actuated.one_step_qvel_{kind}"], "rad/s or m/s",
-               floor=one_step_floor),
-        metric("rollout_qpos", err[:judged], tolerance, "rad or m",
-               floor=floor[:judged]),
+        metric(
+            "one_step_qvel",
+            one_step,
+            tolerances[f"actuated.one_step_qvel_{kind}"],
+            "rad/s or m/s",
+            floor=one_step_floor,
+        ),
+        metric("rollout_qpos", err[:judged], tolerance, "rad or m", floor=floor[:judged]),
     ]
     notes = removal + list(mismatched) + _ctrl_notes(scale, left, steps)
     if gate.chaotic:
-        notes.append(f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
-                     f"{gate.judged_steps} of {steps}; the rollout is judged on the first {gate.judged_steps} steps")
+        notes.append(
+            f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
+            f"{gate.judged_steps} of {steps}; the rollout is judged on the first {gate.judged_steps} steps"
+        )
     rows = sapien_side.body_link_rows(result, model.nbody)
     time = np.arange(steps + 1) * dt
-    trace = Trace("actuated", time, run.qpos, sp.qpos, err, np.zeros((steps + 1, model.nv)), run.body_pose,
-                  sapien_side.bodies_from_links(sp.link_pose, rows), sp.link_pose)
-    actuators = ActuatorTrace([a.name for a in result.actuators], time[:-1], commands.clip_ctrl(ref, run.ctrl),
-                              run.actuator_force, sp.force)
-    return TierReport("actuated", verdict(metrics, gate.chaotic, diverged), metrics, notes, divergence=diverged,
-                      settings={**matched, "steps": steps, "base": kind, "start": start, "chaos": gate.to_dict(),
-                                "ctrl_scale": scale, "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "one_step_every": every},
-                      series={"rollout_qpos": np.abs(err).max(axis=1), "chaos_amplification": gate.amplification,
-                              "one_step_qvel": one_step.max(axis=1) if one_step.size else one_step},
-                      traces=[trace], actuators=actuators)
+    trace = Trace(
+        "actuated",
+        time,
+        run.qpos,
+        sp.qpos,
+        err,
+        np.zeros((steps + 1, model.nv)),
+        run.body_pose,
+        sapien_side.bodies_from_links(sp.link_pose, rows),
+        sp.link_pose,
+    )
+    actuators = ActuatorTrace(
+        [a.name for a in result.actuators], time[:-1], commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp.force
+    )
+    return TierReport(
+        "actuated",
+        verdict(metrics, gate.chaotic, diverged),
+        metrics,
+        notes,
+        divergence=diverged,
+        settings={
+            **matched,
+            "steps": steps,
+            "base": kind,
+            "start": start,
+            "chaos": gate.to_dict(),
+            "ctrl_scale": scale,
+            "saturated_steps": left["saturated"],
+            "limit_steps": left["at_limit"],
+            "one_step_every": every,
+        },
+        series={
+            "rollout_qpos": np.abs(err).max(axis=1),
+            "chaos_amplification": gate.amplification,
+            "one_step_qvel": one_step.max(axis=1) if one_step.size else one_step,
+        },
+        traces=[trace],
+        actuators=actuators,
+    )
 
 
 def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -346,13 +405,33 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     limit = tolerances.setting("contact", "spread_fraction") * tolerances["actuated_contact.final_pose_band"]
     chaotic = bool(spread.size and spread.max() > limit)
     if chaotic:
-        notes.append(f"MuJoCo's own settled pose moves {spread.max():.3g} m under a {size:g} perturbation of the "
-                     "start: outcome not predictable")
+        notes.append(
+            f"MuJoCo's own settled pose moves {spread.max():.3g} m under a {size:g} perturbation of the "
+            "start: outcome not predictable"
+        )
     time = np.arange(steps + 1) * dt
-    return TierReport("actuated_contact", verdict(metrics, chaotic, diverged), metrics, notes, divergence=diverged,
-                      settings={**matched, "steps": steps, "start": start, "ctrl_scale": scale,
-                                "saturated_steps": left["saturated"], "limit_steps": left["at_limit"], "mujoco_self_spread": float(spread.max(initial=0.0))},
-                      series={"final_pose_band": poses.series},
-                      traces=[settle_trace(result, ref, run, sp, "actuated_contact")],
-                      actuators=ActuatorTrace([a.name for a in result.actuators], time[:-1],
-                                              commands.clip_ctrl(ref, run.ctrl), run.actuator_force, sp.force))
+    return TierReport(
+        "actuated_contact",
+        verdict(metrics, chaotic, diverged),
+        metrics,
+        notes,
+        divergence=diverged,
+        settings={
+            **matched,
+            "steps": steps,
+            "start": start,
+            "ctrl_scale": scale,
+            "saturated_steps": left["saturated"],
+            "limit_steps": left["at_limit"],
+            "mujoco_self_spread": float(spread.max(initial=0.0)),
+        },
+        series={"final_pose_band": poses.series},
+        traces=[settle_trace(result, ref, run, sp, "actuated_contact")],
+        actuators=ActuatorTrace(
+            [a.name for a in result.actuators],
+            time[:-1],
+            commands.clip_ctrl(ref, run.ctrl),
+            run.actuator_force,
+            sp.force,
+        ),
+    )

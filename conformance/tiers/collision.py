@@ -45,14 +45,14 @@ def geom_world_aabb(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> tuple
     kind = model.geom_type[g]
     if kind == _G.mjGEOM_MESH:
         m = model.geom_dataid[g]
-        verts = model.mesh_vert[model.mesh_vertadr[m]:model.mesh_vertadr[m] + model.mesh_vertnum[m]]
+        verts = model.mesh_vert[model.mesh_vertadr[m] : model.mesh_vertadr[m] + model.mesh_vertnum[m]]
         world = verts @ rot.T + data.geom_xpos[g]
         return world.min(axis=0), world.max(axis=0)
     if kind == _G.mjGEOM_HFIELD:  # the elevation surface PhysX meshes (no base below it)
         h = model.geom_dataid[g]
         nrow, ncol = model.hfield_nrow[h], model.hfield_ncol[h]
         sx, sy, sz, _ = model.hfield_size[h]
-        elevation = model.hfield_data[model.hfield_adr[h]:model.hfield_adr[h] + nrow * ncol]
+        elevation = model.hfield_data[model.hfield_adr[h] : model.hfield_adr[h] + nrow * ncol]
         xs, ys = np.meshgrid(np.linspace(-sx, sx, ncol), np.linspace(-sy, sy, nrow))
         local = np.stack([xs.ravel(), ys.ravel(), elevation * sz], axis=1)
         world = local @ rot.T + data.geom_xpos[g]
@@ -96,8 +96,10 @@ def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         groups = [int(x) for x in shape.get_collision_groups()[:2]]
         expected = [0, 0] if contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
         if groups != expected:
-            groups_wrong.append(f"{name}: groups {groups}, expected contype/conaffinity {expected}"
-                                + (" (contact disabled)" if contact_off else ""))
+            groups_wrong.append(
+                f"{name}: groups {groups}, expected contype/conaffinity {expected}"
+                + (" (contact disabled)" if contact_off else "")
+            )
         pose = sapien_side.shape_world_pose(component, shape)
         p, rot = np.asarray(pose.p, dtype=float), _rotation(pose.q)
         ref_p, ref_rot = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)

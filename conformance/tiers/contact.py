@@ -32,10 +32,12 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     if run.unstable(ref):
         return skipped("contact", run.unstable(ref))
     # MuJoCo against itself: the 1e-6 gate of every rollout (recorded; contact is judged by bands, below)
-    gate = chaos.gate(ref, run, seed, tolerances.setting("chaos", "perturbation"),
-                      tolerances.setting("chaos", "amplification_limit"))
-    other = reference.rollout(ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed),
-                              qvel0, steps, None)
+    gate = chaos.gate(
+        ref, run, seed, tolerances.setting("chaos", "perturbation"), tolerances.setting("chaos", "amplification_limit")
+    )
+    other = reference.rollout(
+        ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed), qvel0, steps, None
+    )
     sp = sapien_rollout(result, model, qpos0, qvel0, np.zeros((steps, model.nv)))
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
     sapien_side.set_state(result, qpos0, qvel0)
@@ -46,11 +48,28 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     ]
     notes = []
     spread = poses.spread
-    chaotic = spread.size and spread.max() > tolerances.setting("contact", "spread_fraction") * \
-        tolerances["contact.final_pose_band"]
+    chaotic = (
+        spread.size
+        and spread.max() > tolerances.setting("contact", "spread_fraction") * tolerances["contact.final_pose_band"]
+    )
     if chaotic:
-        notes.append(f"MuJoCo's own settled pose moves {spread.max():.3g} m under a "
-                     f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable")
-    return TierReport("contact", verdict(metrics, bool(chaotic), diverged), metrics, notes, divergence=diverged,
-                      settings={**matched, "steps": steps, "start": start, "chaos": gate.to_dict(), "mujoco_self_spread": float(spread.max(initial=0.0))},
-                      series={"final_pose_band": poses.series}, traces=[settle_trace(result, ref, run, sp, "contact")])
+        notes.append(
+            f"MuJoCo's own settled pose moves {spread.max():.3g} m under a "
+            f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable"
+        )
+    return TierReport(
+        "contact",
+        verdict(metrics, bool(chaotic), diverged),
+        metrics,
+        notes,
+        divergence=diverged,
+        settings={
+            **matched,
+            "steps": steps,
+            "start": start,
+            "chaos": gate.to_dict(),
+            "mujoco_self_spread": float(spread.max(initial=0.0)),
+        },
+        series={"final_pose_band": poses.series},
+        traces=[settle_trace(result, ref, run, sp, "contact")],
+    )

@@ -17,8 +17,9 @@ from ..tolerances import Tolerances
 from .rollouts import disable_contacts, is_floating, sapien_rollout, settings_metric, settings_mismatches
 
 
-def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
-             bound: SpeedBound) -> tuple[dict[str, np.ndarray], Divergence | None]:
+def one_step(
+    result, ref: mujoco.MjModel, run: reference.Rollout, every: int, bound: SpeedBound
+) -> tuple[dict[str, np.ndarray], Divergence | None]:
     """Per sampled step, both simulators from the state SAPIEN holds: |SAPIEN - MuJoCo| of the velocity increment
     / dt, the velocity and the position; and the first sampled step whose SAPIEN state left what MuJoCo's run
     allows."""
@@ -36,8 +37,11 @@ def one_step(result, ref: mujoco.MjModel, run: reference.Rollout, every: int,
         states.append((q1, v1))
         sampled.append(t + 1)
     sapien_side.clear_command(result, ref.nv)
-    found = first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt,
-                             sampled) if states else None
+    found = (
+        first_divergence("one-step", [q for q, _ in states], [v for _, v in states], run.qvel, bound, dt, sampled)
+        if states
+        else None
+    )
     return {"qacc": np.array(qacc), "qvel": np.array(qvel), "qpos": np.array(qpos)}, found
 
 
@@ -55,8 +59,14 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     limit = tolerances.setting("chaos", "amplification_limit")
     perturbation = tolerances.setting("chaos", "perturbation")
     torque = commands.random_torque(ref, qpos0, steps, seed, tolerances.setting("dynamics", "torque_accel"))
-    pd = commands.PDTracking(ref, qpos0, steps, seed, tolerances.setting("dynamics", "pd_amplitude"),
-                             tolerances.setting("dynamics", "pd_freq_hz"))
+    pd = commands.PDTracking(
+        ref,
+        qpos0,
+        steps,
+        seed,
+        tolerances.setting("dynamics", "pd_amplitude"),
+        tolerances.setting("dynamics", "pd_freq_hz"),
+    )
     mismatched = settings_mismatches(result, ref)
     metrics: list[Metric] = [settings_metric(mismatched)]
     notes: list[str] = list(mismatched)
@@ -93,14 +103,39 @@ def dynamics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
         series[f"rollout_{name}_chaos_amplification"] = gate.amplification
         if gate.chaotic:
             chaotic.append(name)
-            notes.append(f"rollout {name}: MuJoCo amplifies a {perturbation:g} perturbation more than "
-                         f"{limit:g}x after step {gate.judged_steps} of {steps}; judged on the first "
-                         f"{gate.judged_steps} steps only")
-        traces.append(Trace(name, np.arange(steps + 1) * dt, run.qpos, sp.qpos, err,
-                            np.vstack([run.command, np.zeros((1, model.nv))]), run.body_pose,
-                            sapien_side.bodies_from_links(sp.link_pose, rows), sp.link_pose))
+            notes.append(
+                f"rollout {name}: MuJoCo amplifies a {perturbation:g} perturbation more than "
+                f"{limit:g}x after step {gate.judged_steps} of {steps}; judged on the first "
+                f"{gate.judged_steps} steps only"
+            )
+        traces.append(
+            Trace(
+                name,
+                np.arange(steps + 1) * dt,
+                run.qpos,
+                sp.qpos,
+                err,
+                np.vstack([run.command, np.zeros((1, model.nv))]),
+                run.body_pose,
+                sapien_side.bodies_from_links(sp.link_pose, rows),
+                sp.link_pose,
+            )
+        )
     sapien_side.set_state(result, qpos0, qvel0)
-    return TierReport("dynamics", verdict(metrics, bool(chaotic), diverged), metrics, notes,
-                      settings={**matched, "steps": steps, "base": kind, "chaos": gates, "start": start,
-                                "one_step_every": int(tolerances.setting("dynamics", "one_step_every"))},
-                      series=series, traces=traces, divergence=diverged)
+    return TierReport(
+        "dynamics",
+        verdict(metrics, bool(chaotic), diverged),
+        metrics,
+        notes,
+        settings={
+            **matched,
+            "steps": steps,
+            "base": kind,
+            "chaos": gates,
+            "start": start,
+            "one_step_every": int(tolerances.setting("dynamics", "one_step_every")),
+        },
+        series=series,
+        traces=traces,
+        divergence=diverged,
+    )

@@ -48,8 +48,15 @@ def inertia(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
         tensor_floor.append(floor / scale)
     if not mass_err:
         return skipped("inertia", "no body with mass is carried by an articulation link")
-    return judged("inertia", [
-        metric("mass", mass_err, tolerances["inertia.mass"], "relative"),
-        metric("com", com_err, tolerances["inertia.com"], "m"),
-        metric("tensor", tensor_err, tolerances["inertia.tensor"], "relative to largest moment", floor=tensor_floor),
-    ], notes, settings={"bodies": len(mass_err)})
+    return judged(
+        "inertia",
+        [
+            metric("mass", mass_err, tolerances["inertia.mass"], "relative"),
+            metric("com", com_err, tolerances["inertia.com"], "m"),
+            metric(
+                "tensor", tensor_err, tolerances["inertia.tensor"], "relative to largest moment", floor=tensor_floor
+            ),
+        ],
+        notes,
+        settings={"bodies": len(mass_err)},
+    )

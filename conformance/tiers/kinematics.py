@@ -39,8 +39,13 @@ def kinematics(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances)
     if pos_err.size:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, bodies[worst[1]]) or f"body{bodies[worst[1]]}"
         notes.append(f"largest position error at body {name!r}, configuration {worst[0]}")
-    return judged("kinematics", [
-        metric("position", pos_err, tolerances["kinematics.position"], "m"),
-        metric("orientation", rot_err, tolerances["kinematics.orientation"], "rad"),
-    ], notes, settings={"configurations": len(configs), "bodies": len(bodies)},
-        series={"position_error_per_configuration": pos_err.max(axis=1)})
+    return judged(
+        "kinematics",
+        [
+            metric("position", pos_err, tolerances["kinematics.position"], "m"),
+            metric("orientation", rot_err, tolerances["kinematics.orientation"], "rad"),
+        ],
+        notes,
+        settings={"configurations": len(configs), "bodies": len(bodies)},
+        series={"position_error_per_configuration": pos_err.max(axis=1)},
+    )

@@ -76,9 +76,15 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the loader's notes were counted by the session's load
         register_agent(result.path, uid, override=True)
-        env = gym.make("Empty-v1", robot_uids=uid, sim_backend="physx_cpu", render_backend="none", obs_mode="state",
-                       control_mode="mujoco_ctrl", sim_config={"sim_freq": sim_freq, "control_freq": sim_freq,
-                                                               "scene_config": scene_config})
+        env = gym.make(
+            "Empty-v1",
+            robot_uids=uid,
+            sim_backend="physx_cpu",
+            render_backend="none",
+            obs_mode="state",
+            control_mode="mujoco_ctrl",
+            sim_config={"sim_freq": sim_freq, "control_freq": sim_freq, "scene_config": scene_config},
+        )
     try:
         env.reset(seed=seed)
         (agent_result,) = env.unwrapped.agent.results

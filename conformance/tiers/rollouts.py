@@ -32,8 +32,9 @@ def disable_contacts(result) -> None:
 
 def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndarray) -> sapien_side.Run:
     """Replay `command` (steps, nv), a generalized force per step, on SAPIEN from (qpos0, qvel0)."""
-    run = sapien_side.rollout(result, qpos0, qvel0, command.shape[0],
-                              lambda t, q, v: sapien_side.apply_generalized_force(result, command[t]))
+    run = sapien_side.rollout(
+        result, qpos0, qvel0, command.shape[0], lambda t, q, v: sapien_side.apply_generalized_force(result, command[t])
+    )
     sapien_side.clear_command(result, model.nv)
     return run
 
@@ -41,10 +42,18 @@ def sapien_rollout(result, model: mujoco.MjModel, qpos0, qvel0, command: np.ndar
 def settle_trace(result, ref: mujoco.MjModel, run, sp: sapien_side.Run, name: str) -> Trace:
     """A contact rollout as a `Trace` for the recording (no generalized command: any ctrl is in the actuators)."""
     steps = run.qpos.shape[0]
-    return Trace(name, np.arange(steps) * ref.opt.timestep, run.qpos, sp.qpos,
-                 reference.qpos_difference(ref, run.qpos, sp.qpos), np.zeros((steps, ref.nv)), run.body_pose,
-                 sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, ref.nbody)),
-                 sp.link_pose, contact=True)
+    return Trace(
+        name,
+        np.arange(steps) * ref.opt.timestep,
+        run.qpos,
+        sp.qpos,
+        reference.qpos_difference(ref, run.qpos, sp.qpos),
+        np.zeros((steps, ref.nv)),
+        run.body_pose,
+        sapien_side.bodies_from_links(sp.link_pose, sapien_side.body_link_rows(result, ref.nbody)),
+        sp.link_pose,
+        contact=True,
+    )
 
 
 def settings_mismatches(result, ref: mujoco.MjModel) -> list[str]:
@@ -85,16 +94,18 @@ class Settled:
     series: np.ndarray
 
 
-def compare_settled(result, model: mujoco.MjModel, mujoco_poses: np.ndarray, perturbed_poses: np.ndarray,
-                    run: sapien_side.Run) -> Settled:
+def compare_settled(
+    result, model: mujoco.MjModel, mujoco_poses: np.ndarray, perturbed_poses: np.ndarray, run: sapien_side.Run
+) -> Settled:
     """MuJoCo's body poses (T, nbody, 7), those of MuJoCo's perturbed run, and SAPIEN's run, compared over the
     bodies SAPIEN carries on a link."""
     poses = sapien_side.bodies_from_links(run.link_pose, sapien_side.body_link_rows(result, model.nbody))
     bodies = carried(result, model)
     mj_final, sp_final, own = settled(mujoco_poses), settled(poses), settled(perturbed_poses)
     roots = floating_roots(model)
-    return Settled(band=np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1),
-                   rest=np.abs(sp_final[roots, 2] - mj_final[roots, 2]),
-                   spread=np.linalg.norm(own[bodies] - mj_final[bodies], axis=1),
-                   series=np.nanmax(np.linalg.norm(poses[:, bodies, :3] - mujoco_poses[:, bodies, :3], axis=2),
-                                    axis=1))
+    return Settled(
+        band=np.linalg.norm(sp_final[bodies] - mj_final[bodies], axis=1),
+        rest=np.abs(sp_final[roots, 2] - mj_final[roots, 2]),
+        spread=np.linalg.norm(own[bodies] - mj_final[bodies], axis=1),
+        series=np.nanmax(np.linalg.norm(poses[:, bodies, :3] - mujoco_poses[:, bodies, :3], axis=2), axis=1),
+    )

@@ -14,10 +14,17 @@ from ..sampling import direction_angle
 from ..tolerances import Tolerances
 
 _JT = mujoco.mjtJoint
-KIND = {int(_JT.mjJNT_FREE): "free", int(_JT.mjJNT_BALL): "ball", int(_JT.mjJNT_SLIDE): "slide",
-        int(_JT.mjJNT_HINGE): "hinge"}
-SAPIEN_TYPES = {"hinge": {"revolute", "revolute_unwrapped", "continuous"}, "slide": {"prismatic"},
-                "ball": {"revolute", "revolute_unwrapped", "continuous"}}
+KIND = {
+    int(_JT.mjJNT_FREE): "free",
+    int(_JT.mjJNT_BALL): "ball",
+    int(_JT.mjJNT_SLIDE): "slide",
+    int(_JT.mjJNT_HINGE): "hinge",
+}
+SAPIEN_TYPES = {
+    "hinge": {"revolute", "revolute_unwrapped", "continuous"},
+    "slide": {"prismatic"},
+    "ball": {"revolute", "revolute_unwrapped", "continuous"},
+}
 _MAX_NOTES = 25
 
 
@@ -83,9 +90,11 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
             mismatches.append(f"body {body_name!r} is carried by link named {link.name!r}")
         sp, ref = _sapien_parent_body(result, b, carried), _mujoco_parent_body(result, model, b)
         if sp != ref:
-            mismatches.append(f"body {mj.name(model, 'body', b)!r}: parent "
-                              f"{mj.name(model, 'body', sp)!r} in SAPIEN, "
-                              f"{mj.name(model, 'body', ref)!r} in MuJoCo")
+            mismatches.append(
+                f"body {mj.name(model, 'body', b)!r}: parent "
+                f"{mj.name(model, 'body', sp)!r} in SAPIEN, "
+                f"{mj.name(model, 'body', ref)!r} in MuJoCo"
+            )
 
     # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
     axis_err, anchor_err, limit_err = [], [], []
@@ -94,7 +103,7 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     limit_rows = limits.rows if limits is not None else {}  # MuJoCo solves their limit rows
     for j in range(model.njnt):
         kind = KIND[int(model.jnt_type[j])]
-        name = mj.name(model, 'joint', j)
+        name = mj.name(model, "joint", j)
         entry = result.mapping.joints[j] if j < len(result.mapping.joints) else None
         if entry is None:
             mismatches.append(f"joint {name!r} ({kind}) is not in the mapping")
@@ -132,23 +141,33 @@ def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
             limit_err.append(_limit_error(ref, (soft.lower, soft.upper)))  # and PhysX's hard limit lies beyond
             low, high = np.asarray(joint.limit, dtype=float).ravel()
             if not (low < ref[0] and high > ref[1]):
-                mismatches.append(f"joint {name!r}: PhysX's limit {low:.6g}..{high:.6g} does not clear the soft "
-                                  f"limit rows at {ref[0]:.6g}..{ref[1]:.6g}")
+                mismatches.append(
+                    f"joint {name!r}: PhysX's limit {low:.6g}..{high:.6g} does not clear the soft "
+                    f"limit rows at {ref[0]:.6g}..{ref[1]:.6g}"
+                )
         else:
             limit_err.append(_limit_error(ref, joint.limit))
     sapien_dofs = sum(a.dof for a in result.articulations)
     if sapien_dofs != expected_dofs:
         mismatches.append(f"{sapien_dofs} SAPIEN dofs, {expected_dofs} MuJoCo joint dofs (free joints excluded)")
 
-    notes = mismatches[:_MAX_NOTES] + ([f"... {len(mismatches) - _MAX_NOTES} more"]
-                                       if len(mismatches) > _MAX_NOTES else [])
+    notes = mismatches[:_MAX_NOTES] + (
+        [f"... {len(mismatches) - _MAX_NOTES} more"] if len(mismatches) > _MAX_NOTES else []
+    )
     metrics = [
-        Metric("mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count",
-               model.nbody + model.njnt),
+        Metric("mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count", model.nbody + model.njnt),
         metric("axis", axis_err, tolerances["structure.axis"], "rad"),
         metric("anchor", anchor_err, tolerances["structure.anchor"], "m"),
         metric("limit", limit_err, tolerances["structure.limit"], "rad or m"),
     ]
-    return judged("structure", metrics, notes,
-                  settings={"bodies": model.nbody - 1, "joints": model.njnt, "dofs": sapien_dofs,
-                            "links": sum(len(a.links) for a in result.articulations)})
+    return judged(
+        "structure",
+        metrics,
+        notes,
+        settings={
+            "bodies": model.nbody - 1,
+            "joints": model.njnt,
+            "dofs": sapien_dofs,
+            "links": sum(len(a.links) for a in result.articulations),
+        },
+    )

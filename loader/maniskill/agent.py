@@ -62,47 +62,75 @@ class MJCFAgent(BaseAgent):
         positions = [s for s in self.servos if s.kind == "position"]
         velocities = [s for s in self.servos if s.kind == "velocity"]
         if positions:
-            configs = {"pd_joint_pos": _pd_joint_pos(positions, delta=False),
-                       "pd_joint_delta_pos": _pd_joint_pos(positions, delta=True)}
+            configs = {
+                "pd_joint_pos": _pd_joint_pos(positions, delta=False),
+                "pd_joint_delta_pos": _pd_joint_pos(positions, delta=True),
+            }
         else:  # ManiSkill's default PD gains on the joints the motors drive (all joints without motors)
             configs = dict(super()._controller_configs)
             driven = {m.joint: m.force_limit for m in self.motors}
             for config in configs.values() if driven else []:
                 config.joint_names, config.force_limit = list(driven), list(driven.values())
         if velocities:
-            configs["pd_joint_vel"] = {"balance_passive_force": False, **{s.actuator: PDJointVelControllerConfig(
-                s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=s.lower is not None)
-                for s in velocities}}
+            configs["pd_joint_vel"] = {
+                "balance_passive_force": False,
+                **{
+                    s.actuator: PDJointVelControllerConfig(
+                        s.joints, s.lower, s.upper, s.damping, s.force_limit, normalize_action=s.lower is not None
+                    )
+                    for s in velocities
+                },
+            }
         if not self.scene.gpu_sim_enabled and self.ctrl_low:  # a model with actuators, on the CPU
-            configs["mujoco_ctrl"] = {"balance_passive_force": False, "ctrl": MujocoCtrlConfig(
-                joints, list(self.ctrl_low), list(self.ctrl_high), self.results)}
+            configs["mujoco_ctrl"] = {
+                "balance_passive_force": False,
+                "ctrl": MujocoCtrlConfig(joints, list(self.ctrl_low), list(self.ctrl_high), self.results),
+            }
         return configs
 
 
 def _pd_joint_pos(servos: list[Servo], delta: bool) -> dict:
     """One controller for the single-joint servos, one mimic controller per coupled servo; gravity on, as the
     servos hold against it in MuJoCo. Delta mode moves the target (`use_target`), so zero actions hold it."""
-    bounds = {"lower": -DELTA, "upper": DELTA, "normalize_action": True, "use_delta": True, "use_target": True} if delta else {}
+    bounds = (
+        {"lower": -DELTA, "upper": DELTA, "normalize_action": True, "use_delta": True, "use_target": True}
+        if delta
+        else {}
+    )
     single = [s for s in servos if not s.mimic]
     configs: dict = {"balance_passive_force": False}
     if single:
         configs["arm"] = PDJointPosControllerConfig(
             [s.joints[0] for s in single],
-            stiffness=[s.stiffness[0] for s in single], damping=[s.damping[0] for s in single],
+            stiffness=[s.stiffness[0] for s in single],
+            damping=[s.damping[0] for s in single],
             force_limit=[s.force_limit[0] for s in single],
-            **(bounds or {"lower": [s.lower for s in single], "upper": [s.upper for s in single],
-                              "normalize_action": False}))
+            **(
+                bounds
+                or {"lower": [s.lower for s in single], "upper": [s.upper for s in single], "normalize_action": False}
+            ),
+        )
         if not delta and any(s.lower is None for s in single):
             configs["arm"].lower = configs["arm"].upper = None  # the joints' limits
     for s in (s for s in servos if s.mimic):
         configs[s.actuator] = PDJointPosMimicControllerConfig(
-            s.joints, stiffness=s.stiffness, damping=s.damping, force_limit=s.force_limit, mimic=s.mimic,
-            **(bounds or {"lower": s.lower, "upper": s.upper, "normalize_action": False}))
+            s.joints,
+            stiffness=s.stiffness,
+            damping=s.damping,
+            force_limit=s.force_limit,
+            mimic=s.mimic,
+            **(bounds or {"lower": s.lower, "upper": s.upper, "normalize_action": False}),
+        )
     return configs
 
 
-def register_agent(mjcf_path: str | Path, uid: str, fix_root_link: bool = True, disable_self_collisions: bool = False,
-                   override: bool = False) -> type[MJCFAgent]:
+def register_agent(
+    mjcf_path: str | Path,
+    uid: str,
+    fix_root_link: bool = True,
+    disable_self_collisions: bool = False,
+    override: bool = False,
+) -> type[MJCFAgent]:
     """Register the robot of `mjcf_path` with ManiSkill as `uid` (then `gym.make(..., robot_uids=uid)`). The file
     is loaded once here, in a scene of its own, for its keyframes and servos."""
     path = str(Path(mjcf_path).resolve())
@@ -114,13 +142,21 @@ def register_agent(mjcf_path: str | Path, uid: str, fix_root_link: bool = True, 
     for k in range(model.nkey):
         reference.reset(k)
         keyframes[model.key(k).name or f"key{k}"] = Keyframe(
-            pose=articulation.get_root_pose(), qpos=np.asarray(articulation.get_qpos()),
-            qvel=np.asarray(articulation.get_qvel()))
+            pose=articulation.get_root_pose(),
+            qpos=np.asarray(articulation.get_qpos()),
+            qvel=np.asarray(articulation.get_qvel()),
+        )
     limited = model.actuator_ctrllimited.astype(bool)
     attributes = {
-        "uid": uid, "mjcf_path": path, "fix_root_link": fix_root_link, "disable_self_collisions": disable_self_collisions,
-        "keyframes": keyframes, "servos": derive(reference), "motors": motors(reference),
+        "uid": uid,
+        "mjcf_path": path,
+        "fix_root_link": fix_root_link,
+        "disable_self_collisions": disable_self_collisions,
+        "keyframes": keyframes,
+        "servos": derive(reference),
+        "motors": motors(reference),
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
-        "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist()}
+        "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
+    }
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)
     return registration.register_agent(override=override)(agent)

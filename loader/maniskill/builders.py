@@ -38,8 +38,11 @@ class SceneArticulationBuilder(TreeOfPlannedLinks, ArticulationBuilder):
         self.on_built = None
 
     def _build_entities(self, fix_root_link=None, name_prefix="", initial_pose=None):
-        entities = super()._build_entities(fix_root_link=fix_root_link, name_prefix=name_prefix,
-                                           initial_pose=sapien.Pose() if initial_pose is None else initial_pose)
+        entities = super()._build_entities(
+            fix_root_link=fix_root_link,
+            name_prefix=name_prefix,
+            initial_pose=sapien.Pose() if initial_pose is None else initial_pose,
+        )
         for builder, entity in zip(self.link_builders, entities):  # ManiSkill's renders only visual records
             if self.scene.can_render() and builder.mesh_visuals and not builder.visual_records:
                 entity.add_component(builder.build_render_component())
@@ -51,13 +54,15 @@ class SceneArticulationBuilder(TreeOfPlannedLinks, ArticulationBuilder):
         self.built = []
         articulation = super().build(name=name, fix_root_link=fix_root_link, build_mimic_joints=build_mimic_joints)
         plans = [b.plan for b in self.link_builders]
-        sub_scenes = [self.scene.sub_scenes[0 if self.scene.parallel_in_single_scene else int(i)]
-                      for i in self.scene_idxs]
+        sub_scenes = [
+            self.scene.sub_scenes[0 if self.scene.parallel_in_single_scene else int(i)] for i in self.scene_idxs
+        ]
         for physx_articulation in self.built:
             physx_settings.apply_articulation_settings(physx_articulation, plans, self.timestep)
             if self.solver_iterations is not None:
-                (physx_articulation.solver_position_iterations,
-                 physx_articulation.solver_velocity_iterations) = self.solver_iterations
+                (physx_articulation.solver_position_iterations, physx_articulation.solver_velocity_iterations) = (
+                    self.solver_iterations
+                )
         self.built = list(zip(sub_scenes, self.built))
         if self.on_built is not None:
             self.on_built(self, articulation)

@@ -21,8 +21,9 @@ class MujocoCtrlController(BaseController):
     sets_target_qvel = False
 
     def _initialize_action_space(self):
-        self.single_action_space = spaces.Box(np.float32(self.config.low), np.float32(self.config.high),
-                                              dtype=np.float32)
+        self.single_action_space = spaces.Box(
+            np.float32(self.config.low), np.float32(self.config.high), dtype=np.float32
+        )
         self.ctrl = np.zeros(len(self.config.low))
 
     def set_drive_property(self):

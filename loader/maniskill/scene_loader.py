@@ -17,9 +17,11 @@ from ..result import LoadResult
 from .builders import SceneActorBuilder, SceneArticulationBuilder
 
 SELF_COLLISION_BIT = 1 << 29  # ManiSkill's bit for "no collision with the same articulation" (group 2)
-GPU_NOTE = ("per-step terms are CPU-only (the mujoco_ctrl mode; frictionloss, soft limits, clamps, tendons, joint "
-            "couplings, connect and weld rows, fluid, gravcomp): on the GPU the robot has PhysX's joints, inertia, "
-            "collision groups, armature, passive damping and limits, driven by ManiSkill's PD controllers")
+GPU_NOTE = (
+    "per-step terms are CPU-only (the mujoco_ctrl mode; frictionloss, soft limits, clamps, tendons, joint "
+    "couplings, connect and weld rows, fluid, gravcomp): on the GPU the robot has PhysX's joints, inertia, "
+    "collision groups, armature, passive damping and limits, driven by ManiSkill's PD controllers"
+)
 
 
 class MJCFLoader(CoreLoader):
@@ -72,10 +74,17 @@ class MJCFLoader(CoreLoader):
             warnings.warn(f"{parsed.compiled.path}: {GPU_NOTE}", UnsupportedFeatureWarning, stacklevel=5)
             return
         if len(parsed.articulation_builders) != 1:
-            warnings.warn(f"{parsed.compiled.path}: the model has {len(parsed.articulation_builders)} kinematic trees; "
-                          "per-step terms need it to be one", UnsupportedFeatureWarning, stacklevel=5)
+            warnings.warn(
+                f"{parsed.compiled.path}: the model has {len(parsed.articulation_builders)} kinematic trees; "
+                "per-step terms need it to be one",
+                UnsupportedFeatureWarning,
+                stacklevel=5,
+            )
             return
         alone = dataclasses.replace(parsed, actor_builders=[])  # the world's geoms are ManiSkill's business
-        self.results = [finish(alone, sub_scene, [articulation], [], self.solver_iterations, self.warn_each_note,
-                               stacklevel=6)  # the caller of the builder's build()
-                        for sub_scene, articulation in built.built]
+        self.results = [
+            finish(
+                alone, sub_scene, [articulation], [], self.solver_iterations, self.warn_each_note, stacklevel=6
+            )  # the caller of the builder's build()
+            for sub_scene, articulation in built.built
+        ]

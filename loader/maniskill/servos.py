@@ -55,8 +55,13 @@ def motors(result) -> list[Motor]:
         target = result.mapping.joints[j]
         limits = [max(abs(x) for x in act.forcerange)] if act.forcerange is not None else []
         limits += [abs(act.gain) * max(abs(x) for x in act.ctrlrange)] if act.ctrlrange is not None else []
-        out.append(Motor(act.name, result.articulations[target.articulation].active_joints[target.dofs[0]].name,
-                         abs(act.gear) * min(limits) if limits else UNLIMITED))
+        out.append(
+            Motor(
+                act.name,
+                result.articulations[target.articulation].active_joints[target.dofs[0]].name,
+                abs(act.gear) * min(limits) if limits else UNLIMITED,
+            )
+        )
     return out
 
 
@@ -65,8 +70,12 @@ def _couplings(model: mujoco.MjModel) -> dict[int, tuple[int, float, float]]:
     out = {}
     for e in range(model.neq):
         poly = model.eq_data[e][:5]
-        if (int(model.eq_type[e]) != mujoco.mjtEq.mjEQ_JOINT or not model.eq_active0[e] or model.eq_obj2id[e] < 0
-                or np.any(poly[2:] != 0)):
+        if (
+            int(model.eq_type[e]) != mujoco.mjtEq.mjEQ_JOINT
+            or not model.eq_active0[e]
+            or model.eq_obj2id[e] < 0
+            or np.any(poly[2:] != 0)
+        ):
             continue
         y, x = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
         y0, x0 = model.qpos0[model.jnt_qposadr[y]], model.qpos0[model.jnt_qposadr[x]]
@@ -76,15 +85,22 @@ def _couplings(model: mujoco.MjModel) -> dict[int, tuple[int, float, float]]:
 
 def _tendon_joints(model: mujoco.MjModel, tendon: int) -> list[tuple[int, float]]:
     start = int(model.tendon_adr[tendon])
-    return [(int(model.wrap_objid[w]), float(model.wrap_prm[w])) for w in range(start, start + model.tendon_num[tendon])]
+    return [
+        (int(model.wrap_objid[w]), float(model.wrap_prm[w])) for w in range(start, start + model.tendon_num[tendon])
+    ]
 
 
 def derive(result) -> list[Servo]:
     """The position and velocity servos among `result`'s actuators (a core `LoadResult`) that map onto joint
     drives; the rest (motors, dynamics, other transmissions) have none."""
     model = result.model
-    names = {j: result.articulations[result.mapping.joints[j].articulation].active_joints[
-        result.mapping.joints[j].dofs[0]].name for j in range(model.njnt) if result.mapping.joints[j].dofs}
+    names = {
+        j: result.articulations[result.mapping.joints[j].articulation]
+        .active_joints[result.mapping.joints[j].dofs[0]]
+        .name
+        for j in range(model.njnt)
+        if result.mapping.joints[j].dofs
+    }
     couplings = _couplings(model)
     servos = []
     for a, act in enumerate(result.actuators):
@@ -112,8 +128,11 @@ def derive(result) -> list[Servo]:
         if any(k <= 0 for k in per_joint) or scale == 0:
             continue
         limit = max(abs(x) for x in act.forcerange) if act.forcerange is not None else None
-        ends = sorted(((act.gain * c + b0) / (gain_of * g) - offset_sum) / scale for c in act.ctrlrange) \
-            if act.ctrlrange is not None else [None, None]
+        ends = (
+            sorted(((act.gain * c + b0) / (gain_of * g) - offset_sum) / scale for c in act.ctrlrange)
+            if act.ctrlrange is not None
+            else [None, None]
+        )
         ordered = sorted(terms, key=lambda t: t[0] != control)  # the driven joint first
         dof_damping = [float(model.dof_damping[model.jnt_dofadr[j]]) for j, _, _ in ordered]
         if kind == "velocity":  # one joint: the drive's damping holds the joint's too, so its target is scaled
@@ -121,15 +140,25 @@ def derive(result) -> list[Servo]:
             if act.ctrlrange is None:
                 dof_damping = [0.0]  # unscalable without normalized actions: the joint's damping is not carried
             ends = [None if e is None else e * actuator_damping / (actuator_damping + dof_damping[0]) for e in ends]
-        servos.append(Servo(
-            actuator=act.name, kind=kind, joints=[names[j] for j, _, _ in ordered],
-            stiffness=[k * -b1 for k in _in_order(per_joint, terms, ordered)] if kind == "position" else
-            [0.0] * len(terms),
-            damping=[k * -b2 + d for k, d in zip(_in_order(per_joint, terms, ordered), dof_damping)],
-            force_limit=[abs(g * c) * limit if limit is not None else UNLIMITED for _, c, _ in ordered],
-            lower=ends[0], upper=ends[1],
-            mimic={names[j]: {"joint": names[control], "multiplier": couplings[j][1], "offset": couplings[j][2]}
-                   for j, _, _ in ordered if j != control}))
+        servos.append(
+            Servo(
+                actuator=act.name,
+                kind=kind,
+                joints=[names[j] for j, _, _ in ordered],
+                stiffness=[k * -b1 for k in _in_order(per_joint, terms, ordered)]
+                if kind == "position"
+                else [0.0] * len(terms),
+                damping=[k * -b2 + d for k, d in zip(_in_order(per_joint, terms, ordered), dof_damping)],
+                force_limit=[abs(g * c) * limit if limit is not None else UNLIMITED for _, c, _ in ordered],
+                lower=ends[0],
+                upper=ends[1],
+                mimic={
+                    names[j]: {"joint": names[control], "multiplier": couplings[j][1], "offset": couplings[j][2]}
+                    for j, _, _ in ordered
+                    if j != control
+                },
+            )
+        )
     return servos
 
 

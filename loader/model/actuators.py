@@ -8,8 +8,11 @@ from dataclasses import dataclass
 import mujoco
 
 DYN = mujoco.mjtDyn
-MAPPED_DYNAMICS = {int(DYN.mjDYN_FILTER): "filter", int(DYN.mjDYN_FILTEREXACT): "filterexact",
-                   int(DYN.mjDYN_INTEGRATOR): "integrator"}
+MAPPED_DYNAMICS = {
+    int(DYN.mjDYN_FILTER): "filter",
+    int(DYN.mjDYN_FILTEREXACT): "filterexact",
+    int(DYN.mjDYN_INTEGRATOR): "integrator",
+}
 SPATIAL: list = []  # the terms `map_actuator` gives an actuator on a spatial tendon (whose terms change with the pose)
 
 

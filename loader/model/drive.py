@@ -27,8 +27,16 @@ class DofDrive:
         return max(self.damping - self.stiffness * timestep, 0.0)
 
 
-def apply(joint, drive: DofDrive, constant: float, timestep: float, via_damping: float = 0.0,
-          written: dict | None = None, key=None, offset: float = 0.0) -> float:
+def apply(
+    joint,
+    drive: DofDrive,
+    constant: float,
+    timestep: float,
+    via_damping: float = 0.0,
+    written: dict | None = None,
+    key=None,
+    offset: float = 0.0,
+) -> float:
     """Configure `joint`'s drive for the force law with state-independent part `constant`; returns the
     generalized force left to apply with `set_qf` (non-zero only for a DoF with neither stiffness nor damping).
     `via_damping` is a further constant force carried by the velocity target when the drive has damping (a

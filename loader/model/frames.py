@@ -32,12 +32,14 @@ def cross(a, b) -> np.ndarray:
 def quat_mul(a, b) -> np.ndarray:
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return np.array([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ])
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
 
 
 def quat_conj(q) -> np.ndarray:
@@ -53,11 +55,13 @@ def quat_to_mat(q) -> np.ndarray:
     array = np.asarray(q)
     norm = np.sqrt(array.dot(array)) if array.dtype.kind == "f" else np.linalg.norm(q)  # np.linalg.norm's own
     w, x, y, z = (np.asarray(q, dtype=np.float64) / norm).tolist()  # floats: numpy scalars are slow
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def mat_to_quat(r) -> np.ndarray:
@@ -79,8 +83,10 @@ def quat_from_axis_angle(axis, angle: float) -> np.ndarray:
 # float32 rounds, tilting the joint's axis. Under gravity that tilt turns a light body on a vertical hinge, where
 # MuJoCo's stays still (tests/test_loader_joints.py::test_a_light_body_on_a_vertical_hinge_stays_at_rest_under_gravity).
 EXACT_X_TO = {
-    (0, 1, 0): (0.5, 0.5, 0.5, 0.5), (0, -1, 0): (0.5, 0.5, -0.5, -0.5),
-    (0, 0, 1): (0.5, 0.5, -0.5, 0.5), (0, 0, -1): (0.5, 0.5, 0.5, -0.5),
+    (0, 1, 0): (0.5, 0.5, 0.5, 0.5),
+    (0, -1, 0): (0.5, 0.5, -0.5, -0.5),
+    (0, 0, 1): (0.5, 0.5, -0.5, 0.5),
+    (0, 0, -1): (0.5, 0.5, 0.5, -0.5),
 }
 
 

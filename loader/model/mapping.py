@@ -80,7 +80,8 @@ def scalar_joints(mapping) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray
     for j, target in enumerate(mapping.joints):
         if int(mapping.jnt_type[j]) not in (FREE, BALL) and target.dofs:
             groups.setdefault(target.articulation, []).append(
-                (int(mapping.jnt_qposadr[j]), int(mapping.jnt_dofadr[j]), target.dofs[0]))
+                (int(mapping.jnt_qposadr[j]), int(mapping.jnt_dofadr[j]), target.dofs[0])
+            )
     return [(a, *(np.array(column, dtype=int) for column in zip(*rows))) for a, rows in groups.items()]
 
 
@@ -101,8 +102,19 @@ class Mapping:
 
     @classmethod
     def from_model(cls, model: mujoco.MjModel, bodies, joints, geoms, articulation_dofs) -> Mapping:
-        return cls(bodies, joints, geoms, articulation_dofs, model.jnt_type.copy(), model.jnt_qposadr.copy(),
-                   model.jnt_dofadr.copy(), model.jnt_bodyid.copy(), centres(model), model.nq, model.nv)
+        return cls(
+            bodies,
+            joints,
+            geoms,
+            articulation_dofs,
+            model.jnt_type.copy(),
+            model.jnt_qposadr.copy(),
+            model.jnt_dofadr.copy(),
+            model.jnt_bodyid.copy(),
+            centres(model),
+            model.nq,
+            model.nv,
+        )
 
     @property
     def dofs(self) -> list[tuple[int, int | None]]:
@@ -181,8 +193,9 @@ class Mapping:
             a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
             jtype = int(self.jnt_type[j])
             if jtype == FREE:
-                qpos[adr : adr + 7], qvel[dof : dof + 6] = root_state(articulations[a],
-                                                                      self.centres[int(self.jnt_bodyid[j])])
+                qpos[adr : adr + 7], qvel[dof : dof + 6] = root_state(
+                    articulations[a], self.centres[int(self.jnt_bodyid[j])]
+                )
             elif jtype == BALL:
                 angles = q[a][list(target.dofs)]
                 qpos[adr : adr + 4] = quat_from_euler_xyz(angles)
@@ -208,4 +221,3 @@ class Mapping:
             elif jtype != FREE:
                 out[a][target.dofs[0]] = qfrc[dof]
         return out
-

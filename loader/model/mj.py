@@ -10,11 +10,18 @@ from contextvars import ContextVar
 import mujoco
 import numpy as np
 
-_OBJECT = {"body": mujoco.mjtObj.mjOBJ_BODY, "joint": mujoco.mjtObj.mjOBJ_JOINT, "geom": mujoco.mjtObj.mjOBJ_GEOM,
-           "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR, "tendon": mujoco.mjtObj.mjOBJ_TENDON,
-           "equality": mujoco.mjtObj.mjOBJ_EQUALITY, "site": mujoco.mjtObj.mjOBJ_SITE,
-           "camera": mujoco.mjtObj.mjOBJ_CAMERA, "texture": mujoco.mjtObj.mjOBJ_TEXTURE,
-           "pair": mujoco.mjtObj.mjOBJ_PAIR}
+_OBJECT = {
+    "body": mujoco.mjtObj.mjOBJ_BODY,
+    "joint": mujoco.mjtObj.mjOBJ_JOINT,
+    "geom": mujoco.mjtObj.mjOBJ_GEOM,
+    "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+    "tendon": mujoco.mjtObj.mjOBJ_TENDON,
+    "equality": mujoco.mjtObj.mjOBJ_EQUALITY,
+    "site": mujoco.mjtObj.mjOBJ_SITE,
+    "camera": mujoco.mjtObj.mjOBJ_CAMERA,
+    "texture": mujoco.mjtObj.mjOBJ_TEXTURE,
+    "pair": mujoco.mjtObj.mjOBJ_PAIR,
+}
 _DISABLE = mujoco.mjtDisableBit
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
 
@@ -68,8 +75,9 @@ def sharing_qpos0(model: mujoco.MjModel, data: mujoco.MjData):
         _AT_QPOS0.reset(token)
 
 
-def forward_at(model: mujoco.MjModel, qpos: np.ndarray | None = None, all_equalities: bool = False,
-               kinematics_only: bool = False) -> mujoco.MjData:
+def forward_at(
+    model: mujoco.MjModel, qpos: np.ndarray | None = None, all_equalities: bool = False, kinematics_only: bool = False
+) -> mujoco.MjData:
     """MuJoCo's forward pass at qpos0 (or `qpos`): inertia and constraint rows. `all_equalities`: every equality
     active (their rows at load time, whatever `eq_active0` says); `kinematics_only`: body poses only (the full pass
     where one is shared: its poses are the same numbers). A caller reads the result and never writes it."""
@@ -112,7 +120,7 @@ def inverse_inertia(model: mujoco.MjModel, data: mujoco.MjData, dofs=None) -> tu
     inverse = np.zeros((len(order), len(order)))
     at = 0
     for d, block in picked:
-        inverse[at:at + len(d), at:at + len(d)] = np.linalg.pinv(block, hermitian=True)
+        inverse[at : at + len(d), at : at + len(d)] = np.linalg.pinv(block, hermitian=True)
         at += len(d)
     return order, inverse
 
@@ -121,13 +129,15 @@ def tendon_dofs(model: mujoco.MjModel, tendon: int) -> set[int]:
     """The DoFs a tendon's length can depend on: the columns of its row of MuJoCo's sparse Jacobian, a pattern the
     compiled model fixes (its joints' for a fixed tendon, those moving its path's sites and geoms otherwise)."""
     start = int(model.ten_J_rowadr[tendon])
-    return {int(d) for d in model.ten_J_colind[start:start + int(model.ten_J_rownnz[tendon])]}
+    return {int(d) for d in model.ten_J_colind[start : start + int(model.ten_J_rownnz[tendon])]}
 
 
 def tendon_passive(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     """Every tendon's stiffness and damping as MuJoCo applies them: zero where `<flag spring/damper="disable">`."""
-    return (model.tendon_stiffness * (not disabled(model, "spring")),
-            model.tendon_damping * (not disabled(model, "damper")))
+    return (
+        model.tendon_stiffness * (not disabled(model, "spring")),
+        model.tendon_damping * (not disabled(model, "damper")),
+    )
 
 
 def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:

@@ -27,8 +27,9 @@ def _kind(model: mujoco.MjModel, a: int) -> str:
     return "velocity" if bias[2] != 0 else "general"
 
 
-def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
-                 disabled: bool) -> tuple[ActuatorMap, list[tuple[int, int, float]] | None]:
+def map_actuator(
+    model: mujoco.MjModel, mapping: Mapping, a: int, disabled: bool
+) -> tuple[ActuatorMap, list[tuple[int, int, float]] | None]:
     """Actuator `a` in SAPIEN, with its tendon's (articulation, dof, coefficient) terms for a tendon actuator."""
     name = mj.name(model, "actuator", a)
     gear = float(model.actuator_gear[a][0])
@@ -36,8 +37,17 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
     forcerange = tuple(float(x) for x in model.actuator_forcerange[a]) if model.actuator_forcelimited[a] else None
     trn = int(model.actuator_trntype[a])
     target = int(model.actuator_trnid[a][0])
-    base = {"name": name, "kind": _kind(model, a), "joint": None, "tendon": None, "articulation": None, "dofs": (),
-            "gear": gear, "ctrlrange": ctrlrange, "forcerange": forcerange}
+    base = {
+        "name": name,
+        "kind": _kind(model, a),
+        "joint": None,
+        "tendon": None,
+        "articulation": None,
+        "dofs": (),
+        "gear": gear,
+        "ctrlrange": ctrlrange,
+        "forcerange": forcerange,
+    }
     if disabled:
         return ActuatorMap(**base, mapped=False, reason="actuation disabled by the model's <flag actuation>"), None
     dyntype = int(model.actuator_dyntype[a])
@@ -45,7 +55,9 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
         dyn = DYN(dyntype).name.removeprefix("mjDYN_").lower()
         return ActuatorMap(**base, mapped=False, reason=f"activation dynamics ({dyn}) are not mapped"), None
     if int(model.actuator_gaintype[a]) != int(GAIN.mjGAIN_FIXED) or int(model.actuator_biastype[a]) not in (
-            int(BIAS.mjBIAS_NONE), int(BIAS.mjBIAS_AFFINE)):
+        int(BIAS.mjBIAS_NONE),
+        int(BIAS.mjBIAS_AFFINE),
+    ):
         return ActuatorMap(**base, mapped=False, reason="gain or bias is not affine (muscle or user)"), None
     bias = model.actuator_biasprm[a] if int(model.actuator_biastype[a]) == int(BIAS.mjBIAS_AFFINE) else np.zeros(3)
     base["gain"] = float(model.actuator_gainprm[a][0])
@@ -56,8 +68,7 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
         if joint.kind not in DRIVEN:
             return ActuatorMap(**base, mapped=False, reason=f"drives a {joint.kind} joint"), None
         stiffness, damping = -bias[1] * gear**2, -bias[2] * gear**2
-        base.update(joint=mj.name(model, "joint", target), articulation=joint.articulation,
-                    dofs=joint.dofs)
+        base.update(joint=mj.name(model, "joint", target), articulation=joint.articulation, dofs=joint.dofs)
         return ActuatorMap(**base, stiffness=float(stiffness), damping=float(damping)), None
     if trn == int(TRN.mjTRN_TENDON):
         terms = mj.fixed_tendon_terms(model, target)
@@ -66,18 +77,23 @@ def map_actuator(model: mujoco.MjModel, mapping: Mapping, a: int,
                 return ActuatorMap(**base, mapped=False, reason="its spatial tendon crosses a ball joint"), None
             joints = [mapping.joints[int(model.dof_jntid[d])] for d in sorted(mj.tendon_dofs(model, target))]
             hinges = [j for j in joints if j.kind in DRIVEN]
-            base.update(tendon=mj.name(model, "tendon", target), dofs=tuple(j.dofs[0] for j in hinges),
-                        articulation=hinges[0].articulation if hinges else None)
-            return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2),
-                               damping=float(-bias[2] * gear**2)), SPATIAL
+            base.update(
+                tendon=mj.name(model, "tendon", target),
+                dofs=tuple(j.dofs[0] for j in hinges),
+                articulation=hinges[0].articulation if hinges else None,
+            )
+            return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2), damping=float(-bias[2] * gear**2)), SPATIAL
         mapped_terms = []
         for joint_id, coefficient in terms:
             joint = mapping.joints[joint_id]
             if joint.kind not in DRIVEN:
                 return ActuatorMap(**base, mapped=False, reason="its tendon crosses a ball or free joint"), None
             mapped_terms.append((joint.articulation, joint.dofs[0], coefficient))
-        base.update(tendon=mj.name(model, "tendon", target),
-                    articulation=mapped_terms[0][0], dofs=tuple(d for _, d, _ in mapped_terms))
+        base.update(
+            tendon=mj.name(model, "tendon", target),
+            articulation=mapped_terms[0][0],
+            dofs=tuple(d for _, d, _ in mapped_terms),
+        )
         return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2), damping=float(-bias[2] * gear**2)), mapped_terms
     kind = TRN(trn).name.removeprefix("mjTRN_").lower()
     return ActuatorMap(**base, mapped=False, reason=f"{kind} transmission is not mapped"), None

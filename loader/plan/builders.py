@@ -44,8 +44,11 @@ def make_shape(plan: ShapePlan, dynamic: bool) -> sapien.physx.PhysxCollisionSha
         shape = hulls.triangle_shape(plan.vertices, plan.triangles, np.ones(3, np.float32), material)
     elif plan.kind == "triangles":
         shape = sapien.physx.PhysxCollisionShapeTriangleMesh(
-            np.ascontiguousarray(plan.vertices, np.float32), np.ascontiguousarray(plan.triangles, np.uint32),
-            np.ones(3, np.float32), material, sdf=True,
+            np.ascontiguousarray(plan.vertices, np.float32),
+            np.ascontiguousarray(plan.triangles, np.uint32),
+            np.ones(3, np.float32),
+            material,
+            sdf=True,
         )
     else:
         raise ValueError(f"unknown shape kind {plan.kind!r}")

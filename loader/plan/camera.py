@@ -59,6 +59,7 @@ def sites(model: mujoco.MjModel) -> dict[str, SiteConfig]:
     result = {}
     for s in range(model.nsite):
         name = mj.name(model, "site", s)
-        result[name] = SiteConfig(name, mj.name(model, "body", int(model.site_bodyid[s])),
-                                  pose(model.site_pos[s], model.site_quat[s]))
+        result[name] = SiteConfig(
+            name, mj.name(model, "body", int(model.site_bodyid[s])), pose(model.site_pos[s], model.site_quat[s])
+        )
     return result

@@ -31,11 +31,14 @@ def _raise_for(path: Path, error: Exception) -> None:
         raise MissingAssetError(
             path, message, hint="check the asset's file name against the compiler's meshdir/texturedir"
         ) from None
-    raise MJCFError(path, message, hint="correct the element MuJoCo names; the loader accepts what MuJoCo compiles") from None
+    raise MJCFError(
+        path, message, hint="correct the element MuJoCo names; the loader accepts what MuJoCo compiles"
+    ) from None
 
 
-def compile_mjcf(mjcf_file: str | os.PathLike | mujoco.MjSpec,
-                 package_dir: str | os.PathLike | None = None) -> CompiledModel:
+def compile_mjcf(
+    mjcf_file: str | os.PathLike | mujoco.MjSpec, package_dir: str | os.PathLike | None = None
+) -> CompiledModel:
     """Parse and compile `mjcf_file` with MuJoCo; an `MjSpec` (built or edited in Python) is compiled as it is.
 
     `package_dir`, when given, is where relative mesh and texture directories are looked up instead of the
@@ -64,7 +67,11 @@ def compile_mjcf(mjcf_file: str | os.PathLike | mujoco.MjSpec,
     try:  # MuJoCo compiles some models it cannot run: an arena too small for thousands of bodies, say
         at_qpos0 = mj.forward_at(model)
     except mujoco.FatalError as error:
-        raise MJCFError(path, str(error).replace(", line ", ":"), rejected_by="MuJoCo cannot run the compiled model",
-                        hint="MuJoCo's forward pass at qpos0 fails; where it says out of memory, raise "
-                             "<size memory=...> (e.g. memory=\"512M\")") from None
+        raise MJCFError(
+            path,
+            str(error).replace(", line ", ":"),
+            rejected_by="MuJoCo cannot run the compiled model",
+            hint="MuJoCo's forward pass at qpos0 fails; where it says out of memory, raise "
+            '<size memory=...> (e.g. memory="512M")',
+        ) from None
     return CompiledModel(path=path, spec=spec, model=model, at_qpos0=at_qpos0)

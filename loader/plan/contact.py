@@ -29,8 +29,9 @@ class CollisionFilter:
         return [int(model.geom_contype[geom]), int(model.geom_conaffinity[geom]), g2, g3]
 
 
-def mujoco_filters(model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]],
-                   filter_parent: bool) -> bool:
+def mujoco_filters(
+    model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]], filter_parent: bool
+) -> bool:
     """True when MuJoCo never generates a contact between bodies b1 and b2 (`filter_parent`: the model does not
     disable its parent filter)."""
     weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
@@ -78,8 +79,11 @@ def plan_collision_filter(
             if not physx_skips:
                 must_exclude.append((b1, b2))
         elif physx_skips:
-            notes.approximate("contact", f"{mj.name(model, 'body', b1)}/{mj.name(model, 'body', b2)}",
-                              "PhysX never lets a link touch its direct parent; MuJoCo would let these bodies touch")
+            notes.approximate(
+                "contact",
+                f"{mj.name(model, 'body', b1)}/{mj.name(model, 'body', b2)}",
+                "PhysX never lets a link touch its direct parent; MuJoCo would let these bodies touch",
+            )
         else:
             must_collide.add((b1, b2))
     _assign_bits(model, must_exclude, must_collide, result, notes)
@@ -117,8 +121,11 @@ def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, not
                     break
             else:
                 if len(bit_members) == GROUP_BITS:
-                    notes.drop("contact", f"{mj.name(model, 'body', a)}/{mj.name(model, 'body', b)}",
-                               "filtered by MuJoCo but not expressible in PhysX's 32 group bits: may collide")
+                    notes.drop(
+                        "contact",
+                        f"{mj.name(model, 'body', a)}/{mj.name(model, 'body', b)}",
+                        "filtered by MuJoCo but not expressible in PhysX's 32 group bits: may collide",
+                    )
                     continue
                 bit_members.append({a, b})
         for bit, members in enumerate(bit_members):

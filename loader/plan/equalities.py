@@ -20,8 +20,9 @@ from .physx_settings import scene_timestep
 EQ = mujoco.mjtEq
 
 
-def map_equalities(model: mujoco.MjModel, scene: sapien.Scene, articulations, mapping: Mapping,
-                   notes: Notes) -> list[EqualityLink]:
+def map_equalities(
+    model: mujoco.MjModel, scene: sapien.Scene, articulations, mapping: Mapping, notes: Notes
+) -> list[EqualityLink]:
     result = []
     if mj.disabled(model, "equality", "constraint"):
         return result  # MuJoCo enforces none of them (<flag equality/constraint="disable"/>)
@@ -59,8 +60,9 @@ def _joint_row(model: mujoco.MjModel, mapping: Mapping, e: int) -> bool:
     if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):
         bodies = [int(model.site_bodyid[s]) for s in bodies]
     moved = mj.body_dofs(model, bodies[0]) | mj.body_dofs(model, bodies[1])
-    return bool(moved) and all(mapping.joints[int(model.dof_jntid[d])].kind in ("hinge", "slide", "free")
-                               for d in moved)
+    return bool(moved) and all(
+        mapping.joints[int(model.dof_jntid[d])].kind in ("hinge", "slide", "free") for d in moved
+    )
 
 
 def _coupling(model, e, name, mapping, notes) -> EqualityLink:
@@ -107,8 +109,11 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
             frame1 = sapien.Pose(model.eq_data[e][3:6], relative_quat / np.linalg.norm(relative_quat))
         else:
             data = qpos0_data()
-            frame1 = (sapien.Pose(data.xpos[body1], data.xquat[body1]).inv()
-                      * sapien.Pose(data.xpos[body2], data.xquat[body2]) * sapien.Pose(model.eq_data[e][0:3]))
+            frame1 = (
+                sapien.Pose(data.xpos[body1], data.xquat[body1]).inv()
+                * sapien.Pose(data.xpos[body2], data.xquat[body2])
+                * sapien.Pose(model.eq_data[e][0:3])
+            )
         frame2 = sapien.Pose(model.eq_data[e][0:3])  # MuJoCo's weld anchor, in body2's frame
     world = qpos0_data()  # its body poses: qpos0's
 
@@ -124,18 +129,43 @@ def _d6(model, e, name, scene, articulations, mapping, notes, qpos0_data) -> Equ
     if ends[1][0] is None:  # SAPIEN takes the world (None) only as the first end
         ends.reverse()
     (parent, parent_frame, parent_body, parent_pose), (child, child_frame, child_body, _) = ends
-    drive = scene.create_drive(parent, parent_frame if parent is not None else parent_pose * parent_frame,
-                               child, child_frame)
+    drive = scene.create_drive(
+        parent, parent_frame if parent is not None else parent_pose * parent_frame, child, child_frame
+    )
     weld = etype == int(EQ.mjEQ_WELD)
-    extra = {"relative_quat": np.asarray(frame1.q, dtype=float), "torquescale": float(model.eq_data[e][10]),
-             "child_is_body1": child_body == body1} if weld else {}
+    extra = (
+        {
+            "relative_quat": np.asarray(frame1.q, dtype=float),
+            "torquescale": float(model.eq_data[e][10]),
+            "child_is_body1": child_body == body1,
+        }
+        if weld
+        else {}
+    )
     joint = D6Joint(
-        drive, child, np.asarray(child_frame.p, dtype=float), parent, np.asarray(parent_frame.p, dtype=float),
-        parent_pose, sapien.Pose(q=parent_frame.q), SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e], timestep),
-        np.asarray(rows, dtype=float), e, child_body, parent_body, mapping.bodies[child_body].articulation,
-        child_rotation=np.asarray(child_frame.q, dtype=float), weld=weld, **extra)
+        drive,
+        child,
+        np.asarray(child_frame.p, dtype=float),
+        parent,
+        np.asarray(parent_frame.p, dtype=float),
+        parent_pose,
+        sapien.Pose(q=parent_frame.q),
+        SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e], timestep),
+        np.asarray(rows, dtype=float),
+        e,
+        child_body,
+        parent_body,
+        mapping.bodies[child_body].articulation,
+        child_rotation=np.asarray(child_frame.q, dtype=float),
+        weld=weld,
+        **extra,
+    )
     kind = "weld" if weld else "connect"
-    notes.approximate("equality", name, f"{kind} as MuJoCo's soft law (solref, solimp) on a PhysX D6 joint's drives "
-                      "that set_ctrl updates every step; exact on a closed loop, first order in its violation and "
-                      "in joint damping off (runtime/equalities.py)")
+    notes.approximate(
+        "equality",
+        name,
+        f"{kind} as MuJoCo's soft law (solref, solimp) on a PhysX D6 joint's drives "
+        "that set_ctrl updates every step; exact on a closed loop, first order in its violation and "
+        "in joint damping off (runtime/equalities.py)",
+    )
     return EqualityLink(name, "D6 joint", True, joint=joint, index=e)

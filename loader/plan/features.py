@@ -18,8 +18,12 @@ def note_ill_conditioned(model: mujoco.MjModel, notes: Notes) -> None:
     blocks = [block for _, block in mj.inertia_blocks(model, mj.forward_at(model)) if block.size]
     condition = max((float(np.linalg.cond(block)) for block in blocks), default=0.0)  # PhysX solves tree by tree
     if condition > FLOAT32_CONDITION:
-        notes.approximate("joint", "joint-space inertia", f"condition number {condition:.2g} at qpos0, beyond what "
-                          "PhysX's float32 articulation solve resolves: its dynamics cannot follow MuJoCo's")
+        notes.approximate(
+            "joint",
+            "joint-space inertia",
+            f"condition number {condition:.2g} at qpos0, beyond what "
+            "PhysX's float32 articulation solve resolves: its dynamics cannot follow MuJoCo's",
+        )
 
 
 def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
@@ -29,32 +33,54 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
     for i in range(model.nplugin):
         notes.drop("plugin", f"plugin{i}", "engine plugins (sdf, elasticity, ...) cannot run inside PhysX")
     for i in range(model.npair):
-        notes.drop("contact pair", mj.name(model, "pair", i),
-                   "explicit <pair> contacts (which bypass the contype/conaffinity filter) are not mapped")
+        notes.drop(
+            "contact pair",
+            mj.name(model, "pair", i),
+            "explicit <pair> contacts (which bypass the contype/conaffinity filter) are not mapped",
+        )
     for b in range(model.nbody):
         if model.body_mocapid[b] >= 0:
-            notes.approximate("body", mj.name(model, "body", b),
-                              "mocap body loaded as a fixed link at its initial pose")
+            notes.approximate(
+                "body", mj.name(model, "body", b), "mocap body loaded as a fixed link at its initial pose"
+            )
     for j in range(model.njnt):
         dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + _dof_count(model, j))
         if np.any(model.jnt_stiffnesspoly[j]) or any(np.any(model.dof_dampingpoly[d]) for d in dofs):
-            notes.drop("joint", mj.name(model, "joint", j),
-                       "nonlinear (polynomial) stiffness or damping: only the linear term is mapped")
+            notes.drop(
+                "joint",
+                mj.name(model, "joint", j),
+                "nonlinear (polynomial) stiffness or damping: only the linear term is mapped",
+            )
     for a in range(model.nu):
         if model.actuator_damping[a] or np.any(model.actuator_dampingpoly[a]) or model.actuator_armature[a]:
-            notes.drop("actuator", mj.name(model, "actuator", a),
-                       "actuator damping/armature (passive terms on the transmission) are not mapped")
+            notes.drop(
+                "actuator",
+                mj.name(model, "actuator", a),
+                "actuator damping/armature (passive terms on the transmission) are not mapped",
+            )
     if any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"):
-        notes.approximate("joint", "limits", "MuJoCo solves the limit rows at SAPIEN's state with its own soft "
-                          "contacts (runtime/rows.py, set_ctrl every step), and PhysX applies its rigid ones; "
-                          "PhysX's hard limits after release()")
+        notes.approximate(
+            "joint",
+            "limits",
+            "MuJoCo solves the limit rows at SAPIEN's state with its own soft "
+            "contacts (runtime/rows.py, set_ctrl every step), and PhysX applies its rigid ones; "
+            "PhysX's hard limits after release()",
+        )
     integrator = int(model.opt.integrator)
     if integrator == int(mujoco.mjtIntegrator.mjINT_RK4):
-        notes.approximate("option", "integrator", "RK4 has no PhysX counterpart: simulated as MuJoCo's Euler "
-                          "(semi-implicit), first order in the timestep apart over a fixed time")
+        notes.approximate(
+            "option",
+            "integrator",
+            "RK4 has no PhysX counterpart: simulated as MuJoCo's Euler "
+            "(semi-implicit), first order in the timestep apart over a fixed time",
+        )
     elif integrator == int(mujoco.mjtIntegrator.mjINT_IMPLICIT):
-        notes.approximate("option", "integrator", "implicit's Coriolis and actuator-gain derivatives are not "
-                          "mapped: simulated as MuJoCo's implicitfast, first order in the timestep apart over a fixed time")
+        notes.approximate(
+            "option",
+            "integrator",
+            "implicit's Coriolis and actuator-gain derivatives are not "
+            "mapped: simulated as MuJoCo's implicitfast, first order in the timestep apart over a fixed time",
+        )
     if mj.disabled(model, "contact", "constraint"):
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
     if mj.disabled(model, "limit", "constraint"):

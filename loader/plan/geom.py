@@ -20,10 +20,18 @@ from ..model.frames import X_TO_Z, pose
 
 G = mujoco.mjtGeom
 PLANE, HFIELD, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = (
-    int(G.mjGEOM_PLANE), int(G.mjGEOM_HFIELD), int(G.mjGEOM_SPHERE), int(G.mjGEOM_CAPSULE),
-    int(G.mjGEOM_ELLIPSOID), int(G.mjGEOM_CYLINDER), int(G.mjGEOM_BOX), int(G.mjGEOM_MESH),
+    int(G.mjGEOM_PLANE),
+    int(G.mjGEOM_HFIELD),
+    int(G.mjGEOM_SPHERE),
+    int(G.mjGEOM_CAPSULE),
+    int(G.mjGEOM_ELLIPSOID),
+    int(G.mjGEOM_CYLINDER),
+    int(G.mjGEOM_BOX),
+    int(G.mjGEOM_MESH),
 )
-GEOM_TYPE_NAMES = {int(v): k.removeprefix("mjGEOM_").lower() for k, v in G.__members__.items() if int(v) < int(G.mjNGEOMTYPES)}
+GEOM_TYPE_NAMES = {
+    int(v): k.removeprefix("mjGEOM_").lower() for k, v in G.__members__.items() if int(v) < int(G.mjNGEOMTYPES)
+}
 # PhysX cooks convex hulls with at most this many vertices (it simplifies larger ones)
 PHYSX_HULL_VERTEX_LIMIT = 255
 
@@ -35,7 +43,9 @@ class ShapePlan:
     geom: int
     kind: str  # "sphere", "box", "capsule", "cylinder", "plane", "convex", "triangles"
     pose: sapien.Pose
-    size: np.ndarray = field(default_factory=lambda: np.zeros(3))  # sphere r; box half sizes; capsule/cylinder r, half length
+    size: np.ndarray = field(
+        default_factory=lambda: np.zeros(3)
+    )  # sphere r; box half sizes; capsule/cylinder r, half length
     vertices: np.ndarray | None = None
     triangles: np.ndarray | None = None
     scale: np.ndarray = field(default_factory=lambda: np.ones(3))
@@ -85,14 +95,15 @@ def hfield_triangles(model: mujoco.MjModel, h: int) -> tuple[np.ndarray, np.ndar
     vertices = np.stack([xx, yy, heights * top], axis=-1).reshape(-1, 3).astype(np.float32)
     index = np.arange(nrow * ncol).reshape(nrow, ncol)
     a, b, c, d = index[:-1, :-1], index[:-1, 1:], index[1:, :-1], index[1:, 1:]
-    triangles = np.concatenate(
-        [np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)]
-    ).astype(np.uint32)
+    triangles = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)]).astype(
+        np.uint32
+    )
     return vertices, triangles
 
 
-def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes,
-               meshes: dict[int, np.ndarray] | None = None) -> ShapePlan | None:
+def plan_shape(
+    model: mujoco.MjModel, g: int, static: bool, notes: Notes, meshes: dict[int, np.ndarray] | None = None
+) -> ShapePlan | None:
     """The collision shape of geom `g` (None when it gets none); `static` says the body never moves. `meshes`
     keeps each mesh's vertices for the geoms after the first that use it (one array, read only)."""
     gtype = int(model.geom_type[g])
@@ -108,8 +119,9 @@ def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes,
         kind = "capsule" if gtype == CAPSULE else "cylinder"
         if gtype == CYLINDER:
             notes.approximate("geom", name, "cylinder is a convex approximation in PhysX (volume 0.64 % low)")
-        return ShapePlan(g, kind, geom_pose * pose((0, 0, 0), X_TO_Z), np.array([size[0], size[1], 0]),
-                         friction=friction)
+        return ShapePlan(
+            g, kind, geom_pose * pose((0, 0, 0), X_TO_Z), np.array([size[0], size[1], 0]), friction=friction
+        )
     if gtype == PLANE:
         if not static:
             notes.drop("geom", name, "plane on a moving body: PhysX planes are static only")
@@ -117,8 +129,9 @@ def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes,
         return ShapePlan(g, "plane", geom_pose * pose((0, 0, 0), X_TO_Z), friction=friction)
     if gtype == ELLIPSOID:
         notes.approximate("geom", name, "ellipsoid approximated by the convex hull of 198 surface points")
-        return ShapePlan(g, "convex", geom_pose, size.copy(), vertices=unit_sphere_points(), scale=size.copy(),
-                         friction=friction)
+        return ShapePlan(
+            g, "convex", geom_pose, size.copy(), vertices=unit_sphere_points(), scale=size.copy(), friction=friction
+        )
     if gtype == MESH:
         mesh = int(model.geom_dataid[g])
         vertices = meshes.get(mesh) if meshes is not None else None
@@ -129,8 +142,9 @@ def plan_shape(model: mujoco.MjModel, g: int, static: bool, notes: Notes,
         if len(vertices) > PHYSX_HULL_VERTEX_LIMIT:
             hull = model.mesh_graph[model.mesh_graphadr[mesh]] if model.mesh_graphadr[mesh] >= 0 else 0
             if hull > PHYSX_HULL_VERTEX_LIMIT:
-                notes.approximate("geom", name, f"convex hull of {hull} vertices simplified by PhysX to "
-                                  f"{PHYSX_HULL_VERTEX_LIMIT}")
+                notes.approximate(
+                    "geom", name, f"convex hull of {hull} vertices simplified by PhysX to {PHYSX_HULL_VERTEX_LIMIT}"
+                )
         return ShapePlan(g, "convex", geom_pose, vertices=vertices, friction=friction)
     if gtype == HFIELD:
         if not static:

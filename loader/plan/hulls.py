@@ -55,8 +55,13 @@ def plan_sharing(plans: Iterable) -> None:
         plan.shared = uses[plan.mesh_key] > 1
 
 
-def convex_shape(vertices: np.ndarray, scale: np.ndarray, material: sapien.physx.PhysxMaterial,
-                 mesh_key: str | None = None, shared: bool = False) -> sapien.physx.PhysxCollisionShapeConvexMesh:
+def convex_shape(
+    vertices: np.ndarray,
+    scale: np.ndarray,
+    material: sapien.physx.PhysxMaterial,
+    mesh_key: str | None = None,
+    shared: bool = False,
+) -> sapien.physx.PhysxCollisionShapeConvexMesh:
     """A convex shape of `vertices` (float32, in the shape's frame) at `scale`: from its file where the vertex set
     is `shared` in this load or met before in this process, else cooked from memory."""
     vertices = np.ascontiguousarray(vertices, np.float32)
@@ -69,8 +74,9 @@ def convex_shape(vertices: np.ndarray, scale: np.ndarray, material: sapien.physx
     return shape
 
 
-def triangle_shape(vertices: np.ndarray, triangles: np.ndarray, scale: np.ndarray,
-                   material: sapien.physx.PhysxMaterial) -> sapien.physx.PhysxCollisionShapeTriangleMesh:
+def triangle_shape(
+    vertices: np.ndarray, triangles: np.ndarray, scale: np.ndarray, material: sapien.physx.PhysxMaterial
+) -> sapien.physx.PhysxCollisionShapeTriangleMesh:
     """A triangle mesh shape without an SDF (a static one): from its file where met before in this process, else
     cooked from memory."""
     vertices = np.ascontiguousarray(vertices, np.float32)
@@ -111,9 +117,11 @@ def _ply(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
     points["lead"], points["xyz"] = 1, vertices
     faces = np.zeros(len(triangles), _PLY_FACE)
     faces["count"], faces["corners"] = 3, triangles
-    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\nproperty uchar lead\n"
-              f"property float x\nproperty float y\nproperty float z\nelement face {len(faces)}\n"
-              "property list uchar int vertex_indices\nend_header\n")
+    header = (
+        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\nproperty uchar lead\n"
+        f"property float x\nproperty float y\nproperty float z\nelement face {len(faces)}\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    )
     return header.encode() + points.tobytes() + faces.tobytes()
 
 

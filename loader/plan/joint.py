@@ -49,12 +49,19 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     armature = float(model.dof_armature[dof])
     stiffness = joint_stiffness(model, j)
     if model.dof_frictionloss[dof] > 0 and jtype not in (HINGE, SLIDE):  # hinges and slides: `runtime/actuators.py`
-        notes.drop("joint", name, f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
-                   "scales with the joint reaction force, MuJoCo's is a constant torque")
+        notes.drop(
+            "joint",
+            name,
+            f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
+            "scales with the joint reaction force, MuJoCo's is a constant torque",
+        )
     if jtype == FREE:
         if stiffness > 0:  # damping and armature: `runtime/free_joint.py`
-            notes.drop("joint", name, f"free joint stiffness {stiffness:g} dropped: a PhysX floating root has no "
-                       "joint to carry it")
+            notes.drop(
+                "joint",
+                name,
+                f"free joint stiffness {stiffness:g} dropped: a PhysX floating root has no joint to carry it",
+            )
         return []
     if jtype in (HINGE, SLIDE):
         limited = bool(model.jnt_limited[j]) and not mj.disabled(model, "limit", "constraint")
@@ -69,22 +76,50 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
             ref_offset = pose((-ref, 0, 0))
         spring_target = float(model.qpos_spring[model.jnt_qposadr[j]]) if stiffness else 0.0  # MuJoCo: no spring
         return [
-            JointPlan(kind, name, limits, pose(anchor, quat_x_to(axis)), ref_offset, damping, armature,
-                      stiffness, spring_target, j)
+            JointPlan(
+                kind,
+                name,
+                limits,
+                pose(anchor, quat_x_to(axis)),
+                ref_offset,
+                damping,
+                armature,
+                stiffness,
+                spring_target,
+                j,
+            )
         ]
     # ball: three revolutes about x, y, z of the body frame at the anchor
     if model.jnt_limited[j]:
         notes.drop("joint", name, "ball joint cone limit not mapped: three revolutes cannot express a cone")
-    notes.approximate("joint", name, "ball joint as three revolutes integrated in Euler angles: MuJoCo integrates "
-                      "the body-frame angular velocity, so velocities agree to O(timestep x speed^2)")
+    notes.approximate(
+        "joint",
+        name,
+        "ball joint as three revolutes integrated in Euler angles: MuJoCo integrates "
+        "the body-frame angular velocity, so velocities agree to O(timestep x speed^2)",
+    )
     if stiffness > 0:
         notes.drop("joint", name, "ball joint stiffness not mapped")
     if damping > 0 or armature > 0:
-        notes.approximate("joint", name, "ball joint damping/armature applied per Euler angle: MuJoCo applies "
-                          "them to the body-frame angular velocity, which differs away from the zero rotation")
+        notes.approximate(
+            "joint",
+            name,
+            "ball joint damping/armature applied per Euler angle: MuJoCo applies "
+            "them to the body-frame angular velocity, which differs away from the zero rotation",
+        )
     return [
-        JointPlan("revolute_unwrapped", f"{name}_{'xyz'[i]}", (-np.inf, np.inf), pose(anchor, quat_x_to(axis)),
-                  sapien.Pose(), dof_damping(model, dof + i), float(model.dof_armature[dof + i]),
-                  0.0, 0.0, j, i)
+        JointPlan(
+            "revolute_unwrapped",
+            f"{name}_{'xyz'[i]}",
+            (-np.inf, np.inf),
+            pose(anchor, quat_x_to(axis)),
+            sapien.Pose(),
+            dof_damping(model, dof + i),
+            float(model.dof_armature[dof + i]),
+            0.0,
+            0.0,
+            j,
+            i,
+        )
         for i, axis in enumerate(np.eye(3))
     ]

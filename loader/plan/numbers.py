@@ -22,37 +22,75 @@ TURNS = 1e4  # rad: a hinge angle beyond this is held by float32 no finer than a
 
 # (MuJoCo element kind, compiled field, a length in metres)
 FIELDS = (
-    ("body", "body_pos", True), ("body", "body_quat", False), ("body", "body_ipos", True),
-    ("body", "body_iquat", False), ("body", "body_mass", False), ("body", "body_inertia", False),
+    ("body", "body_pos", True),
+    ("body", "body_quat", False),
+    ("body", "body_ipos", True),
+    ("body", "body_iquat", False),
+    ("body", "body_mass", False),
+    ("body", "body_inertia", False),
     ("body", "body_gravcomp", False),
-    ("joint", "jnt_pos", True), ("joint", "jnt_axis", False), ("joint", "jnt_range", False),
-    ("joint", "jnt_stiffness", False), ("joint", "jnt_solref", False), ("joint", "jnt_solimp", False),
-    ("joint", "jnt_margin", True), ("geom", "geom_margin", True), ("geom", "geom_gap", True),
-    ("geom", "geom_solmix", False), ("site", "site_size", True), ("camera", "cam_pos", True),
-    ("camera", "cam_fovy", False), ("tendon", "tendon_margin", True), ("tendon", "tendon_width", True),
-    ("tendon", "tendon_frictionloss", False), ("tendon", "tendon_lengthspring", True),
-    ("tendon", "tendon_solref_lim", False), ("tendon", "tendon_solimp_lim", False),
-    ("tendon", "tendon_solref_fri", False), ("actuator", "actuator_actrange", False),
-    ("geom", "geom_pos", True), ("geom", "geom_quat", False), ("geom", "geom_size", True),
-    ("geom", "geom_friction", False), ("geom", "geom_solref", False), ("geom", "geom_solimp", False),
-    ("site", "site_pos", True), ("site", "site_quat", False),
-    ("actuator", "actuator_gear", False), ("actuator", "actuator_gainprm", False),
-    ("actuator", "actuator_biasprm", False), ("actuator", "actuator_ctrlrange", False),
-    ("actuator", "actuator_forcerange", False), ("actuator", "actuator_dynprm", False),
-    ("tendon", "tendon_stiffness", False), ("tendon", "tendon_damping", False), ("tendon", "tendon_range", False),
-    ("equality", "eq_data", False), ("equality", "eq_solref", False), ("equality", "eq_solimp", False), ("mesh", "mesh_vert", True),
+    ("joint", "jnt_pos", True),
+    ("joint", "jnt_axis", False),
+    ("joint", "jnt_range", False),
+    ("joint", "jnt_stiffness", False),
+    ("joint", "jnt_solref", False),
+    ("joint", "jnt_solimp", False),
+    ("joint", "jnt_margin", True),
+    ("geom", "geom_margin", True),
+    ("geom", "geom_gap", True),
+    ("geom", "geom_solmix", False),
+    ("site", "site_size", True),
+    ("camera", "cam_pos", True),
+    ("camera", "cam_fovy", False),
+    ("tendon", "tendon_margin", True),
+    ("tendon", "tendon_width", True),
+    ("tendon", "tendon_frictionloss", False),
+    ("tendon", "tendon_lengthspring", True),
+    ("tendon", "tendon_solref_lim", False),
+    ("tendon", "tendon_solimp_lim", False),
+    ("tendon", "tendon_solref_fri", False),
+    ("actuator", "actuator_actrange", False),
+    ("geom", "geom_pos", True),
+    ("geom", "geom_quat", False),
+    ("geom", "geom_size", True),
+    ("geom", "geom_friction", False),
+    ("geom", "geom_solref", False),
+    ("geom", "geom_solimp", False),
+    ("site", "site_pos", True),
+    ("site", "site_quat", False),
+    ("actuator", "actuator_gear", False),
+    ("actuator", "actuator_gainprm", False),
+    ("actuator", "actuator_biasprm", False),
+    ("actuator", "actuator_ctrlrange", False),
+    ("actuator", "actuator_forcerange", False),
+    ("actuator", "actuator_dynprm", False),
+    ("tendon", "tendon_stiffness", False),
+    ("tendon", "tendon_damping", False),
+    ("tendon", "tendon_range", False),
+    ("equality", "eq_data", False),
+    ("equality", "eq_solref", False),
+    ("equality", "eq_solimp", False),
+    ("mesh", "mesh_vert", True),
 )
 DOF_FIELDS = ("dof_damping", "dof_armature", "dof_frictionloss")  # per DoF, named by the DoF's joint
 
 
 # frames MuJoCo's kinematics rotate by their compiled quaternion as it is (a body's, composed with its parent's, is
 # normalized, and set to the world's orientation when it vanishes); the compiler normalizes all but vanishing ones
-FRAME_QUATS = (("body", "body_quat"), ("inertial", "body_iquat"), ("geom", "geom_quat"), ("site", "site_quat"),
-               ("camera", "cam_quat"))
+FRAME_QUATS = (
+    ("body", "body_quat"),
+    ("inertial", "body_iquat"),
+    ("geom", "geom_quat"),
+    ("site", "site_quat"),
+    ("camera", "cam_quat"),
+)
 UNIT = 1e-6  # |norm - 1| of a compiled quaternion beyond which it was left unnormalized
 
-OPTION_FIELDS = tuple(name for name in dir(mujoco.MjOption) if not name.startswith("_")
-                      and isinstance(getattr(mujoco.MjOption(), name), (float, np.ndarray)))  # real-valued options
+OPTION_FIELDS = tuple(
+    name
+    for name in dir(mujoco.MjOption)
+    if not name.startswith("_") and isinstance(getattr(mujoco.MjOption(), name), (float, np.ndarray))
+)  # real-valued options
 
 
 def _held(values: np.ndarray, length: bool) -> bool:
@@ -80,9 +118,13 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
         names.decode("utf-8")
     except UnicodeDecodeError as error:
         start = names.rfind(b"\0", 0, error.start) + 1
-        shown = names[start:names.find(b"\0", error.start)].decode("utf-8", "replace")
-        raise MJCFError(path, f"the name {shown!r} is not UTF-8 text", hint="rename the element in UTF-8 text",
-                        rejected_by="the loader cannot read the model") from None
+        shown = names[start : names.find(b"\0", error.start)].decode("utf-8", "replace")
+        raise MJCFError(
+            path,
+            f"the name {shown!r} is not UTF-8 text",
+            hint="rename the element in UTF-8 text",
+            rejected_by="the loader cannot read the model",
+        ) from None
     for kind, field, length in FIELDS:
         values = getattr(model, field)
         if not len(values) or _held(values, length):
@@ -97,13 +139,19 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
         if len(rows):
             index = int(rows[0])
             inertial = field == "body_iquat"
-            label = (f"body '{mj.name(model, 'body', index)}' <inertial>" if inertial
-                     else f"{kind} '{mj.name(model, kind, index)}'")
-            raise MJCFError(path, f"{label}: {field} = {np.array2string(values[index], precision=4)} is not a unit "
-                            "quaternion: MuJoCo's compiler leaves a quaternion this short as written and its "
-                            "kinematics turn it into a degenerate rotation (a body's into the world's orientation)",
-                            hint=f"give {label} a quaternion of non-vanishing length (or none)",
-                            rejected_by="the loader cannot follow the model")
+            label = (
+                f"body '{mj.name(model, 'body', index)}' <inertial>"
+                if inertial
+                else f"{kind} '{mj.name(model, kind, index)}'"
+            )
+            raise MJCFError(
+                path,
+                f"{label}: {field} = {np.array2string(values[index], precision=4)} is not a unit "
+                "quaternion: MuJoCo's compiler leaves a quaternion this short as written and its "
+                "kinematics turn it into a degenerate rotation (a body's into the world's orientation)",
+                hint=f"give {label} a quaternion of non-vanishing length (or none)",
+                rejected_by="the loader cannot follow the model",
+            )
     for field in DOF_FIELDS:
         rows = np.flatnonzero(_bad(getattr(model, field), False))
         if rows.size:
@@ -115,23 +163,47 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
             value = float(model.qpos0[model.jnt_qposadr[joint]])
             slide = kind == int(mujoco.mjtJoint.mjJNT_SLIDE)
             if not abs(value) <= (REACH if slide else TURNS):
-                _raise(path, "joint", mj.name(model, "joint", joint), "qpos0 (ref)", np.array([value]), slide,
-                       "" if slide else f"beyond {TURNS:g} rad")
+                _raise(
+                    path,
+                    "joint",
+                    mj.name(model, "joint", joint),
+                    "qpos0 (ref)",
+                    np.array([value]),
+                    slide,
+                    "" if slide else f"beyond {TURNS:g} rad",
+                )
     if not 0 < model.opt.timestep <= MAX_TIMESTEP:
-        _raise(path, "option", "timestep", "opt.timestep", np.array([model.opt.timestep]), False,
-               f"not within (0, {MAX_TIMESTEP:g}] s")
+        _raise(
+            path,
+            "option",
+            "timestep",
+            "opt.timestep",
+            np.array([model.opt.timestep]),
+            False,
+            f"not within (0, {MAX_TIMESTEP:g}] s",
+        )
     if model.opt.iterations < 1:  # MuJoCo's solver then leaves every limit, contact and equality slack
-        raise MJCFError(path, f"option 'iterations' = {model.opt.iterations}: MuJoCo's constraint solver applies no "
-                        "constraint force (limits, contacts and equalities stay slack), which PhysX cannot follow",
-                        hint="give <option iterations> at least 1", rejected_by="the loader cannot follow the model")
+        raise MJCFError(
+            path,
+            f"option 'iterations' = {model.opt.iterations}: MuJoCo's constraint solver applies no "
+            "constraint force (limits, contacts and equalities stay slack), which PhysX cannot follow",
+            hint="give <option iterations> at least 1",
+            rejected_by="the loader cannot follow the model",
+        )
     for field in OPTION_FIELDS:  # every real-valued option: the solver's tolerances too
         if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
             _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)
 
 
 def _raise(path, kind: str, name: str, field: str, values, length: bool, what: str = "") -> None:
-    what = what or ("non-finite" if not np.isfinite(values).all() else (
-        f"beyond {REACH:g} m" if length else f"beyond {MAGNITUDE:g}"))
-    raise MJCFError(path, f"{kind} '{name}': {field} = {np.array2string(np.asarray(values), precision=4)} is {what}",
-                    hint=f"give {kind} '{name}' finite values{' within 1e7 m' if length else ''}: PhysX stores them "
-                         "in float32", rejected_by="PhysX cannot hold the compiled model")
+    what = what or (
+        "non-finite"
+        if not np.isfinite(values).all()
+        else (f"beyond {REACH:g} m" if length else f"beyond {MAGNITUDE:g}")
+    )
+    raise MJCFError(
+        path,
+        f"{kind} '{name}': {field} = {np.array2string(np.asarray(values), precision=4)} is {what}",
+        hint=f"give {kind} '{name}' finite values{' within 1e7 m' if length else ''}: PhysX stores them in float32",
+        rejected_by="PhysX cannot hold the compiled model",
+    )

@@ -61,8 +61,11 @@ def matched_scene(scene: sapien.Scene | None, model: mujoco.MjModel, path) -> sa
     if scene is None:
         return create_scene(model)
     for mismatch in scene_mismatches(scene, model):
-        warnings.warn(f"{path}: the scene given with set_scene differs from the model: {mismatch}",
-                      SceneMismatchWarning, stacklevel=5)
+        warnings.warn(
+            f"{path}: the scene given with set_scene differs from the model: {mismatch}",
+            SceneMismatchWarning,
+            stacklevel=5,
+        )
     return scene
 
 
@@ -79,20 +82,26 @@ def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
     gravity and the solver (tests/test_loader_scene.py::test_a_scene_with_another_timestep_is_warned_and_used)."""
     out = []
     if scene_timestep(scene, model) != float(model.opt.timestep):
-        out.append(f"its timestep is {scene.timestep:g} s, the model's {model.opt.timestep:g} s: the loader maps "
-                   "drives, actuators and constraint rows for the scene's timestep, so the motion is MuJoCo's at "
-                   "that timestep, not the file's (set scene.timestep to keep the file's)")
+        out.append(
+            f"its timestep is {scene.timestep:g} s, the model's {model.opt.timestep:g} s: the loader maps "
+            "drives, actuators and constraint rows for the scene's timestep, so the motion is MuJoCo's at "
+            "that timestep, not the file's (set scene.timestep to keep the file's)"
+        )
     system = getattr(scene, "physx_system", None) or getattr(scene, "px", None)  # a scene of sub-scenes: `px`
     config = getattr(system, "config", None)
     if config is None:
         return out
     wanted = matched_config(model)
     if not np.allclose(np.asarray(config.gravity), np.asarray(wanted.gravity), rtol=0.0, atol=1e-6):
-        out.append(f"its gravity is {np.asarray(config.gravity).tolist()}, the model's {wanted.gravity.tolist()} "
-                   "(sapien.physx.set_scene_config(gravity=...) before creating the scene's PhysX system)")
+        out.append(
+            f"its gravity is {np.asarray(config.gravity).tolist()}, the model's {wanted.gravity.tolist()} "
+            "(sapien.physx.set_scene_config(gravity=...) before creating the scene's PhysX system)"
+        )
     if config.enable_tgs:
-        out.append("it uses PhysX's TGS solver, which adds a gap of order dt to MuJoCo's semi-implicit Euler "
-                   "(sapien.physx.set_scene_config(enable_tgs=False) before creating the scene's PhysX system)")
+        out.append(
+            "it uses PhysX's TGS solver, which adds a gap of order dt to MuJoCo's semi-implicit Euler "
+            "(sapien.physx.set_scene_config(enable_tgs=False) before creating the scene's PhysX system)"
+        )
     return out
 
 

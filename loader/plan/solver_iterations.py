@@ -36,8 +36,13 @@ def sweeps_needed(radius: float, residual: float = RESIDUAL) -> int:
     return min(MAX_ITERATIONS, max(1, math.ceil(math.log(residual) / math.log(radius))))
 
 
-def drive_radii(model: mujoco.MjModel, weights: dict[tuple[int, int], float], connects: list[D6Joint],
-                mapping: Mapping, qpos: np.ndarray | None = None) -> dict[int, float]:
+def drive_radii(
+    model: mujoco.MjModel,
+    weights: dict[tuple[int, int], float],
+    connects: list[D6Joint],
+    mapping: Mapping,
+    qpos: np.ndarray | None = None,
+) -> dict[int, float]:
     """Per articulation with at least two rows: the Gauss-Seidel radius of its drive rows (`weights`: per drive DoF,
     dt (D' + dt K) of the law its drive holds, `Controller.drive_weights`) and soft connect rows (the D6 joints
     `connects`) at qpos0 (or `qpos`)."""
@@ -58,8 +63,9 @@ def drive_radii(model: mujoco.MjModel, weights: dict[tuple[int, int], float], co
     return radii
 
 
-def connect_rows(model: mujoco.MjModel, data: mujoco.MjData,
-                 connects: list[D6Joint]) -> list[tuple[int, np.ndarray, float]]:
+def connect_rows(
+    model: mujoco.MjModel, data: mujoco.MjData, connects: list[D6Joint]
+) -> list[tuple[int, np.ndarray, float]]:
     """Per connect or weld on a D6 joint: its articulation, its three linear rows J1(p1) - J2(p2) at qpos0
     and their compliance R (PhysX's damper 1 / (dt R) leaves R per unit impulse), at a closed loop's impedance; a
     weld's three rotational rows as a second entry (a row's sign does not change the radius)."""
@@ -68,8 +74,10 @@ def connect_rows(model: mujoco.MjModel, data: mujoco.MjData,
         if connect.articulation is None:
             continue
         jacobian = np.zeros((3, model.nv))
-        for sign, body, anchor in ((1.0, connect.child_body, connect.child_anchor),
-                                   (-1.0, connect.parent_body, connect.parent_anchor)):
+        for sign, body, anchor in (
+            (1.0, connect.child_body, connect.child_anchor),
+            (-1.0, connect.parent_body, connect.parent_anchor),
+        ):
             point = data.xpos[body] + data.xmat[body].reshape(3, 3) @ anchor
             part = np.zeros((3, model.nv))
             mujoco.mj_jac(model, data, part, None, point, int(body))
@@ -89,8 +97,9 @@ def connect_rows(model: mujoco.MjModel, data: mujoco.MjData,
     return result
 
 
-def largest_radii(model: mujoco.MjModel, weights: dict[tuple[int, int], float], connects: list[D6Joint],
-                  mapping: Mapping) -> dict[int, float]:
+def largest_radii(
+    model: mujoco.MjModel, weights: dict[tuple[int, int], float], connects: list[D6Joint], mapping: Mapping
+) -> dict[int, float]:
     """Per articulation, the largest drive radius over qpos0 and the keyframes."""
     largest: dict[int, float] = {}
     for qpos in (None, *model.key_qpos):
@@ -120,8 +129,14 @@ def one_blas_thread():
     return _BLAS.limit(limits=1, user_api="blas") if _BLAS is not None else contextlib.nullcontext()
 
 
-def tune_iterations(articulations, model: mujoco.MjModel, weights: dict[tuple[int, int], float],
-                    connects: list[D6Joint], mapping: Mapping, notes) -> None:
+def tune_iterations(
+    articulations,
+    model: mujoco.MjModel,
+    weights: dict[tuple[int, int], float],
+    connects: list[D6Joint],
+    mapping: Mapping,
+    notes,
+) -> None:
     """Raise each articulation's position iterations to what its drives need (never lowers them)."""
     with one_blas_thread():
         radii = largest_radii(model, weights, connects, mapping)
@@ -130,6 +145,10 @@ def tune_iterations(articulations, model: mujoco.MjModel, weights: dict[tuple[in
         needed = sweeps_needed(radius)
         articulation.solver_position_iterations = max(articulation.solver_position_iterations, needed)
         if needed >= MAX_ITERATIONS:
-            notes.approximate("articulation", articulation.name, f"its drives couple so strongly (Gauss-Seidel "
-                              f"radius {radius:.3f}) that PhysX's {MAX_ITERATIONS} iterations leave "
-                              f"{radius ** MAX_ITERATIONS:.1e} of the drive error")
+            notes.approximate(
+                "articulation",
+                articulation.name,
+                f"its drives couple so strongly (Gauss-Seidel "
+                f"radius {radius:.3f}) that PhysX's {MAX_ITERATIONS} iterations leave "
+                f"{radius**MAX_ITERATIONS:.1e} of the drive error",
+            )

@@ -8,8 +8,11 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-_TYPES = {int(mujoco.mjtTexture.mjTEXTURE_2D): "2d", int(mujoco.mjtTexture.mjTEXTURE_CUBE): "cube",
-          int(mujoco.mjtTexture.mjTEXTURE_SKYBOX): "skybox"}
+_TYPES = {
+    int(mujoco.mjtTexture.mjTEXTURE_2D): "2d",
+    int(mujoco.mjtTexture.mjTEXTURE_CUBE): "cube",
+    int(mujoco.mjtTexture.mjTEXTURE_SKYBOX): "skybox",
+}
 
 from ..model import mj
 

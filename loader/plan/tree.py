@@ -66,8 +66,11 @@ def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes, 
         link.mass = mass
         moments = model.body_inertia[b].copy()
         if (moments <= 0).any():
-            notes.approximate("body", mj.name(model, "body", b), f"zero principal moment of inertia given "
-                              f"{ZERO_MOMENT:g} kg m^2 (PhysX replaces a zero moment with 1)")
+            notes.approximate(
+                "body",
+                mj.name(model, "body", b),
+                f"zero principal moment of inertia given {ZERO_MOMENT:g} kg m^2 (PhysX replaces a zero moment with 1)",
+            )
         link.inertia = np.where(moments > 0, moments, ZERO_MOMENT)
     link.cmass = pose(centre, model.body_iquat[b])
 

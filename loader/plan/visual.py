@@ -63,8 +63,7 @@ def visuals_available(scene: sapien.Scene) -> bool:
         return True
     if not _warned:
         reason = "no render device" if not has_render_device() else "the scene has no render system"
-        warnings.warn(f"{reason}: visual shapes are skipped, physics is loaded", NoRenderDeviceWarning,
-                      stacklevel=3)
+        warnings.warn(f"{reason}: visual shapes are skipped, physics is loaded", NoRenderDeviceWarning, stacklevel=3)
         _warned = True
     return False
 
@@ -100,8 +99,9 @@ def add_visual(builder, model: mujoco.MjModel, g: int) -> None:
         builder.add_plane_visual(along_z, np.asarray(extent, np.float32), material, name)
     elif gtype == ELLIPSOID:
         # PhysX's hull of the scaled sphere points gives the triangles, without a GPU or another dependency
-        hull = sapien.physx.PhysxCollisionShapeConvexMesh(unit_sphere_points() * size.astype(np.float32),
-                                                          np.ones(3, np.float32), sapien.physx.get_default_material())
+        hull = sapien.physx.PhysxCollisionShapeConvexMesh(
+            unit_sphere_points() * size.astype(np.float32), np.ones(3, np.float32), sapien.physx.get_default_material()
+        )
         builder.mesh_visuals.append((geom_pose, hull.get_vertices(), hull.get_triangles(), material, name))
     elif gtype == MESH:
         mesh = int(model.geom_dataid[g])

@@ -50,8 +50,7 @@ class ActuatorLaws:
     def unclamped(self, inputs: np.ndarray, length: np.ndarray, velocity: np.ndarray, chosen=slice(None)):
         """MuJoCo's force law (before gear and clamp) of the `chosen` actuators."""
         bias = self.bias
-        return (self.gain[chosen] * inputs + bias[0][chosen] + bias[1][chosen] * length
-                + bias[2][chosen] * velocity)
+        return self.gain[chosen] * inputs + bias[0][chosen] + bias[1][chosen] * length + bias[2][chosen] * velocity
 
     def clamped(self, unclamped: np.ndarray, chosen=slice(None)) -> np.ndarray:
         """The force clamped to forcerange (no range: unchanged)."""
@@ -64,8 +63,14 @@ class ForceClamps:
     range and passive law. `single`: every clamped DoF has one actuator (no sums); `ranged`: some DoF has an
     actuatorfrcrange."""
 
-    def __init__(self, limited: dict[DofKey, list[int]], joint_range: dict[DofKey, tuple[float, float]],
-                 joint: ActuatorLaws, layout: DofLayout, passive: np.ndarray):
+    def __init__(
+        self,
+        limited: dict[DofKey, list[int]],
+        joint_range: dict[DofKey, tuple[float, float]],
+        joint: ActuatorLaws,
+        layout: DofLayout,
+        passive: np.ndarray,
+    ):
         position = {int(a): i for i, a in enumerate(joint.indices)}
         keys = list(limited)
         pairs = [(k, position[a]) for k, key in enumerate(keys) for a in limited[key]]
@@ -88,8 +93,9 @@ class ForceClamps:
         """(binding DoFs, the clamped geared sum, the implicit kv) at this state, or None when nothing binds.
         `affine`: gain x input + bias0 of every joint actuator."""
         gear, flat = self.gear, self.member_flat
-        unclamped = (affine[self.member] + self.length_bias * (gear * step.q[flat])
-                     + self.velocity_bias * (gear * step.v[flat]))
+        unclamped = (
+            affine[self.member] + self.length_bias * (gear * step.q[flat]) + self.velocity_bias * (gear * step.v[flat])
+        )
         force = np.minimum(np.maximum(unclamped, self.force_low), self.force_high)
         saturated = force != unclamped
         total = gear * force
@@ -128,8 +134,13 @@ class TendonActuators:
     position (`flat`), drive column and coefficient, and the implicit diagonal kv c^2 while no forcerange
     clamps (`diagonal`)."""
 
-    def __init__(self, actuators: list[ActuatorMap], terms: dict[int, list[tuple[int, int, float]]],
-                 layout: DofLayout, implicit_kv):
+    def __init__(
+        self,
+        actuators: list[ActuatorMap],
+        terms: dict[int, list[tuple[int, int, float]]],
+        layout: DofLayout,
+        implicit_kv,
+    ):
         order = list(terms)
         self.laws = ActuatorLaws(actuators, order)
         rows = [(k, (art, dof), c) for k, a in enumerate(order) for art, dof, c in terms[a]]
@@ -198,8 +209,7 @@ class SpatialActuators:
         laws = self.laws
         length, jacobian, v = self.paths.state(step)
         jacobian = jacobian[self.rows]
-        unclamped = laws.unclamped(step.inputs[laws.indices], laws.gear * length[self.rows],
-                                   laws.gear * (jacobian @ v))
+        unclamped = laws.unclamped(step.inputs[laws.indices], laws.gear * length[self.rows], laws.gear * (jacobian @ v))
         force = laws.clamped(unclamped)
         saturated = force != unclamped
         if saturated.any():
@@ -251,8 +261,11 @@ class ActuatorTerm(Term):
         mapped = {a: terms for a, terms in self.tendon_terms.items() if self.actuators[a].mapped}
         self.tendons = TendonActuators(self.actuators, mapped, layout, self.implicit_tendon_kv) if mapped else None
         spatial = {a: t for a, t in self.spatial_tendons.items() if self.actuators[a].mapped}
-        self.spatial = SpatialActuators(self.actuators, spatial, self.paths, self.implicit_tendon_kv) \
-            if spatial and self.paths is not None else None
+        self.spatial = (
+            SpatialActuators(self.actuators, spatial, self.paths, self.implicit_tendon_kv)
+            if spatial and self.paths is not None
+            else None
+        )
         if self.spatial is not None:
             self.spatial.compile(layout)
         self.idle = not len(self.joint) and self.tendons is None and self.spatial is None  # nothing mapped
@@ -317,8 +330,14 @@ class ActuatorTerm(Term):
         return out
 
 
-def plan_actuators(model: mujoco.MjModel, mapping: Mapping, passive: dict[DofKey, DofDrive],
-                   maps: list[tuple[ActuatorMap, list | None]], implicit: bool, notes: Notes) -> ActuatorTerm:
+def plan_actuators(
+    model: mujoco.MjModel,
+    mapping: Mapping,
+    passive: dict[DofKey, DofDrive],
+    maps: list[tuple[ActuatorMap, list | None]],
+    implicit: bool,
+    notes: Notes,
+) -> ActuatorTerm:
     """The term that applies the mapped actuators every step, from the plan's maps (each with its tendon's terms,
     `SPATIAL` for a spatial tendon, None for a joint actuator); `implicit`: MuJoCo's integrator is implicit."""
     term = ActuatorTerm([entry for entry, _ in maps], passive)

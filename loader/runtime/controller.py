@@ -34,8 +34,18 @@ from .stiffness import StiffnessTerm
 from .tendons import TendonTerm, map_tendons, plan_paths, plan_spatial
 from .term import Compilation, Handover, Term
 
-STAGES = ("momentum", "tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp",
-          "equalities")
+STAGES = (
+    "momentum",
+    "tendons",
+    "actuators",
+    "stiffness",
+    "rows",
+    "slides",
+    "drives",
+    "fluid",
+    "gravcomp",
+    "equalities",
+)
 
 
 class Controller:
@@ -44,9 +54,17 @@ class Controller:
     term was switched. `model` is the runtime's own compiled model and `options` its snapshot: an edit of the
     user's model reaches neither (`LoadResult.replan`)."""
 
-    def __init__(self, model: mujoco.MjModel, options: Options, mapping, articulations: list,
-                 passive: dict[DofKey, DofDrive], terms: list[Term], activation: Activation | None = None,
-                 soft_joints: dict[int, SoftConnect] | None = None):
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        options: Options,
+        mapping,
+        articulations: list,
+        passive: dict[DofKey, DofDrive],
+        terms: list[Term],
+        activation: Activation | None = None,
+        soft_joints: dict[int, SoftConnect] | None = None,
+    ):
         self.stages = list(STAGES)  # this controller's order (`add` extends it)
         unknown = [term.name for term in terms if term.name not in self.stages]
         if unknown:
@@ -157,8 +175,23 @@ class Controller:
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         refresh_link_velocities(self.velocity_readers())
         q, v = layout.read(articulations)
-        step = Step(articulations, self.joints, layout, q, v, force, self.base.copy(), inputs, ctrl, act,
-                    qfrc_applied, actuated, self.timestep, not self.options.implicit, advance)
+        step = Step(
+            articulations,
+            self.joints,
+            layout,
+            q,
+            v,
+            force,
+            self.base.copy(),
+            inputs,
+            ctrl,
+            act,
+            qfrc_applied,
+            actuated,
+            self.timestep,
+            not self.options.implicit,
+            advance,
+        )
         for term in self.running:
             term.contribute(step)
 
@@ -243,8 +276,16 @@ def restoring(controller: Controller, names: tuple[str, ...]):
         controller.restore(*names)
 
 
-def plan(model: mujoco.MjModel, options: Options, mapping, scene, articulations: list,
-         maps: list[tuple[ActuatorMap, list | None]], equalities: list[EqualityLink], notes) -> Controller:
+def plan(
+    model: mujoco.MjModel,
+    options: Options,
+    mapping,
+    scene,
+    articulations: list,
+    maps: list[tuple[ActuatorMap, list | None]],
+    equalities: list[EqualityLink],
+    notes,
+) -> Controller:
     """Every per-step term the compiled model needs, planned once at load (and again at `replan`) from the
     planning half's actuator maps and equality links."""
     timestep = options.timestep

@@ -52,13 +52,16 @@ class DofLayout:
     def split(self, flat: np.ndarray) -> list[np.ndarray]:
         """Per articulation, its part of an end-to-end array (views)."""
         starts = self.starts
-        return [flat[starts[a]:starts[a + 1]] for a in range(len(starts) - 1)]
+        return [flat[starts[a] : starts[a + 1]] for a in range(len(starts) - 1)]
 
 
 def law_arrays(laws: list[DofDrive]) -> np.ndarray:
     """Rows stiffness, damping, constant, force limit of these laws, one column per drive DoF."""
-    return np.array([[law.stiffness, law.damping, law.constant, law.force_limit] for law in laws],
-                    dtype=np.float64).reshape(-1, 4).T.copy()
+    return (
+        np.array([[law.stiffness, law.damping, law.constant, law.force_limit] for law in laws], dtype=np.float64)
+        .reshape(-1, 4)
+        .T.copy()
+    )
 
 
 @dataclass
@@ -135,8 +138,10 @@ def passive_laws(model: mujoco.MjModel, mapping: Mapping) -> dict[DofKey, DofDri
         if target.drive_key is not None:
             stiffness = joint_stiffness(model, j)
             laws[target.drive_key] = DofDrive(
-                stiffness, dof_damping(model, int(model.jnt_dofadr[j])),
-                stiffness * float(model.qpos_spring[model.jnt_qposadr[j]]) if stiffness else 0.0)  # 0 * inf
+                stiffness,
+                dof_damping(model, int(model.jnt_dofadr[j])),
+                stiffness * float(model.qpos_spring[model.jnt_qposadr[j]]) if stiffness else 0.0,
+            )  # 0 * inf
     return laws
 
 

@@ -122,8 +122,7 @@ class DriveWriter(Term):
             return
         joints = self.layout.joints
         for i in (changed[0] | changed[1] | changed[2]).nonzero()[0].tolist():
-            joints[i].set_drive_properties(float(settings[0, i]), float(settings[1, i]), float(settings[2, i]),
-                                           "force")
+            joints[i].set_drive_properties(float(settings[0, i]), float(settings[1, i]), float(settings[2, i]), "force")
         for i in changed[3].nonzero()[0].tolist():
             joints[i].set_drive_target(float(settings[3, i]))
         for i in changed[4].nonzero()[0].tolist():

@@ -39,8 +39,12 @@ class _Motion:
             zero = np.zeros(3)
             return cls(static_pose, static_pose.p, zero, zero)
         pose = link.entity_pose
-        return cls(pose, (pose * link.cmass_local_pose).p, np.asarray(link.linear_velocity, dtype=float),
-                   np.asarray(link.angular_velocity, dtype=float))
+        return cls(
+            pose,
+            (pose * link.cmass_local_pose).p,
+            np.asarray(link.linear_velocity, dtype=float),
+            np.asarray(link.angular_velocity, dtype=float),
+        )
 
     def point(self, anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World position and velocity of a point fixed in this end (`anchor` in its frame)."""
@@ -86,14 +90,16 @@ class SoftConnect:
         child_point, child_velocity = child.point(self.child_anchor)
         parent_point, parent_velocity = parent.point(self.parent_anchor)
         residual, velocity = child_point - parent_point, child_velocity - parent_velocity
-        imp = self.row.impedance(float(np.linalg.norm(np.concatenate([residual, self.rotation_residual(child,
-                                                                                                           parent)]))))
+        imp = self.row.impedance(
+            float(np.linalg.norm(np.concatenate([residual, self.rotation_residual(child, parent)])))
+        )
         damping = 1.0 / (timestep * self.row.regularizer(imp, self.diag_approx[0]))
         pin = self.pin(child_point, parent_point)
         if self.parent is not None:  # the D6's anchor follows the pin, fixed in the child for the step
             self.drive.set_pose_in_child(sapien.Pose((child.pose.inv() * sapien.Pose(pin)).p, self.child_rotation))
-        target = (self.measured(child, parent, pin)
-                  + timestep * (self.row.reference(imp, residual, velocity) - self.centripetal(child, parent, pin)))
+        target = self.measured(child, parent, pin) + timestep * (
+            self.row.reference(imp, residual, velocity) - self.centripetal(child, parent, pin)
+        )
         rotation = (parent.pose * self.frame).to_transformation_matrix()[:3, :3]
         self._free()
         self._drive(damping, rotation.T @ target, self.angular_target(child, parent, imp, timestep, rotation))
@@ -120,8 +126,9 @@ class SoftConnect:
     def centripetal(child: _Motion, parent: _Motion, pin: np.ndarray) -> np.ndarray:
         """What PhysX's step leaves out of the row's velocity change: w x (w x r) of the pin about each end's
         centre of mass."""
-        return (cross(child.omega, cross(child.omega, pin - child.com))
-                - cross(parent.omega, cross(parent.omega, pin - parent.com)))
+        return cross(child.omega, cross(child.omega, pin - child.com)) - cross(
+            parent.omega, cross(parent.omega, pin - parent.com)
+        )
 
     def _free(self) -> None:
         if not self.soft:
@@ -193,13 +200,17 @@ class SoftWeld(SoftConnect):
         omega = body2_rotation.T @ relative  # body1 relative to body2, in body2's frame
         gain = 0.5 * scale * (e[0] * np.eye(3) - _skew(e[1:]))
         row_velocity = gain @ omega
-        reference = (self.row.reference(imp, scale * e[1:], row_velocity)
-                     - self.frame_rate(scale, e, gain, omega, body2_rotation, body2.omega, relative))
+        reference = self.row.reference(imp, scale * e[1:], row_velocity) - self.frame_rate(
+            scale, e, gain, omega, body2_rotation, body2.omega, relative
+        )
         row_damping = 1.0 / (timestep * self.row.regularizer(imp, self.diag_approx[3]))
         self.drive.set_drive_property_slerp(0.0, 0.25 * scale * scale * row_damping, FORCE_LIMIT, "force")
         sign = 1.0 if self.child_is_body1 else -1.0
-        return sign * (4.0 / (scale * scale)) * (rotation.T @ body2_rotation @ gain.T
-                                                  @ (row_velocity + timestep * reference))
+        return (
+            sign
+            * (4.0 / (scale * scale))
+            * (rotation.T @ body2_rotation @ gain.T @ (row_velocity + timestep * reference))
+        )
 
     @staticmethod
     def frame_rate(scale, e, gain, omega, body2_rotation, body2_omega, relative) -> np.ndarray:
@@ -222,10 +233,11 @@ class SoftWeld(SoftConnect):
         if not self.active or self.torquescale == 0:
             return
         imp = self.row.impedance(0.0)
-        damping = 0.25 * self.torquescale ** 2 / (timestep * self.row.regularizer(imp, self.diag_approx[3]))
+        damping = 0.25 * self.torquescale**2 / (timestep * self.row.regularizer(imp, self.diag_approx[3]))
         self.drive.set_drive_target(sapien.Pose())
-        self.drive.set_drive_property_slerp(damping * self.row.stiffness * imp / self.row.damping, damping,
-                                            FORCE_LIMIT, "force")
+        self.drive.set_drive_property_slerp(
+            damping * self.row.stiffness * imp / self.row.damping, damping, FORCE_LIMIT, "force"
+        )
 
 
 @dataclass

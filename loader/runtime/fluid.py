@@ -39,10 +39,23 @@ class Fluid(LinkForces):
         b = np.array([body.box for body in self.bodies], dtype=np.float64).reshape(-1, 3)
         diameter = b.mean(axis=1)[:, None]
         area = np.stack([b[:, 1] * b[:, 2], b[:, 0] * b[:, 2], b[:, 0] * b[:, 1]], axis=1)
-        lever = np.stack([b[:, 0] * (b[:, 1]**4 + b[:, 2]**4), b[:, 1] * (b[:, 0]**4 + b[:, 2]**4),
-                          b[:, 2] * (b[:, 0]**4 + b[:, 1]**4)], axis=1)
-        return np.concatenate([-np.pi * diameter**3 * self.viscosity, -3.0 * np.pi * diameter * self.viscosity,
-                               0.5 * self.density * area, self.density * lever], axis=1)
+        lever = np.stack(
+            [
+                b[:, 0] * (b[:, 1] ** 4 + b[:, 2] ** 4),
+                b[:, 1] * (b[:, 0] ** 4 + b[:, 2] ** 4),
+                b[:, 2] * (b[:, 0] ** 4 + b[:, 1] ** 4),
+            ],
+            axis=1,
+        )
+        return np.concatenate(
+            [
+                -np.pi * diameter**3 * self.viscosity,
+                -3.0 * np.pi * diameter * self.viscosity,
+                0.5 * self.density * area,
+                self.density * lever,
+            ],
+            axis=1,
+        )
 
     def wrench(self, coefficients: np.ndarray, angular: np.ndarray, linear: np.ndarray):
         """MuJoCo's fluid (torque, force) on each body (rows), all in its inertial frame, from its velocity there."""
@@ -69,18 +82,22 @@ class Fluid(LinkForces):
 
     def apply(self, articulations) -> None:
         """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
-        pairs = self.links or [(link, link.cmass_local_pose) for link in
-                               (articulations[body.articulation].links[body.link] for body in self.bodies)]
+        pairs = self.links or [
+            (link, link.cmass_local_pose)
+            for link in (articulations[body.articulation].links[body.link] for body in self.bodies)
+        ]
         links = [link for link, _ in pairs]
-        poses = np.array([(link.entity_pose * com).to_transformation_matrix() for link, com in pairs],
-                         dtype=np.float64).reshape(-1, 4, 4)  # each body's centre of mass and inertial frame
+        poses = np.array(
+            [(link.entity_pose * com).to_transformation_matrix() for link, com in pairs], dtype=np.float64
+        ).reshape(-1, 4, 4)  # each body's centre of mass and inertial frame
         frames = poses[:, :3, :3]
         angular = np.array([link.angular_velocity for link in links], dtype=np.float64)
         linear = np.array([link.linear_velocity for link in links], dtype=np.float64) - self.wind
         to_body = frames.transpose(0, 2, 1)
         factors = self.coefficients() if self.factors is None else self.factors
-        torque, force = self.wrench(factors,
-                                    (to_body @ angular[:, :, None])[:, :, 0], (to_body @ linear[:, :, None])[:, :, 0])
+        torque, force = self.wrench(
+            factors, (to_body @ angular[:, :, None])[:, :, 0], (to_body @ linear[:, :, None])[:, :, 0]
+        )
         torque, force = (frames @ torque[:, :, None])[:, :, 0], (frames @ force[:, :, None])[:, :, 0]
         for link, f, t in zip(links, force, torque):
             link.add_force_torque(f, t)
@@ -93,11 +110,19 @@ def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid |
         return None
     ellipsoid = {int(model.geom_bodyid[g]) for g in range(model.ngeom) if model.geom_fluid[g, 0]}
     if ellipsoid:
-        notes.drop("option", "fluidshape", "geoms with fluidshape=\"ellipsoid\" (MuJoCo's ellipsoid fluid model) "
-                   "are not mapped; their bodies feel no fluid")
+        notes.drop(
+            "option",
+            "fluidshape",
+            'geoms with fluidshape="ellipsoid" (MuJoCo\'s ellipsoid fluid model) '
+            "are not mapped; their bodies feel no fluid",
+        )
     if int(model.opt.integrator) != int(mujoco.mjtIntegrator.mjINT_EULER):
-        notes.approximate("option", "density/viscosity", "fluid forces applied explicitly; this integrator also "
-                          "treats their velocity derivatives implicitly (first order in the timestep apart)")
+        notes.approximate(
+            "option",
+            "density/viscosity",
+            "fluid forces applied explicitly; this integrator also "
+            "treats their velocity derivatives implicitly (first order in the timestep apart)",
+        )
     bodies = []
     for b in range(1, model.nbody):
         target = mapping.bodies[b]
@@ -105,10 +130,13 @@ def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid |
         if target is None or target.articulation is None or mass < MJMINVAL or b in ellipsoid:
             continue
         inertia = model.body_inertia[b]
-        box = tuple(float(np.sqrt(max(MJMINVAL, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
-                    for i, j, k in ((0, 1, 2), (1, 0, 2), (2, 0, 1)))
+        box = tuple(
+            float(np.sqrt(max(MJMINVAL, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
+            for i, j, k in ((0, 1, 2), (1, 0, 2), (2, 0, 1))
+        )
         bodies.append(FluidBody(target.articulation, target.link, box))
     if not bodies:  # no body the fluid acts on (every one massless, welded to the world or ellipsoid-shaped)
         return None
-    return Fluid(float(model.opt.density), float(model.opt.viscosity), np.asarray(model.opt.wind, np.float64),
-                 tuple(bodies))
+    return Fluid(
+        float(model.opt.density), float(model.opt.viscosity), np.asarray(model.opt.wind, np.float64), tuple(bodies)
+    )

@@ -25,7 +25,7 @@ from ..model.options import IMPLICIT
 def differs(model: mujoco.MjModel, joint: int, tree: np.ndarray) -> bool:
     """Whether MuJoCo's step adds to free joint `joint` (of `tree`'s root) what PhysX's does not."""
     dof = int(model.jnt_dofadr[joint])
-    own = model.dof_damping[dof:dof + 6].any() or model.dof_armature[dof:dof + 6].any()
+    own = model.dof_damping[dof : dof + 6].any() or model.dof_armature[dof : dof + 6].any()
     return bool(own or (tree.size == 1 and int(model.opt.integrator) in IMPLICIT))
 
 
@@ -33,8 +33,9 @@ def skew(a: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
 
 
-def gyroscopic_derivative(mass: float, com: np.ndarray, rotation: np.ndarray, inertia: np.ndarray,
-                          omega: np.ndarray) -> np.ndarray:
+def gyroscopic_derivative(
+    mass: float, com: np.ndarray, rotation: np.ndarray, inertia: np.ndarray, omega: np.ndarray
+) -> np.ndarray:
     """d f / d v of a lone free body's velocity-dependent force, in MuJoCo's free joint coordinates (the origin's
     velocity in the world, the body-frame angular velocity omega): f = -(m R (w x (w x c)), w x I_o w), c the centre
     of mass and I_o the inertia about the origin, both in the body frame. It does not depend on the linear part."""
@@ -68,8 +69,14 @@ class FreeJointLaw:
         joints = np.where(own, 0.0, self.damping[dofs])
         scalars = self.scalars.get(root.articulation)
         where = np.searchsorted(dofs, scalars[0]) if scalars is not None else None
-        return (np.ix_(dofs, dofs), dt * np.diag(self.damping[dofs]), np.diag(dt * joints - armature),
-                np.where(own, model.dof_damping[dofs], 0.0), np.diag(armature[3:6]), where)
+        return (
+            np.ix_(dofs, dofs),
+            dt * np.diag(self.damping[dofs]),
+            np.diag(dt * joints - armature),
+            np.where(own, model.dof_damping[dofs], 0.0),
+            np.diag(armature[3:6]),
+            where,
+        )
 
     def correct(self, data: mujoco.MjData, roots: list, qvel0: np.ndarray, qvel1: np.ndarray, articulations) -> None:
         """Turn `qvel1` (PhysX's end, MuJoCo's layout) into MuJoCo's on each of `roots`' trees, from `data` at the
@@ -88,9 +95,10 @@ class FreeJointLaw:
                 body = root.body
                 inertia = mass[3:, 3:] - rotational  # about the origin, in the body frame
                 rotation = quat_to_mat(data.xquat[body])
-                omega = qvel0[root.dofadr + 3:root.dofadr + 6]
-                lhs[:6, :6] -= dt * gyroscopic_derivative(float(model.body_mass[body]), self.centres[body],
-                                                          rotation, inertia, omega)
+                omega = qvel0[root.dofadr + 3 : root.dofadr + 6]
+                lhs[:6, :6] -= dt * gyroscopic_derivative(
+                    float(model.body_mass[body]), self.centres[body], rotation, inertia, omega
+                )
             start, physx = qvel0[dofs], qvel1[dofs]
             rhs = (mass + shift) @ (physx - start) - dt * damping * start
             end = start + np.linalg.solve(lhs, rhs)

@@ -37,12 +37,15 @@ class GravityCompensation(LinkForces):
 def map_gravcomp(model: mujoco.MjModel, mapping: Mapping, articulations, notes: Notes) -> GravityCompensation | None:
     """Links of fully compensated bodies stop feeling gravity; the others get their per-step force."""
     gravity = np.asarray(model.opt.gravity, np.float64)
-    if not np.any(model.body_gravcomp) or mj.disabled(model, "gravity") \
-            or not np.any(gravity):
+    if not np.any(model.body_gravcomp) or mj.disabled(model, "gravity") or not np.any(gravity):
         return None
     if np.any(model.jnt_actgravcomp):
-        notes.approximate("joint", "actuatorgravcomp", "gravity compensation routed through the actuators is "
-                          "applied as a passive force: the joint's actuatorfrcrange does not clamp it")
+        notes.approximate(
+            "joint",
+            "actuatorgravcomp",
+            "gravity compensation routed through the actuators is "
+            "applied as a passive force: the joint's actuatorfrcrange does not clamp it",
+        )
     forces = []
     for b in range(1, model.nbody):
         share = float(model.body_gravcomp[b])

@@ -38,12 +38,12 @@ def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarra
         if whole:
             return data.qfrc_constraint
         if rows.any():
-            mujoco.mj_mulJacTVec(model, data, force, np.where(rows, data.efc_force[:data.nefc], 0.0))
+            mujoco.mj_mulJacTVec(model, data, force, np.where(rows, data.efc_force[: data.nefc], 0.0))
         return force
     mujoco.mj_mulM(model, data, force, data.qacc - data.qacc_smooth)
     if not whole:
         pushed = np.zeros(model.nv)
-        mujoco.mj_mulJacTVec(model, data, pushed, np.where(rows, 0.0, data.efc_force[:data.nefc]))
+        mujoco.mj_mulJacTVec(model, data, pushed, np.where(rows, 0.0, data.efc_force[: data.nefc]))
         force -= pushed
     return force
 
@@ -57,15 +57,22 @@ class RootPush:
         for j, target in enumerate(mapping.joints):
             if int(model.jnt_type[j]) == FREE:
                 body = int(model.jnt_bodyid[j])
-                self.roots.append((target.articulation, mapping.bodies[body].link, body, int(model.jnt_dofadr[j]),
-                                   mapping.centres[body]))
+                self.roots.append(
+                    (
+                        target.articulation,
+                        mapping.bodies[body].link,
+                        body,
+                        int(model.jnt_dofadr[j]),
+                        mapping.centres[body],
+                    )
+                )
         self.applied: list = []  # this step's wrenches (articulation, centre of mass, force, torque), world
 
     def __call__(self, data: mujoco.MjData, force: np.ndarray, links: list) -> None:
         """`data` at the step's start; `links` per articulation."""
         self.applied.clear()
         for art, link, body, dof, centre in self.roots:
-            wrench = force[dof:dof + 6]
+            wrench = force[dof : dof + 6]
             if not wrench.any():
                 continue
             rotation = data.xmat[body].reshape(3, 3)

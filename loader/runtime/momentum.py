@@ -68,8 +68,12 @@ def angular(kept: np.ndarray, carried: np.ndarray) -> np.ndarray:
 
 def touching(links: set, contacts) -> bool:
     """Whether a contact pushed one of `links` in the last step."""
-    return any(body in links for contact in contacts for body in contact.bodies
-               if any(np.any(point.impulse) for point in contact.points))
+    return any(
+        body in links
+        for contact in contacts
+        for body in contact.bodies
+        if any(np.any(point.impulse) for point in contact.points)
+    )
 
 
 def external_torque(data: mujoco.MjData, root, gravity: np.ndarray, wrenches) -> np.ndarray:
@@ -104,8 +108,9 @@ class Momentum(Term):
 
     name = "momentum"
 
-    def __init__(self, model: mujoco.MjModel, mapping: Mapping, roots: list[Root], timestep: float, scene=None,
-                 articulations=()):
+    def __init__(
+        self, model: mujoco.MjModel, mapping: Mapping, roots: list[Root], timestep: float, scene=None, articulations=()
+    ):
         self.model, self.mapping, self.roots = model, mapping, roots
         self.data = mujoco.MjData(model)
         self.timestep = timestep
@@ -122,8 +127,12 @@ class Momentum(Term):
         q = step.layout.split(step.q)
         qpos, qvel = step.mujoco_state(self.mapping)
         arts = step.articulations
-        self.start = (qpos, qvel, [q[r.articulation].copy() for r in self.roots],
-                      [pose7(arts[r.articulation]) for r in self.roots])
+        self.start = (
+            qpos,
+            qvel,
+            [q[r.articulation].copy() for r in self.roots],
+            [pose7(arts[r.articulation]) for r in self.roots],
+        )
 
     def forget(self) -> None:
         """The state was set from outside: the next read is not the end of a step."""
@@ -158,10 +167,10 @@ class Momentum(Term):
             return
         contacts = self.scene.get_contacts() if self.sees_contacts else []
         qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
-        kept, = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
+        (kept,) = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
         joints_only = qvel1.copy()
         for root in self.roots:
-            joints_only[root.dofadr:root.dofadr + 6] = 0.0
+            joints_only[root.dofadr : root.dofadr + 6] = 0.0
         started, joints_part, drifts = self._momenta(qpos0, qvel0, joints_only, drift=True)  # data stays at q0
         for i, root in enumerate(self.roots):
             if root not in stepped:
@@ -174,17 +183,21 @@ class Momentum(Term):
                 k = np.concatenate([kept[i][:3], angular(kept[i][3:], carried)])
             mass, inertia = composite(self.data, root.tree)
             adr, dof = root.qposadr, root.dofadr
-            offset = self.data.subtree_com[root.body] - qpos0[adr:adr + 3]  # centre of mass from the root's origin
+            offset = self.data.subtree_com[root.body] - qpos0[adr : adr + 3]  # centre of mass from the root's origin
             own = k - dt * drift - joints_part[i]  # the root's own momentum at q0
             omega = np.linalg.solve(inertia, own[3:])
             linear = own[:3] / mass - cross3(omega, offset)
-            qvel1[dof:dof + 3], qvel1[dof + 3:dof + 6] = linear, quat_to_mat(qpos0[adr + 3:adr + 7]).T @ omega
+            qvel1[dof : dof + 3], qvel1[dof + 3 : dof + 6] = linear, quat_to_mat(qpos0[adr + 3 : adr + 7]).T @ omega
         if self.law is not None:  # `self.data` is still at q0
             self.law.correct(self.data, [r for r in stepped if r.damped], qvel0, qvel1, articulations)
         for root in stepped:
             adr, dof = root.qposadr, root.dofadr
-            self.mapping.set_root(articulations[root.articulation], root.body,
-                                  advanced(qpos0[adr:adr + 7], qvel1[dof:dof + 6], dt), qvel1[dof:dof + 6])
+            self.mapping.set_root(
+                articulations[root.articulation],
+                root.body,
+                advanced(qpos0[adr : adr + 7], qvel1[dof : dof + 6], dt),
+                qvel1[dof : dof + 6],
+            )
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
 
     def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray, drift: bool = False) -> list[list[np.ndarray]]:
@@ -202,18 +215,32 @@ class Momentum(Term):
             data.qvel[:] = qvel
             mujoco.mj_comVel(model, data)
             mujoco.mj_subtreeVel(model, data)
-            out.append([np.concatenate([data.subtree_linvel[r.body] * model.body_subtreemass[r.body],
-                                        data.subtree_angmom[r.body]]) for r in self.roots])
+            out.append(
+                [
+                    np.concatenate(
+                        [data.subtree_linvel[r.body] * model.body_subtreemass[r.body], data.subtree_angmom[r.body]]
+                    )
+                    for r in self.roots
+                ]
+            )
             if drift and k == 0:
                 data.qacc[:] = 0.0
                 mujoco.mj_rnePostConstraint(model, data)
-                rates = [np.concatenate([data.cfrc_int[r.body][3:] + model.body_subtreemass[r.body] * self.gravity,
-                                         data.cfrc_int[r.body][:3]]) for r in self.roots]
+                rates = [
+                    np.concatenate(
+                        [
+                            data.cfrc_int[r.body][3:] + model.body_subtreemass[r.body] * self.gravity,
+                            data.cfrc_int[r.body][:3],
+                        ]
+                    )
+                    for r in self.roots
+                ]
         return out + [rates] if drift else out
 
 
-def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float,
-                  notes: Notes, scene=None) -> Momentum | None:
+def plan_momentum(
+    model: mujoco.MjModel, mapping: Mapping, articulations: list, timestep: float, notes: Notes, scene=None
+) -> Momentum | None:
     """The floating articulations (None without any) whose step differs between PhysX and MuJoCo: those with joints
     or several bodies, with a free joint law (`free_joint.differs`), or a lone body whose spin turns under its own
     inertia (principal moments not all equal, or the centre of mass off the origin)."""
@@ -226,14 +253,19 @@ def plan_momentum(model: mujoco.MjModel, mapping: Mapping, articulations: list, 
         tree = np.flatnonzero(model.body_rootid == body)
         damped = differs(model, j, tree)
         inertia = model.body_inertia[body]
-        spinning = tree.size > 1 or np.any(centres[body]) or not np.allclose(inertia, inertia.mean(),
-                                                                            rtol=ISOTROPIC, atol=0.0)
+        spinning = (
+            tree.size > 1 or np.any(centres[body]) or not np.allclose(inertia, inertia.mean(), rtol=ISOTROPIC, atol=0.0)
+        )
         if articulations[target.articulation].dof == 0 and not damped and not spinning:
             continue
         dofs = np.flatnonzero(np.isin(model.dof_bodyid, tree))
         if damped and np.any(np.isin(model.jnt_type[np.isin(model.jnt_bodyid, tree)], BALL)):
-            notes.approximate("joint", mj.name(model, "joint", j), "free joint damping or armature: the tree's ball "
-                              "joints keep PhysX's velocity where MuJoCo's couples them to the root's")
+            notes.approximate(
+                "joint",
+                mj.name(model, "joint", j),
+                "free joint damping or armature: the tree's ball "
+                "joints keep PhysX's velocity where MuJoCo's couples them to the root's",
+            )
         weights = model.body_mass[tree] * (1.0 - model.body_gravcomp[tree])
         roots.append(Root(target.articulation, body, int(model.jnt_qposadr[j]), dof, tree, dofs, weights, damped))
     return Momentum(model, mapping, roots, timestep, scene, articulations) if roots else None

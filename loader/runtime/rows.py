@@ -27,9 +27,10 @@ from .term import Compilation, Handover, Term
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
 SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
 MAPPED_JOINTS = ("hinge", "slide")
-JOINT_ROWS = tuple(int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}")) for name in (
-    "LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON",
-    "EQUALITY"))  # the copy's equality rows: joint and tendon couplings
+JOINT_ROWS = tuple(
+    int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}"))
+    for name in ("LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON", "EQUALITY")
+)  # the copy's equality rows: joint and tendon couplings
 JOINT_ROW = np.isin(np.arange(len(mujoco.mjtConstraint.__members__)), JOINT_ROWS)  # per row type: a joint-space row
 
 
@@ -70,8 +71,11 @@ class LentModel:
 
     def __enter__(self) -> mujoco.MjModel:
         model = self.model
-        self.saved = (model.opt.disableflags, model.opt.timestep,
-                      [self._swap(model, field, index, values) for field, index, values in self.overrides])
+        self.saved = (
+            model.opt.disableflags,
+            model.opt.timestep,
+            [self._swap(model, field, index, values) for field, index, values in self.overrides],
+        )
         model.opt.timestep = self.timestep
         return model
 
@@ -118,8 +122,14 @@ class RowTerm(Term):
 
     name = "rows"
 
-    def __init__(self, lent: LentModel, mapping: Mapping, limits: list[HardLimit], couplings: list[int],
-                 standby: list | None = None):
+    def __init__(
+        self,
+        lent: LentModel,
+        mapping: Mapping,
+        limits: list[HardLimit],
+        couplings: list[int],
+        standby: list | None = None,
+    ):
         self.lent, model = lent, lent.model
         self.data = mujoco.MjData(model)
         self.couplings = couplings  # the equalities MuJoCo's copy solves
@@ -183,8 +193,9 @@ class RowTerm(Term):
     def joint_rows(self) -> np.ndarray:
         """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
         PhysX's to apply), as MuJoCo's step integrates it (`integrated.py`)."""
-        return integrated_force(self.lent.model, self.data, JOINT_ROW[self.data.efc_type[:self.data.nefc]],
-                                self.accelerated)
+        return integrated_force(
+            self.lent.model, self.data, JOINT_ROW[self.data.efc_type[: self.data.nefc]], self.accelerated
+        )
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
@@ -267,8 +278,11 @@ def scalar_state(model: mujoco.MjModel, mapping: Mapping, layout) -> np.ndarray 
     """Where each MuJoCo qpos (and qvel: the same addresses) sits among the joint positions end to end, for a model
     whose every joint is a mapped hinge or slide (None otherwise: `Mapping.get_state` converts free and ball
     joints)."""
-    if model.nq != model.nv or len(mapping.joints) != model.njnt or any(
-            t.kind not in MAPPED_JOINTS or not t.dofs for t in mapping.joints):
+    if (
+        model.nq != model.nv
+        or len(mapping.joints) != model.njnt
+        or any(t.kind not in MAPPED_JOINTS or not t.dofs for t in mapping.joints)
+    ):
         return None
     source = np.full(model.nq, -1)
     for j, target in enumerate(mapping.joints):
@@ -286,18 +300,25 @@ def deep_contact(data: mujoco.MjData, timestep: float, cap: float) -> bool:
     tests/test_loader_limit.py::test_a_gripper_with_a_part_jammed_inside_another_stays_calm)."""
     if not data.ncon:
         return False
-    rows = data.efc_type[:data.nefc] >= int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
+    rows = data.efc_type[: data.nefc] >= int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
     if not rows.any():
         return False
-    kbip = data.efc_KBIP[:data.nefc][rows]
-    depth = np.maximum(data.efc_margin[:data.nefc][rows] - data.efc_pos[:data.nefc][rows], 0.0)
+    kbip = data.efc_KBIP[: data.nefc][rows]
+    depth = np.maximum(data.efc_margin[: data.nefc][rows] - data.efc_pos[: data.nefc][rows], 0.0)
     if (timestep * kbip[:, 0] * kbip[:, 2] * depth > cap).any():
         return True
-    return bool((data.contact.dist[:data.ncon] < -cap * timestep).any())
+    return bool((data.contact.dist[: data.ncon] < -cap * timestep).any())
 
 
-def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[int], couplings: list[int],
-              notes, standby: list | None = None, timestep: float | None = None) -> RowTerm | None:
+def plan_rows(
+    model: mujoco.MjModel,
+    mapping: Mapping,
+    unmapped_actuators: list[int],
+    couplings: list[int],
+    notes,
+    standby: list | None = None,
+    timestep: float | None = None,
+) -> RowTerm | None:
     """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
     (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges, slides and free joints) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps
     only those rows: contacts are PhysX's (solved with the rows only while SAPIEN has them), other equalities are
@@ -305,14 +326,25 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
     that move a ball or free joint) is taken out so both sides see the same forces."""
     if mj.disabled(model, "constraint"):
         return None
-    limited = [j for j, t in enumerate(mapping.joints)
-               if t.kind in MAPPED_JOINTS and model.jnt_limited[j] and not mj.disabled(model, "limit")]
-    frictional = [j for j, t in enumerate(mapping.joints)
-                  if t.kind in MAPPED_JOINTS and model.dof_frictionloss[model.jnt_dofadr[j]] > 0
-                  and not mj.disabled(model, "frictionloss")]
+    limited = [
+        j
+        for j, t in enumerate(mapping.joints)
+        if t.kind in MAPPED_JOINTS and model.jnt_limited[j] and not mj.disabled(model, "limit")
+    ]
+    frictional = [
+        j
+        for j, t in enumerate(mapping.joints)
+        if t.kind in MAPPED_JOINTS
+        and model.dof_frictionloss[model.jnt_dofadr[j]] > 0
+        and not mj.disabled(model, "frictionloss")
+    ]
     couplings = [] if mj.disabled(model, "equality") else couplings
-    tendons = [t for t in range(model.ntendon) if (model.tendon_limited[t] and not mj.disabled(model, "limit"))
-               or (model.tendon_frictionloss[t] > 0 and not mj.disabled(model, "frictionloss"))]
+    tendons = [
+        t
+        for t in range(model.ntendon)
+        if (model.tendon_limited[t] and not mj.disabled(model, "limit"))
+        or (model.tendon_frictionloss[t] > 0 and not mj.disabled(model, "frictionloss"))
+    ]
     if not limited and not frictional and not couplings and not tendons:
         return None
     edits: dict[str, dict[int, float]] = {}  # what MuJoCo's copy changes: per array, flat index -> value
@@ -326,16 +358,27 @@ def plan_rows(model: mujoco.MjModel, mapping: Mapping, unmapped_actuators: list[
             edit("dof_frictionloss", int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1), 0.0)
     for t in range(model.ntendon):  # a tendon's DoFs, only where it has rows: finding them walks its path
         if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(
-                model, mj.tendon_dofs(model, t)):
+            model, mj.tendon_dofs(model, t)
+        ):
             edit("tendon_limited", t, 1, 0)
             edit("tendon_frictionloss", t, 1, 0.0)
-            notes.drop("tendon", mj.name(model, "tendon", t), "length limit and frictionloss not mapped: the tendon "
-                       "moves a ball or free joint, which takes no joint force in SAPIEN")
+            notes.drop(
+                "tendon",
+                mj.name(model, "tendon", t),
+                "length limit and frictionloss not mapped: the tendon "
+                "moves a ball or free joint, which takes no joint force in SAPIEN",
+            )
     for a in unmapped_actuators:
         for field in ("actuator_gainprm", "actuator_biasprm"):
             width = getattr(model, field).shape[1]
             edit(field, a * width, width, 0.0)
-    limits = [HardLimit((mapping.joints[j].articulation, mapping.joints[j].dofs[0]), *map(float, model.jnt_range[j]),
-                        slide=mapping.joints[j].kind == "slide") for j in limited]
+    limits = [
+        HardLimit(
+            (mapping.joints[j].articulation, mapping.joints[j].dofs[0]),
+            *map(float, model.jnt_range[j]),
+            slide=mapping.joints[j].kind == "slide",
+        )
+        for j in limited
+    ]
     lent = LentModel(model, overrides(model, edits), float(model.opt.timestep if timestep is None else timestep))
     return RowTerm(lent, mapping, limits, couplings, standby)

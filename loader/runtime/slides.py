@@ -68,7 +68,9 @@ def map_slides(articulations) -> list[SlideDrive]:
                 continue
             axis = tuple(float(x) for x in joint.pose_in_parent.to_transformation_matrix()[:3, 0])
             com = tuple(float(x) for x in parent.cmass_local_pose.p)
-            slides.append(SlideDrive(a, dof, joint, parent, joint.child_link, axis, com, joint.child_link.cmass_local_pose))
+            slides.append(
+                SlideDrive(a, dof, joint, parent, joint.child_link, axis, com, joint.child_link.cmass_local_pose)
+            )
     return slides
 
 

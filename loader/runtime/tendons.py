@@ -27,8 +27,10 @@ from .integrated import RootPush
 from .rows import scalar_state
 from .term import Compilation, Term
 
-COUPLED_DAMPING = ("damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
-                   "b J^T J; the off-diagonal part is explicit)")
+COUPLED_DAMPING = (
+    "damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
+    "b J^T J; the off-diagonal part is explicit)"
+)
 
 
 def tendon_state(terms, q: list[np.ndarray], v: list[np.ndarray]) -> tuple[float, float]:
@@ -62,8 +64,10 @@ class PassiveTendon:
             yield art, dof, c * pull + diagonal * v[art][dof], diagonal
 
 
-COUPLED_DAMPING = ("damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
-                   "b J^T J; the off-diagonal part is explicit)")
+COUPLED_DAMPING = (
+    "damping implicit in its diagonal b J_i^2 only (MuJoCo's implicit integrators hold the whole "
+    "b J^T J; the off-diagonal part is explicit)"
+)
 
 
 def map_tendons(model: mujoco.MjModel, mapping, notes) -> list[PassiveTendon]:
@@ -111,8 +115,11 @@ class TendonPaths:
         self.floating = not self.joint.all()  # a free joint among the DoFs
         self.keys = [(t.articulation, t.dofs[0]) for t, on in zip(targets, self.joint) if on]
         column = {d: i for i, d in enumerate(dofs)}  # MuJoCo keeps ten_J sparse, its pattern fixed by the model
-        entries = [(k, column[int(model.ten_J_colind[a])], a) for k, t in enumerate(tendons) for a in range(
-            int(model.ten_J_rowadr[t]), int(model.ten_J_rowadr[t] + model.ten_J_rownnz[t]))]
+        entries = [
+            (k, column[int(model.ten_J_colind[a])], a)
+            for k, t in enumerate(tendons)
+            for a in range(int(model.ten_J_rowadr[t]), int(model.ten_J_rowadr[t] + model.ten_J_rownnz[t]))
+        ]
         self.row, self.column, self.entry = (np.array(x, dtype=int) for x in zip(*entries))
         self.last: tuple | None = None  # (step, its state): one pass per step for every consumer
 
@@ -153,8 +160,15 @@ class TendonPaths:
         jacobian[self.row, self.column] = data.ten_J[self.entry]
         return jacobian
 
-    def apply(self, step: Step, force: np.ndarray, push: RootPush | None, jacobian: np.ndarray, v: np.ndarray,
-              implicit: np.ndarray | None = None) -> None:
+    def apply(
+        self,
+        step: Step,
+        force: np.ndarray,
+        push: RootPush | None,
+        jacobian: np.ndarray,
+        v: np.ndarray,
+        implicit: np.ndarray | None = None,
+    ) -> None:
         """A generalized force over `dofs` into the step: joint forces, a free joint's share through `push` (once
         per physics step); `implicit`: per tendon of `jacobian`'s rows, the damping whose diagonal d J_i^2 the
         drives take implicitly (and the explicit force gives back at the current rate)."""
@@ -212,8 +226,9 @@ class SpatialTendons:
         return self.paths.implicit_diagonal(self.rows, self.damping) if self.implicit else {}
 
 
-def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool,
-                 paths: TendonPaths | None) -> SpatialTendons | None:
+def plan_spatial(
+    model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool, paths: TendonPaths | None
+) -> SpatialTendons | None:
     """The spatial tendons with a spring or damper along `paths` (those SAPIEN can carry: `Mapping.carries`;
     a tendon whose path crosses a ball joint is noted and left out)."""
     stiffness, damping = mj.tendon_passive(model)
@@ -223,8 +238,12 @@ def plan_spatial(model: mujoco.MjModel, mapping: Mapping, notes, implicit: bool,
             continue
         name = mj.name(model, "tendon", t)
         if not mapping.carries(model, t):
-            notes.drop("tendon", name, "spatial tendon's spring and damper not mapped: the tendon moves a ball "
-                       "joint, whose torque SAPIEN's joint forces do not take")
+            notes.drop(
+                "tendon",
+                name,
+                "spatial tendon's spring and damper not mapped: the tendon moves a ball "
+                "joint, whose torque SAPIEN's joint forces do not take",
+            )
             continue
         if model.tendon_armature[t] > 0:
             notes.drop("tendon", name, f"tendon armature {model.tendon_armature[t]:g} not mapped")
@@ -238,8 +257,11 @@ def plan_paths(model: mujoco.MjModel, mapping: Mapping, actuated: list[int]) -> 
     """The paths of every spatial tendon SAPIEN can carry that has a spring or damper or drives an actuator
     (`actuated`, tendon ids), computed once per step for all of them."""
     stiffness, damping = mj.tendon_passive(model)
-    tendons = [t for t in range(model.ntendon) if mj.is_spatial(model, t) and mapping.carries(model, t) and (
-        t in actuated or stiffness[t] or damping[t])]
+    tendons = [
+        t
+        for t in range(model.ntendon)
+        if mj.is_spatial(model, t) and mapping.carries(model, t) and (t in actuated or stiffness[t] or damping[t])
+    ]
     return TendonPaths(model, mapping, tendons) if tendons else None
 
 

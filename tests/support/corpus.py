@@ -9,13 +9,35 @@ from pathlib import Path
 import pytest
 
 SUITE = [
-    "acrobot", "ball_in_cup", "cartpole", "cheetah", "dog", "finger", "fish", "hopper", "humanoid", "humanoid_CMU",
-    "lqr", "manipulator", "pendulum", "point_mass", "quadruped", "reacher", "stacker", "swimmer", "walker",
+    "acrobot",
+    "ball_in_cup",
+    "cartpole",
+    "cheetah",
+    "dog",
+    "finger",
+    "fish",
+    "hopper",
+    "humanoid",
+    "humanoid_CMU",
+    "lqr",
+    "manipulator",
+    "pendulum",
+    "point_mass",
+    "quadruped",
+    "reacher",
+    "stacker",
+    "swimmer",
+    "walker",
 ]
 MENAGERIE = [
-    "aloha/scene.xml", "boston_dynamics_spot/spot.xml", "franka_emika_panda/panda.xml",
-    "google_barkour_vb/barkour_vb.xml", "leap_hand/right_hand.xml", "robotiq_2f85_v4/2f85.xml",
-    "tetheria_aero_hand_open/right_hand.xml", "unitree_go1/go1.xml",
+    "aloha/scene.xml",
+    "boston_dynamics_spot/spot.xml",
+    "franka_emika_panda/panda.xml",
+    "google_barkour_vb/barkour_vb.xml",
+    "leap_hand/right_hand.xml",
+    "robotiq_2f85_v4/2f85.xml",
+    "tetheria_aero_hand_open/right_hand.xml",
+    "unitree_go1/go1.xml",
 ]
 FIXTURES = Path(__file__).parent.parent / "fixtures"
 

@@ -39,8 +39,11 @@ def _docstring_nodes(tree: ast.AST):
     for node in ast.walk(tree):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
             first = node.body[0]
-            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(
-                    first.value.value, str):
+            if (
+                isinstance(first, ast.Expr)
+                and isinstance(first.value, ast.Constant)
+                and isinstance(first.value.value, str)
+            ):
                 yield first
 
 
@@ -51,8 +54,10 @@ def docstring_numbers(files: dict[str, str]) -> list[str]:
         for node in _docstring_nodes(ast.parse(text)):
             for offset, line in enumerate(node.value.value.splitlines()):
                 for number in E_NOTATION.findall(line):
-                    out.append(f"{path}:{node.lineno + offset}: {number} in a docstring; name the test that "
-                               "measures it instead")
+                    out.append(
+                        f"{path}:{node.lineno + offset}: {number} in a docstring; name the test that "
+                        "measures it instead"
+                    )
     return out
 
 
@@ -86,7 +91,7 @@ def import_cycles(files: dict[str, str]) -> list[str]:
         stack.append(node)
         for nxt in sorted(graph[node]):
             if state.get(nxt) == "open":
-                cycles.append(" -> ".join(stack[stack.index(nxt):] + [nxt]))
+                cycles.append(" -> ".join(stack[stack.index(nxt) :] + [nxt]))
             elif nxt not in state:
                 visit(nxt, stack)
         stack.pop()
@@ -131,8 +136,11 @@ def _imports(name: str, path: str, text: str) -> list[tuple[int, str]]:
 def layering(files: dict[str, str]) -> list[str]:
     """`path:line: ...` for every import that crosses the loader's layers the wrong way, and every folder named
     `build` under the packages."""
-    out = [f"{path}: a folder named build (tools take it for build output)" for path in files
-           if "build" in Path(path).parts[:-1]]
+    out = [
+        f"{path}: a folder named build (tools take it for build output)"
+        for path in files
+        if "build" in Path(path).parts[:-1]
+    ]
     for path, text in files.items():
         name = _module_name(path)
         layer = _layer(name)
@@ -141,11 +149,14 @@ def layering(files: dict[str, str]) -> list[str]:
         for line, target in _imports(name, path, text):
             if not target.startswith("loader"):
                 continue
-            reached = _layer(target) or (None if target in ("loader", "loader.model", "loader.plan",
-                                                             "loader.runtime") else "the façade")
+            reached = _layer(target) or (
+                None if target in ("loader", "loader.model", "loader.plan", "loader.runtime") else "the façade"
+            )
             if reached is not None and reached not in LAYERS[layer]:
-                out.append(f"{path}:{line}: {layer} imports {target} ({reached}); it may import "
-                           f"{', '.join(LAYERS[layer])} only")
+                out.append(
+                    f"{path}:{line}: {layer} imports {target} ({reached}); it may import "
+                    f"{', '.join(LAYERS[layer])} only"
+                )
     return out
 
 
@@ -155,8 +166,23 @@ CALL = re.compile(r"^([A-Za-z_]\w*)\(\)$")
 PY_FILE = re.compile(r"^[\w/.-]+\.py$")
 STAGE_SWITCH = re.compile(r"without\(([^)]*)\)")
 FILE_SUFFIXES = ("md", "json", "txt", "TXT", "toml", "rrd", "xml", "html", "yaml", "csv", "tar")
-THIRD_PARTY = ("mani_skill", "mujoco", "sapien", "numpy", "np", "rerun", "rr", "ray", "torch", "gymnasium",
-               "dm_control", "hypothesis", "nox", "warp", "mjx")  # their names are theirs to resolve
+THIRD_PARTY = (
+    "mani_skill",
+    "mujoco",
+    "sapien",
+    "numpy",
+    "np",
+    "rerun",
+    "rr",
+    "ray",
+    "torch",
+    "gymnasium",
+    "dm_control",
+    "hypothesis",
+    "nox",
+    "warp",
+    "mjx",
+)  # their names are theirs to resolve
 
 
 def code_names(files: dict[str, str]) -> tuple[set[str], set[str]]:
@@ -213,8 +239,11 @@ def unresolved_identifiers(docs: dict[str, str], files: dict[str, str]) -> list[
                         out.append(f"{path}:{number}: `{token}`: no such file")
                 elif call and call.group(1) not in defined:
                     out.append(f"{path}:{number}: `{token}`: no such function or class")
-                elif DOTTED.match(token) and token.rpartition(".")[2] not in FILE_SUFFIXES \
-                        and token.split(".")[0] not in THIRD_PARTY:
+                elif (
+                    DOTTED.match(token)
+                    and token.rpartition(".")[2] not in FILE_SUFFIXES
+                    and token.split(".")[0] not in THIRD_PARTY
+                ):
                     missing = [part for part in token.removesuffix("()").split(".") if part not in names]
                     if missing:
                         out.append(f"{path}:{number}: `{token}`: the code has no {', '.join(missing)}")
@@ -226,9 +255,13 @@ def private_reads(files: dict[str, str]) -> list[str]:
     out = []
     for path, text in files.items():
         for node in ast.walk(ast.parse(text)):
-            if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
-                    and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))
-                    and not (isinstance(node.value, ast.Call) and getattr(node.value.func, "id", "") == "super")):
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+                and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))
+                and not (isinstance(node.value, ast.Call) and getattr(node.value.func, "id", "") == "super")
+            ):
                 out.append(f"{path}:{node.lineno}: reads private attribute {node.attr}")
     return out
 
@@ -241,8 +274,11 @@ def _anchor(heading: str) -> str:
 def broken_links(docs: dict[str, str]) -> list[str]:
     """`path:line: link` for every relative link whose file or `#anchor` is not in `docs` (paths relative to the
     root; links to files other than markdown only need the file to be listed)."""
-    anchors = {path: {_anchor(line.lstrip("#")) for line in text.splitlines() if line.startswith("#")}
-               for path, text in docs.items() if path.endswith(".md")}
+    anchors = {
+        path: {_anchor(line.lstrip("#")) for line in text.splitlines() if line.startswith("#")}
+        for path, text in docs.items()
+        if path.endswith(".md")
+    }
     out = []
     for path, text in docs.items():
         for number, line in enumerate(text.splitlines(), 1):
@@ -290,11 +326,19 @@ def foreign_imports(files: dict[str, str], allowed=CORE) -> list[str]:
     out = []
     for path, text in files.items():
         tree = ast.parse(text)
-        optional = {id(node) for guard in ast.walk(tree) if isinstance(guard, ast.Try) and _catches_import_error(guard)
-                    for statement in guard.body for node in ast.walk(statement)}  # used where installed
+        optional = {
+            id(node)
+            for guard in ast.walk(tree)
+            if isinstance(guard, ast.Try) and _catches_import_error(guard)
+            for statement in guard.body
+            for node in ast.walk(statement)
+        }  # used where installed
         for node in ast.walk(tree):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
-                [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else ([node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
+            )
             if id(node) in optional:
                 continue
             for name in names:
@@ -305,13 +349,15 @@ def foreign_imports(files: dict[str, str], allowed=CORE) -> list[str]:
 
 
 def _catches_import_error(guard: ast.Try) -> bool:
-    return any(isinstance(h.type, ast.Name) and h.type.id in ("ImportError", "ModuleNotFoundError")
-               for h in guard.handlers)
+    return any(
+        isinstance(h.type, ast.Name) and h.type.id in ("ImportError", "ModuleNotFoundError") for h in guard.handlers
+    )
 
 
 def sources(root: Path, packages=PACKAGES) -> dict[str, str]:
-    return {str(p.relative_to(root)): p.read_text() for package in packages
-            for p in sorted((root / package).rglob("*.py"))}
+    return {
+        str(p.relative_to(root)): p.read_text() for package in packages for p in sorted((root / package).rglob("*.py"))
+    }
 
 
 def findings(root: Path) -> list[str]:
@@ -319,14 +365,21 @@ def findings(root: Path) -> list[str]:
     tests = {str(p.relative_to(root)): p.read_text() for p in sorted((root / "tests").rglob("*.py"))}
     loader = {p: t for p, t in every.items() if p.startswith("loader")}
     docs = documents(root)
-    return (docstring_numbers(loader) + import_cycles(every) + layering(loader) + private_reads(every)
-            + foreign_imports({p: t for p, t in loader.items() if not p.startswith(MANISKILL[0])})
-            + foreign_imports({p: t for p, t in loader.items() if p.startswith(MANISKILL[0])}, CORE + MANISKILL[1])
-            + broken_links(docs) + long_readme(docs["README.md"])
-            + unresolved_identifiers(docs, {**every, **tests, "noxfile.py": (root / "noxfile.py").read_text()})
-            + broken_test_references({**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
-                                     {str(p.relative_to(root)): p.read_text()
-                                      for p in sorted((root / "tests").rglob("*.py"))}))
+    return (
+        docstring_numbers(loader)
+        + import_cycles(every)
+        + layering(loader)
+        + private_reads(every)
+        + foreign_imports({p: t for p, t in loader.items() if not p.startswith(MANISKILL[0])})
+        + foreign_imports({p: t for p, t in loader.items() if p.startswith(MANISKILL[0])}, CORE + MANISKILL[1])
+        + broken_links(docs)
+        + long_readme(docs["README.md"])
+        + unresolved_identifiers(docs, {**every, **tests, "noxfile.py": (root / "noxfile.py").read_text()})
+        + broken_test_references(
+            {**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
+            {str(p.relative_to(root)): p.read_text() for p in sorted((root / "tests").rglob("*.py"))},
+        )
+    )
 
 
 if __name__ == "__main__":

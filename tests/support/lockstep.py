@@ -56,8 +56,9 @@ def at_keyframe(path: str | Path, key: int = 0):
     return result, model, data
 
 
-def paired_rollout(result, model: mujoco.MjModel, data: mujoco.MjData, steps: int, ctrl_at: CtrlAt = no_ctrl,
-                   set_ctrl: bool = True) -> Paired:
+def paired_rollout(
+    result, model: mujoco.MjModel, data: mujoco.MjData, steps: int, ctrl_at: CtrlAt = no_ctrl, set_ctrl: bool = True
+) -> Paired:
     """Step MuJoCo (`model`, `data`) and SAPIEN together from their current states. `ctrl_at(step, data)` gives
     the step's ctrl (None: MuJoCo's `data.ctrl` as it is, on both sides); `set_ctrl=False` steps SAPIEN bare
     (after `release()`)."""
@@ -78,8 +79,9 @@ def paired_rollout(result, model: mujoco.MjModel, data: mujoco.MjData, steps: in
     return Paired(*(np.array(x) for x in (qpos, qvel, sapien_speed, mujoco_speed)))
 
 
-def replay(result, model: mujoco.MjModel, ctrl_at: CtrlAt, seconds: float,
-           reference: mujoco.MjModel | None = None) -> np.ndarray:
+def replay(
+    result, model: mujoco.MjModel, ctrl_at: CtrlAt, seconds: float, reference: mujoco.MjModel | None = None
+) -> np.ndarray:
     """From the first keyframe (or qpos0) on both sides, `seconds` of the same ctrl sequence; the worst |qpos|
     difference per step. `reference` is the model MuJoCo runs (default: `model`)."""
     reference = reference or model
@@ -93,8 +95,9 @@ def replay(result, model: mujoco.MjModel, ctrl_at: CtrlAt, seconds: float,
     return paired_rollout(result, reference, data, int(seconds / reference.opt.timestep), ctrl_at).qpos
 
 
-def one_step(result, model: mujoco.MjModel, qpos, qvel, ctrl=None, data: mujoco.MjData | None = None,
-             advance: bool = True) -> np.ndarray:
+def one_step(
+    result, model: mujoco.MjModel, qpos, qvel, ctrl=None, data: mujoco.MjData | None = None, advance: bool = True
+) -> np.ndarray:
     """Both sides put at (qpos, qvel) and stepped once under `ctrl`; |SAPIEN - MuJoCo| velocity per DoF. `data`:
     MuJoCo's data to step (its act and warm start kept; default a fresh one). `advance=False`: activations are not
     advanced (a probe step off the main run)."""

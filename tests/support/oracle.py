@@ -47,8 +47,9 @@ def link_of(result, body: int):
 def component_of(result, target):
     """The link or static-actor component that carries a geom's shape."""
     if target.articulation is None:
-        return next(c for c in result.actors[target.actor].components
-                    if isinstance(c, sapien.physx.PhysxRigidBaseComponent))
+        return next(
+            c for c in result.actors[target.actor].components if isinstance(c, sapien.physx.PhysxRigidBaseComponent)
+        )
     return result.articulations[target.articulation].links[target.link]
 
 
@@ -81,7 +82,9 @@ def _direct_parent_child(result, body_a: int, body_b: int) -> bool:
     if link_a.articulation is None or link_a.articulation != link_b.articulation:
         return False
     la, lb = link_of(result, body_a), link_of(result, body_b)
-    return (la.parent is not None and la.parent.name == lb.name) or (lb.parent is not None and lb.parent.name == la.name)
+    return (la.parent is not None and la.parent.name == lb.name) or (
+        lb.parent is not None and lb.parent.name == la.name
+    )
 
 
 def collision_filter_mismatches(result) -> list[tuple]:
@@ -105,8 +108,9 @@ def collision_filter_mismatches(result) -> list[tuple]:
             if model.geom_type[a] == model.geom_type[b] == mujoco.mjtGeom.mjGEOM_PLANE:
                 continue
             ta, tb = result.mapping.geoms[a], result.mapping.geoms[b]
-            physx = _physx_collides(component_of(result, ta).collision_shapes[ta.shape],
-                                    component_of(result, tb).collision_shapes[tb.shape])
+            physx = _physx_collides(
+                component_of(result, ta).collision_shapes[ta.shape], component_of(result, tb).collision_shapes[tb.shape]
+            )
             physx = physx and not _direct_parent_child(result, body_a, body_b)
             pair_names = {f"{name(body_a)}/{name(body_b)}", f"{name(body_b)}/{name(body_a)}"}
             if physx != ((a, b) in mujoco_pairs) and not pair_names & reported:
