@@ -110,7 +110,8 @@ def parser() -> argparse.ArgumentParser:
         "--tiers",
         type=_tiers,
         default=None,
-        help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; the opt-in maniskill tier only when named)",
+        help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; "
+        "the opt-in maniskill tier only when named)",
     )
     run.add_argument(
         "--loader",

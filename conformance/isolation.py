@@ -7,8 +7,9 @@ failure comes from: a model whose actuators are mapped right passes once the gap
 and a mapping error (a wrong kp, a flipped gear) survives every edit.
 The half timestep separates integrator differences from force errors: one-step velocity errors from a force
 mismatch halve with dt (order 1), an integration difference shrinks four times (order 2). Order 2 also fits a
-force error that is itself O(dt): the velocity-product drift PhysX's slide drives measured (loader/runtime/slides.py) was
-first read here as an integration difference, so an order-2 residual is a lead, not a verdict.
+force error that is itself O(dt): the velocity-product drift PhysX's slide drives measured
+(loader/runtime/slides.py) was first read here as an integration difference, so an order-2 residual is a lead, not a
+verdict.
 A manifest expectation may claim `passes_without = [...]`: the run checks that the tier passes with exactly
 those gaps out, so the reason written there is measured on every run.
 """

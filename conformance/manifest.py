@@ -88,8 +88,8 @@ class ModelEntry:
         return exp.outcome if exp else "pass"
 
     def at_seed(self, seed: int) -> ModelEntry:
-        """The entry as judged at `seed`: expectations scoped to other seeds dropped (tests/test_conformance_manifest.py::
-        test_an_expectation_scoped_to_seeds_holds_only_there)."""
+        """The entry as judged at `seed`: expectations scoped to other seeds dropped
+        (tests/test_conformance_summary.py::test_an_expectation_scoped_to_seeds_holds_only_there)."""
         return replace(self, expect={t: e for t, e in self.expect.items() if not e.seeds or seed in e.seeds})
 
 
@@ -119,52 +119,7 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
     override = raw.get("override", {})
     if override and not override.get("reason"):
         raise ValueError(f"{where}: model {raw['id']!r} overrides without a reason")
-    expect = {}
-    for exp in raw.get("expect", []):
-        tier, outcome, reason = exp.get("tier"), exp.get("outcome"), exp.get("reason")
-        if tier not in (*TIER_NAMES, LOAD) or outcome not in EXPECTABLE or not reason:
-            raise ValueError(
-                f"{where}: model {raw['id']!r} has a bad expectation {exp} "
-                f"(needs tier in {TIER_NAMES}, outcome in {list(EXPECTABLE)}, reason)"
-            )
-        if (tier == LOAD) != (outcome == "error"):
-            raise ValueError(
-                f"{where}: model {raw['id']!r}: a load error is expected as tier = {LOAD!r}, "
-                f"outcome = 'error' (and only so), not {exp}"
-            )
-        seen = exp.get("seen")
-        seen = tuple(seen) if isinstance(seen, list) and len(seen) == 2 else (seen, seen)
-        if outcome == "fail" and not (
-            exp.get("metric") and all(isinstance(x, (int, float)) and x > 0 for x in seen) and seen[0] <= seen[1]
-        ):
-            raise ValueError(
-                f"{where}: model {raw['id']!r} tier {tier!r}: an expected failure names the `metric` its "
-                "reason describes and the positive max `seen` when it was measured, or [low, high] over seeds (the run checks "
-                f"that the failure stays within {BAND_FACTOR:g}x of it)"
-            )
-        claimed = tuple(exp.get("passes_without", ()))
-        unknown = [g for g in claimed if g not in GAPS]
-        if unknown or (claimed and (tier not in ISOLATED_TIERS or outcome != "fail")):
-            raise ValueError(
-                f"{where}: model {raw['id']!r} tier {tier!r}: passes_without {list(claimed)} needs "
-                f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}"
-            )
-        seeds = exp.get("seeds", [])
-        if not (isinstance(seeds, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in seeds)):
-            raise ValueError(f"{where}: model {raw['id']!r} tier {tier!r}: seeds is a list of integers, not {seeds!r}")
-        expect[tier] = Expectation(
-            tier,
-            outcome,
-            reason,
-            claimed,
-            str(exp.get("metric", "")),
-            float(seen[0] or 0.0),
-            float(seen[1] or 0.0),
-            tuple(seeds),
-        )
-    if "actuated" in expect and "maniskill" not in expect:  # the same rollout through ManiSkill: the same known gap
-        known = expect["actuated"]
-        expect["maniskill"] = replace(known, tier="maniskill", reason=f"as actuated: {known.reason}", passes_without=())
+    expect = _expectations(raw, where)
     fault = raw.get("fault")
     if fault is not None and fault not in FAULTS:
         raise ValueError(f"{where}: model {raw['id']!r} fault must be one of {FAULTS}")
@@ -180,6 +135,70 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
         fault=fault,
         base_dir=base_dir,
     )
+
+
+def _expectations(raw: dict, where: str) -> dict[str, Expectation]:
+    """A model entry's expectations by tier; `maniskill` inherits the `actuated` one unless it has its own."""
+    expect = {}
+    for exp in raw.get("expect", []):
+        expect[exp.get("tier")] = _expectation(exp, raw["id"], where)
+    if "actuated" in expect and "maniskill" not in expect:  # the same rollout through ManiSkill: the same known gap
+        known = expect["actuated"]
+        expect["maniskill"] = replace(known, tier="maniskill", reason=f"as actuated: {known.reason}", passes_without=())
+    return expect
+
+
+def _expectation(exp: dict, model_id: object, where: str) -> Expectation:
+    """One `[[model.expect]]` table, checked: tier and outcome (a load error on `load` only), an expected failure's
+    metric and `seen` band, `passes_without` gaps and `seeds`."""
+    tier, outcome, reason = exp.get("tier"), exp.get("outcome"), exp.get("reason")
+    if tier not in (*TIER_NAMES, LOAD) or outcome not in EXPECTABLE or not reason:
+        raise ValueError(
+            f"{where}: model {model_id!r} has a bad expectation {exp} "
+            f"(needs tier in {TIER_NAMES}, outcome in {list(EXPECTABLE)}, reason)"
+        )
+    if (tier == LOAD) != (outcome == "error"):
+        raise ValueError(
+            f"{where}: model {model_id!r}: a load error is expected as tier = {LOAD!r}, "
+            f"outcome = 'error' (and only so), not {exp}"
+        )
+    seen = _seen_band(exp, model_id, where)
+    claimed = tuple(exp.get("passes_without", ()))
+    unknown = [g for g in claimed if g not in GAPS]
+    if unknown or (claimed and (tier not in ISOLATED_TIERS or outcome != "fail")):
+        raise ValueError(
+            f"{where}: model {model_id!r} tier {tier!r}: passes_without {list(claimed)} needs "
+            f"gaps from {list(GAPS)} on a 'fail' expectation of {list(ISOLATED_TIERS)}"
+        )
+    seeds = exp.get("seeds", [])
+    if not (isinstance(seeds, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in seeds)):
+        raise ValueError(f"{where}: model {model_id!r} tier {tier!r}: seeds is a list of integers, not {seeds!r}")
+    return Expectation(
+        tier,
+        outcome,
+        reason,
+        claimed,
+        str(exp.get("metric", "")),
+        float(seen[0] or 0.0),
+        float(seen[1] or 0.0),
+        tuple(seeds),
+    )
+
+
+def _seen_band(exp: dict, model_id: object, where: str) -> tuple:
+    """An expectation's `seen` as (low, high); an expected failure needs its metric and a positive, ordered `seen`."""
+    seen = exp.get("seen")
+    seen = tuple(seen) if isinstance(seen, list) and len(seen) == 2 else (seen, seen)
+    if exp.get("outcome") == "fail" and not (
+        exp.get("metric") and all(isinstance(x, (int, float)) and x > 0 for x in seen) and seen[0] <= seen[1]
+    ):
+        raise ValueError(
+            f"{where}: model {model_id!r} tier {exp.get('tier')!r}: an expected failure names the `metric` its "
+            "reason describes and the positive max `seen` when it was measured, or [low, high] over seeds "
+            "(the run checks "
+            f"that the failure stays within {BAND_FACTOR:g}x of it)"
+        )
+    return seen
 
 
 def load(path: str | Path) -> Manifest:
@@ -227,7 +246,8 @@ def from_paths(
 ) -> Manifest:
     """An ad-hoc manifest for MJCF files given on the command line. A file that is a manifest model (`known`: its
     resolved path -> entry) is that entry, with its id, tiers and expectations; any other file expects every tier to
-    pass or be skipped for the model's own reason (`listed`) and is named by its stem, or by its parent folder where the stem is generic (`GENERIC_STEMS`) or repeats
+    pass or be skipped for the model's own reason (`listed`) and is named by its stem, or by its parent folder where
+    the stem is generic (`GENERIC_STEMS`) or repeats
     (tests/test_conformance_manifest.py::test_command_line_paths_become_entries_named_by_their_folder_where_stems_repeat)."""
     files = expand_paths(paths)
     known = known or {}

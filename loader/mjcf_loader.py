@@ -112,68 +112,83 @@ class MJCFLoader:
         geom_class = {g.id: g.classname.name for g in compiled.spec.geoms}
         kept = [g for g in range(model.ngeom) if geom_class.get(g) not in self.ignore_classes]
         static = {0} | ({b for b in range(model.nbody) if model.body_weldid[b] == 0} if self.fix_root_link else set())
-        contact_off = mj.disabled(model, "contact", "constraint")
-        meshes: dict = {}
-        shapes = {
-            g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes, meshes)
-            for g in kept
-            if collides(model, g)
-        }
-        shapes = {g: s for g, s in shapes.items() if s is not None}
-        hulls.plan_sharing(shapes.values())
-        contact_filter = plan_collision_filter(model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
-        for g, shape in shapes.items():
-            shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)
+        shapes = _shapes(model, tree, kept, static, notes)
         show = bool(self.visual_groups) and visuals_available(self.scene)
         visual = {g for g in kept if show and int(model.geom_group[g]) in self.visual_groups}
-
-        def dress(builder, body: int) -> None:
-            for g in range(model.body_geomadr[body], model.body_geomadr[body] + model.body_geomnum[body]):
-                if g in shapes:
-                    builder.shape_plans.append(shapes[g])
-                if g in visual:
-                    add_visual(builder, model, g)
-
-        articulation_builders = []
-        for art in tree.articulations:
-            builder = self.new_articulation_builder()
-            builder.set_scene(self.scene)
-            builder.set_initial_pose(art.root_pose)
-            builder.floating = art.floating
-            builder.name = art.name
-            builder.timestep = physx_settings.scene_timestep(self.scene, model)
-            builder.solver_iterations = None if self.solver_iterations == "auto" else self.solver_iterations
-            link_builders = []
-            for link in art.links:
-                lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)
-                lb.plan = link
-                lb.set_name(link.name)
-                lb.set_joint_name(link.joint.name)
-                if link.parent is None:
-                    lb.joint_record.joint_type = link.joint.type
-                else:
-                    lb.set_joint_properties(
-                        link.joint.type,
-                        [list(link.joint.limits)],
-                        link.pose_in_parent,
-                        link.joint.frame_in_child,
-                        0.0,
-                        link.joint.damping,
-                    )
-                lb.set_mass_and_inertia(link.mass, link.cmass, np.asarray(link.inertia, np.float32))
-                if link.body is not None:
-                    dress(lb, link.body)
-                link_builders.append(lb)
-            articulation_builders.append(builder)
-        actor_builders = []
-        if model.body_geomnum[0]:
-            world = self.new_actor_builder()
-            world.set_scene(self.scene)
-            world.set_name("world")
-            world.set_physx_body_type("static")
-            dress(world, 0)
-            actor_builders.append(world)
+        dress = _Dresser(model, shapes, visual)
+        articulation_builders = [self._articulation_builder(model, art, dress) for art in tree.articulations]
+        actor_builders = [self._world_builder(dress)] if model.body_geomnum[0] else []
         return _Parsed(compiled, tree, articulation_builders, actor_builders, cameras(model), notes)
+
+    def _articulation_builder(self, model: mujoco.MjModel, art, dress: _Dresser) -> MJCFArticulationBuilder:
+        """One kinematic tree's builder: its links in order, each with its joint, inertia, shapes and visuals."""
+        builder = self.new_articulation_builder()
+        builder.set_scene(self.scene)
+        builder.set_initial_pose(art.root_pose)
+        builder.floating = art.floating
+        builder.name = art.name
+        builder.timestep = physx_settings.scene_timestep(self.scene, model)
+        builder.solver_iterations = None if self.solver_iterations == "auto" else self.solver_iterations
+        link_builders = []
+        for link in art.links:
+            lb = builder.create_link_builder(link_builders[link.parent] if link.parent is not None else None)
+            lb.plan = link
+            lb.set_name(link.name)
+            lb.set_joint_name(link.joint.name)
+            if link.parent is None:
+                lb.joint_record.joint_type = link.joint.type
+            else:
+                joint = link.joint
+                lb.set_joint_properties(
+                    joint.type, [list(joint.limits)], link.pose_in_parent, joint.frame_in_child, 0.0, joint.damping
+                )
+            lb.set_mass_and_inertia(link.mass, link.cmass, np.asarray(link.inertia, np.float32))
+            if link.body is not None:
+                dress(lb, link.body)
+            link_builders.append(lb)
+        return builder
+
+    def _world_builder(self, dress: _Dresser) -> MJCFActorBuilder:
+        """The world body's static geoms as one static actor."""
+        world = self.new_actor_builder()
+        world.set_scene(self.scene)
+        world.set_name("world")
+        world.set_physx_body_type("static")
+        dress(world, 0)
+        return world
+
+
+def _shapes(model: mujoco.MjModel, tree: TreePlan, kept: list[int], static: set[int], notes: Notes) -> dict:
+    """Per colliding geom kept, its shape plan (geoms PhysX has no shape for are noted and left out), with the
+    collision filter's groups (all zero where the model disables contacts)."""
+    meshes: dict = {}
+    shapes = {
+        g: plan_shape(model, g, int(model.geom_bodyid[g]) in static, notes, meshes) for g in kept if collides(model, g)
+    }
+    shapes = {g: s for g, s in shapes.items() if s is not None}
+    hulls.plan_sharing(shapes.values())
+    contact_filter = plan_collision_filter(model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
+    contact_off = mj.disabled(model, "contact", "constraint")
+    for g, shape in shapes.items():
+        shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)
+    return shapes
+
+
+@dataclass
+class _Dresser:
+    """Puts a body's shapes and visuals on its builder."""
+
+    model: mujoco.MjModel
+    shapes: dict
+    visual: set[int]
+
+    def __call__(self, builder, body: int) -> None:
+        model = self.model
+        for g in range(model.body_geomadr[body], model.body_geomadr[body] + model.body_geomnum[body]):
+            if g in self.shapes:
+                builder.shape_plans.append(self.shapes[g])
+            if g in self.visual:
+                add_visual(builder, model, g)
 
 
 def finish(
@@ -246,6 +261,7 @@ def replan(result: LoadResult, model: mujoco.MjModel) -> tuple[list, Controller]
 
 
 def _mapping(model: mujoco.MjModel, parsed: _Parsed, articulations) -> Mapping:
+    """Where each MuJoCo body, joint and geom went among the built articulations and actors."""
     tree = parsed.tree
     link_index = []  # per articulation: link name -> index in art.links
     dof_index = []  # per articulation: child link name -> index in art.active_joints
@@ -256,6 +272,14 @@ def _mapping(model: mujoco.MjModel, parsed: _Parsed, articulations) -> Mapping:
     for b in range(1, model.nbody):
         a, link = tree.body_link[b]
         bodies.append(BodyLink(a, link_index[a][tree.articulations[a].links[link].name]))
+    joints = _joint_dofs(model, tree, dof_index)
+    return Mapping.from_model(
+        model, bodies, joints, _geom_shapes(model, parsed, link_index), [a.dof for a in articulations]
+    )
+
+
+def _joint_dofs(model: mujoco.MjModel, tree: TreePlan, dof_index: list[dict]) -> list[JointDofs]:
+    """Per MuJoCo joint, its articulation and the SAPIEN DoFs its links' joints carry (none for a free joint)."""
     joint_links: dict[int, list[tuple[int, int]]] = {}
     for a, art in enumerate(tree.articulations):
         for link in art.links:
@@ -269,13 +293,17 @@ def _mapping(model: mujoco.MjModel, parsed: _Parsed, articulations) -> Mapping:
             continue
         targets = joint_links[j]
         joints.append(JointDofs(targets[0][0], kind, tuple(dof for _, dof in targets)))
+    return joints
+
+
+def _geom_shapes(model: mujoco.MjModel, parsed: _Parsed, link_index: list[dict]) -> list[GeomShape | None]:
+    """Per MuJoCo geom, its collision shape on an articulation's link or on a static actor (None: no shape)."""
     geoms: list[GeomShape | None] = [None] * model.ngeom
-    for builders, owner in ((parsed.articulation_builders, "articulation"), (parsed.actor_builders, "actor")):
-        for a, builder in enumerate(builders):
-            for lb in builder.link_builders if owner == "articulation" else [builder]:
-                for s, shape in enumerate(lb.shape_plans):
-                    if owner == "articulation":
-                        geoms[shape.geom] = GeomShape(a, link_index[a][lb.name], None, s)
-                    else:
-                        geoms[shape.geom] = GeomShape(None, None, a, s)
-    return Mapping.from_model(model, bodies, joints, geoms, [art.dof for art in articulations])
+    for a, builder in enumerate(parsed.articulation_builders):
+        for lb in builder.link_builders:
+            for s, shape in enumerate(lb.shape_plans):
+                geoms[shape.geom] = GeomShape(a, link_index[a][lb.name], None, s)
+    for a, builder in enumerate(parsed.actor_builders):
+        for s, shape in enumerate(builder.shape_plans):
+            geoms[shape.geom] = GeomShape(None, None, a, s)
+    return geoms

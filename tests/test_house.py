@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from support import house
 
 ROOT = Path(__file__).parent.parent
@@ -22,10 +23,23 @@ def _ruff(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "ruff", *args], cwd=cwd, capture_output=True, text=True, check=False)
 
 
-def test_the_code_is_formatted():
-    """What `nox -s lint` checks first, so that CI holds it too: ruff's formatter leaves every file as it is."""
-    done = _ruff("format", "--check", *LINTED)
+@pytest.mark.parametrize("command", [("format", "--check"), ("check",)], ids=["format", "lint"])
+def test_the_code_is_formatted_and_linted(command):
+    """What `nox -s lint` runs, so that CI holds it too: ruff's formatter and its lint (pyproject's rules: line
+    length, function complexity)."""
+    done = _ruff(*command, *LINTED)
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_a_tangled_function_is_found(tmp_path):
+    """The complexity rule bites: a function of twelve branches (McCabe 13) fails it, one of eleven passes."""
+    (tmp_path / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text())
+    branches = "".join(f"    if x == {i}:\n        return {i}\n" for i in range(11))
+    (tmp_path / "ok.py").write_text(f"def f(x):\n{branches}    return -1\n")
+    assert _ruff("check", "ok.py", cwd=tmp_path).returncode == 0
+    (tmp_path / "ok.py").write_text(f"def f(x):\n{branches}    if x == 11:\n        return 11\n    return -1\n")
+    done = _ruff("check", "ok.py", cwd=tmp_path)
+    assert done.returncode == 1 and "C901" in done.stdout, done.stdout
 
 
 def test_a_measured_number_in_a_loader_docstring_is_found_and_one_in_code_is_not():

@@ -312,7 +312,8 @@ def test_after_release_a_weld_keeps_its_relative_rotation():
 
 
 def test_a_released_weld_without_its_rotation_spring_turns(monkeypatch):
-    """The mutation: release locks only the translation (the D6 leaves swing free); measured 5.1e-2 rad against 4.8e-3."""
+    """The mutation: release locks only the translation (the D6 leaves swing free); measured 5.1e-2 rad against
+    4.8e-3."""
     monkeypatch.setattr(SoftWeld, "lock", SoftConnect.lock)
     sapien_angle, mujoco_angle = _released_weld_angles()
     assert abs(sapien_angle - mujoco_angle) > 1e-2, (sapien_angle, mujoco_angle)

@@ -91,8 +91,10 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
 
 
 UNHOLDABLE = (
-    '<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/><worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
-    '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="-3 3"/><geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
+    '<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/>'
+    '<worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
+    '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="-3 3"/>'
+    '<geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
     "</mujoco>"
 )
 HOLDABLE = {

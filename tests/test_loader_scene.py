@@ -18,8 +18,8 @@ from loader.plan.physx_settings import create_scene
 
 # a joint spring and damper, a filtered actuator and a servo (drive terms), and a limit whose solref refsafe clamps
 SERVO = """<mujoco model="servo"><option timestep="0.01" integrator="implicitfast"/>
-  <worldbody><body pos="0 0 1"><joint name="hinge" axis="0 1 0" stiffness="40" damping="2" limited="true" range="-0.05 0.05"
-      solreflimit="0.005 1"/>
+  <worldbody><body pos="0 0 1"><joint name="hinge" axis="0 1 0" stiffness="40" damping="2" limited="true"
+      range="-0.05 0.05" solreflimit="0.005 1"/>
     <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.04" contype="0" conaffinity="0"/></body></worldbody>
   <actuator><general name="filtered" joint="hinge" dyntype="filter" dynprm="0.05" gainprm="8" ctrlrange="-1 1"/>
     <position joint="hinge" kp="30" kv="1"/></actuator></mujoco>"""

@@ -19,8 +19,9 @@ from conformance.tiers import TIERS
 
 TOL = tolerances.load()
 
-# A fixed-base arm hanging under gravity (clear of its limits at the held ctrl), authored with Euler (kv explicit, as the loader applies it under Euler): a position
-# servo, a geared motor, and a motor on a fixed tendon coupling two hinges with ratio 1 : 2.
+# A fixed-base arm hanging under gravity (clear of its limits at the held ctrl), authored with Euler (kv explicit, as
+# the loader applies it under Euler): a position servo, a geared motor, and a motor on a fixed tendon coupling two
+# hinges with ratio 1 : 2.
 ARM = """
 <mujoco model="actuated_arm">
   <compiler angle="radian"/>

@@ -100,7 +100,8 @@ def actuator_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], list[
         if not (_close(entry.stiffness, stiffness) and _close(entry.damping, damping)):
             out.append(
                 f"actuator {name!r}: drive stiffness {entry.stiffness:.9g} damping {entry.damping:.9g}, "
-                f"MuJoCo compiled stiffness {stiffness:.9g} damping {damping:.9g} (kp={model.actuator_gainprm[a][0]:g}, "
+                f"MuJoCo compiled stiffness {stiffness:.9g} damping {damping:.9g} "
+                f"(kp={model.actuator_gainprm[a][0]:g}, "
                 f"bias={list(model.actuator_biasprm[a][:3])}, gear={model.actuator_gear[a][0]:g})"
             )
     return out, skipped, checked

@@ -367,21 +367,7 @@ def check_tiers(
     noted = _noted_names(result)
     names = list(tiers)
     if dynamics:
-        joint_notes = [
-            e
-            for e in [*result.unsupported, *result.approximations]
-            if e.kind in DYNAMICS_NOTE_KINDS and not _about_limits(e)
-        ]
-        if joint_notes:
-            skipped.append(f"dynamics and actuated: loader notes on joints ({_reason(joint_notes[0])})")
-        elif model.nv and (ill := mujoco_ill_posed(model, tol.horizon_steps("dynamics", model.opt.timestep))):
-            skipped.append(f"dynamics and actuated: {ill}")
-        else:
-            names += [tier for tier in DYNAMIC_TIERS if tier in TIERS]
-            if "actuated" in names and (unstable := actuated_ill_posed(model)):
-                names.remove("actuated")
-                gain = unstable.split("an explicit ")[1].split(" past")[0]  # velocity gain or stiffness
-                skipped.append(f"actuated: {unstable.split(' (')[0]} (explicit {gain})")  # tallied alike
+        _add_dynamic_tiers(result, model, tol, names, skipped)
     for name in names:
         try:
             report = TIERS[name](result, model, seed, tol)
@@ -395,20 +381,56 @@ def check_tiers(
             where = report.divergence.text() if report.divergence else "a metric is not finite"
             failures.append(f"{name} tier diverged: {where}")
         elif report.status == "fail":
-            bug = known_bug(name, result, model) if known_bugs else None
-            if _excusable(report, noted):
-                excused.append(f"{name}: " + "; ".join(report.notes))
-            elif bug is not None:
-                excused.append(f"{name}: known bug {bug}")
-            elif _qacc_only(report):
-                excused.append(
-                    f"{name}: one_step_qacc only; one_step_qvel (the same velocity increment, "
-                    "not divided by dt) is within its tolerance"
-                )
-            else:
-                failing = [f"{m.name} {m.max:.3g} > {m.tolerance:.3g} {m.unit}" for m in report.metrics if not m.passed]
-                failures.append(f"{name} tier fails: {', '.join(failing)}; notes: {report.notes[:5]}")
+            _file_failure(name, report, result, model, noted, known_bugs, failures, excused)
     return reports, failures, excused, skipped, errors
+
+
+def _add_dynamic_tiers(result, model: mujoco.MjModel, tol: Tolerances, names: list[str], skipped: list[str]) -> None:
+    """Adds the dynamic tiers to `names`: none after loader notes on joints or where MuJoCo's own problem is
+    ill-posed, and not `actuated` where explicit gains are unstable (each skip goes to `skipped`)."""
+    joint_notes = [
+        e
+        for e in [*result.unsupported, *result.approximations]
+        if e.kind in DYNAMICS_NOTE_KINDS and not _about_limits(e)
+    ]
+    if joint_notes:
+        skipped.append(f"dynamics and actuated: loader notes on joints ({_reason(joint_notes[0])})")
+        return
+    if model.nv and (ill := mujoco_ill_posed(model, tol.horizon_steps("dynamics", model.opt.timestep))):
+        skipped.append(f"dynamics and actuated: {ill}")
+        return
+    names += [tier for tier in DYNAMIC_TIERS if tier in TIERS]
+    if "actuated" in names and (unstable := actuated_ill_posed(model)):
+        names.remove("actuated")
+        gain = unstable.split("an explicit ")[1].split(" past")[0]  # velocity gain or stiffness
+        skipped.append(f"actuated: {unstable.split(' (')[0]} (explicit {gain})")  # tallied alike
+
+
+def _file_failure(
+    name: str,
+    report: TierReport,
+    result,
+    model: mujoco.MjModel,
+    noted: set[str],
+    known_bugs: bool,
+    failures: list[str],
+    excused: list[str],
+) -> None:
+    """A failing tier report, filed as excused (by loader notes, a known bug, or one_step_qacc alone) or as a
+    failure."""
+    bug = known_bug(name, result, model) if known_bugs else None
+    if _excusable(report, noted):
+        excused.append(f"{name}: " + "; ".join(report.notes))
+    elif bug is not None:
+        excused.append(f"{name}: known bug {bug}")
+    elif _qacc_only(report):
+        excused.append(
+            f"{name}: one_step_qacc only; one_step_qvel (the same velocity increment, "
+            "not divided by dt) is within its tolerance"
+        )
+    else:
+        failing = [f"{m.name} {m.max:.3g} > {m.tolerance:.3g} {m.unit}" for m in report.metrics if not m.passed]
+        failures.append(f"{name} tier fails: {', '.join(failing)}; notes: {report.notes[:5]}")
 
 
 def _qacc_only(report: TierReport) -> bool:

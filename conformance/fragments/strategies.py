@@ -244,51 +244,108 @@ class _Context:
         return self.made[key]
 
 
+@dataclass(frozen=True)
+class _GeomFlags:
+    """Which optional attributes one geom writes (and in which form), read from its flag bytes in a fixed order."""
+
+    typed: bool
+    fitted: bool
+    sized: bool
+    placed: bool
+    segment: bool
+    turned: bool
+    axisangle: bool
+    contype: bool
+    conaffinity: bool
+    group: bool
+    rgba: bool
+    mass: str  # "", "mass" or "density"
+    friction: bool
+    material: bool
+    named_class: bool
+
+    @classmethod
+    def read(cls, f: _Flags, in_default: bool) -> _GeomFlags:
+        """The flags of a geom, one decision per flag byte."""
+        typed, fitted, sized = f.coin(), f.one_in(5), f.coin()
+        placed = f.one_in(6 if in_default else 2)  # a default pos clashes with every fromto of the class's geoms
+        segment, turned, axisangle = f.one_in(4), f.one_in(3), f.coin()
+        contype, conaffinity, group, rgba = f.coin(), f.coin(), f.coin(), f.coin()
+        mass, friction, material, named_class = f.pick(("", "mass", "density")), f.coin(), f.coin(), f.coin()
+        return cls(
+            typed,
+            fitted,
+            sized,
+            placed,
+            segment,
+            turned,
+            axisangle,
+            contype,
+            conaffinity,
+            group,
+            rgba,
+            mass,
+            friction,
+            material,
+            named_class,
+        )
+
+
+def _geom_shape(r: _Reader, g: _GeomFlags, attrs: Attrs, ctx: _Context, in_default: bool, world: bool) -> None:
+    """A geom's type, mesh and size: planes only in the world, sizes full wherever no class supplies one."""
+    kinds = list(PRIMITIVES) + (["mesh"] if ctx.meshes else []) + (["plane"] if world else [])
+    if g.typed:
+        attrs["type"] = r.pick(kinds)
+    kind = attrs.get("type")
+    if kind == "mesh" or (kind is None and ctx.meshes and g.fitted):
+        attrs["mesh"] = r.pick(ctx.meshes)  # without type: a primitive fitted to the mesh
+    if g.sized or not (in_default or ctx.main_size):
+        attrs["size"] = r.sizes(full=not (in_default or ctx.main_size))
+
+
+def _geom_pose(r: _Reader, g: _GeomFlags, attrs: Attrs, ctx: _Context) -> None:
+    """A geom's placement: a position and an orientation, or a fromto segment in place of both."""
+    if g.placed:
+        attrs["pos"] = r.pos()
+    if attrs.get("type") in FROMTO_TYPES and g.segment:
+        attrs.pop("pos", None)
+        attrs["fromto"] = r.fromto()
+    elif g.turned:
+        attrs.update(r.turn(ctx.unit, g.axisangle))
+
+
+def _geom_mass(r: _Reader, mass: str) -> Attrs:
+    """A geom's mass or density, or neither (`mass` is "", "mass" or "density")."""
+    if mass == "mass":
+        return {"mass": r.dec(1, 50, 0.1)}
+    if mass == "density":
+        return {"density": r.dec(1, 20, 100.0)}
+    return {}
+
+
 @st.composite
 def geom_attrs(draw, ctx: _Context, in_default: bool, world: bool = False) -> Attrs:
     """Geom attributes: type, full or partial size, pose (pos + orientation or fromto), contact bits,
     group, rgba, mass or density, friction, material, mesh."""
     r = _Reader(draw, 34, flags=19)
-    f = r.flags
-    typed, fitted, sized = f.coin(), f.one_in(5), f.coin()
-    placed = f.one_in(6 if in_default else 2)  # a default pos clashes with every fromto of the class's geoms
-    segment, turned, axisangle = f.one_in(4), f.one_in(3), f.coin()
-    contype, conaffinity, group, rgba = f.coin(), f.coin(), f.coin(), f.coin()
-    mass, friction, material, named_class = f.pick(("", "mass", "density")), f.coin(), f.coin(), f.coin()
+    g = _GeomFlags.read(r.flags, in_default)
     attrs: Attrs = {}
-    kinds = list(PRIMITIVES) + (["mesh"] if ctx.meshes else []) + (["plane"] if world else [])
-    if typed:
-        attrs["type"] = r.pick(kinds)
-    kind = attrs.get("type")
-    if kind == "mesh" or (kind is None and ctx.meshes and fitted):
-        attrs["mesh"] = r.pick(ctx.meshes)  # without type: a primitive fitted to the mesh
-    if sized or not (in_default or ctx.main_size):
-        attrs["size"] = r.sizes(full=not (in_default or ctx.main_size))
-    if placed:
-        attrs["pos"] = r.pos()
-    if kind in FROMTO_TYPES and segment:
-        attrs.pop("pos", None)
-        attrs["fromto"] = r.fromto()
-    elif turned:
-        attrs.update(r.turn(ctx.unit, axisangle))
-    if contype:
+    _geom_shape(r, g, attrs, ctx, in_default, world)
+    _geom_pose(r, g, attrs, ctx)
+    if g.contype:
         attrs["contype"] = str(r.integer(0, 3))
-    if conaffinity:
+    if g.conaffinity:
         attrs["conaffinity"] = str(r.integer(0, 3))
-    if group:
+    if g.group:
         attrs["group"] = str(r.integer(0, 5))
-    if rgba:
+    if g.rgba:
         attrs["rgba"] = r.rgba()
-    if mass == "mass":
-        attrs["mass"] = r.dec(1, 50, 0.1)
-    elif mass == "density":
-        attrs["density"] = r.dec(1, 20, 100.0)
-    if friction:
+    attrs.update(_geom_mass(r, g.mass))
+    if g.friction:
         attrs["friction"] = r.vec(r.one_to_three(), 1, 20, 0.1)
-    if ctx.materials and material:
+    if ctx.materials and g.material:
         attrs["material"] = r.pick(ctx.materials)
-    if not in_default and ctx.classes and named_class:
-        attrs["class"] = r.pick(["main", *ctx.classes])
+    _element_class(r, g.named_class, attrs, ctx, in_default)
     return attrs
 
 
@@ -311,28 +368,37 @@ def joint_attrs(draw, ctx: _Context, in_default: bool) -> Attrs:
     if axis:
         attrs["axis"] = r.direction()
     if ranged:
-        if attrs.get("type") == "ball":
-            attrs["range"] = f"0 {r.angle(ctx.unit, 10, 170)}"
-        else:
-            lo = r.integer(-170, -10) if below_zero else 0  # 0 also suits a ball from a class
-            hi = r.integer(10, 170)
-            attrs["range"] = f"{lo} {hi}" if ctx.unit == "degree" else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}"
+        attrs["range"] = _joint_range(r, ctx.unit, attrs.get("type"), below_zero)
     if limited:
         attrs["limited"] = r.pick(("true", "false", "auto") if "range" in attrs else ("false", "auto"))
     if damping:
         attrs["damping"] = r.dec(0, 20, 0.05)
     if armature:
         attrs["armature"] = r.dec(0, 20, 0.01)
-    if ref:
-        attrs["ref"] = r.angle(ctx.unit, -30, 30)
-    if stiffness:
-        attrs["stiffness"] = r.dec(0, 20, 0.5)
-    if springref:
-        attrs["springref"] = r.angle(ctx.unit, -30, 30)
+    _joint_spring(r, ctx.unit, attrs, ref, stiffness, springref)
     if frictionloss:
         attrs["frictionloss"] = r.dec(0, 10, 0.01)
     _element_class(r, named_class, attrs, ctx, in_default)
     return attrs
+
+
+def _joint_range(r: _Reader, unit: str, kind: str | None, below_zero: bool) -> str:
+    """A joint's range: a ball's upper cone angle, otherwise a low end at or below 0 and a high end above it."""
+    if kind == "ball":
+        return f"0 {r.angle(unit, 10, 170)}"
+    lo = r.integer(-170, -10) if below_zero else 0  # 0 also suits a ball from a class
+    hi = r.integer(10, 170)
+    return f"{lo} {hi}" if unit == "degree" else f"{lo * 0.0175:.3g} {hi * 0.0175:.3g}"
+
+
+def _joint_spring(r: _Reader, unit: str, attrs: Attrs, ref: bool, stiffness: bool, springref: bool) -> None:
+    """A joint's reference position and its spring: stiffness and the spring's rest position."""
+    if ref:
+        attrs["ref"] = r.angle(unit, -30, 30)
+    if stiffness:
+        attrs["stiffness"] = r.dec(0, 20, 0.5)
+    if springref:
+        attrs["springref"] = r.angle(unit, -30, 30)
 
 
 def _element_class(r: _Reader, named: bool, attrs: Attrs, ctx: _Context, in_default: bool) -> None:
@@ -377,28 +443,49 @@ def _actuator_attrs(f: _Flags, r: _Reader, tag: str) -> Attrs:
         force = r.integer(1, 50)
         attrs["forcerange"] = f"-{force} {force}"
     if tag == "position":
-        kp, kv = f.coin(), f.coin()
-        if kp:
-            attrs["kp"] = r.dec(1, 100, 1.0)
-        if kv:
-            attrs["kv"] = r.dec(0, 20, 0.5)
+        attrs.update(_position_gains(f, r))
     elif tag == "velocity":
-        if f.coin():
-            attrs["kv"] = r.dec(1, 20, 0.5)
+        attrs.update(_velocity_gain(f, r))
     elif tag == "general":
-        gain, bias, dynamics, actearly = f.coin(), f.coin(), f.one_in(4), f.coin()
-        if gain:
-            attrs["gainprm"] = r.dec(1, 100, 1.0)
-        if bias:
-            kp, kv = r.dec(0, 100, 1.0), r.dec(0, 20, 0.5)
-            attrs["biasprm"] = f"0 -{kp} -{kv}"
-            attrs["biastype"] = "affine"
-        if dynamics:  # activation dynamics: the gain multiplies the activation
-            attrs["dyntype"] = r.pick(("filter", "filterexact", "integrator"))
-            if attrs["dyntype"] != "integrator":
-                attrs["dynprm"] = r.dec(1, 20, 0.01)
-            if actearly:
-                attrs["actearly"] = r.pick(("true", "false"))
+        attrs.update(_general_gains(f, r))
+    return attrs
+
+
+def _position_gains(f: _Flags, r: _Reader) -> Attrs:
+    """A position actuator's proportional and derivative gains (kp, kv), each optional."""
+    kp, kv = f.coin(), f.coin()
+    attrs: Attrs = {}
+    if kp:
+        attrs["kp"] = r.dec(1, 100, 1.0)
+    if kv:
+        attrs["kv"] = r.dec(0, 20, 0.5)
+    return attrs
+
+
+def _velocity_gain(f: _Flags, r: _Reader) -> Attrs:
+    """A velocity actuator's optional gain (kv)."""
+    attrs: Attrs = {}
+    if f.coin():
+        attrs["kv"] = r.dec(1, 20, 0.5)
+    return attrs
+
+
+def _general_gains(f: _Flags, r: _Reader) -> Attrs:
+    """A general actuator's gain, affine bias and activation dynamics, each optional."""
+    gain, bias, dynamics, actearly = f.coin(), f.coin(), f.one_in(4), f.coin()
+    attrs: Attrs = {}
+    if gain:
+        attrs["gainprm"] = r.dec(1, 100, 1.0)
+    if bias:
+        kp, kv = r.dec(0, 100, 1.0), r.dec(0, 20, 0.5)
+        attrs["biasprm"] = f"0 -{kp} -{kv}"
+        attrs["biastype"] = "affine"
+    if dynamics:  # activation dynamics: the gain multiplies the activation
+        attrs["dyntype"] = r.pick(("filter", "filterexact", "integrator"))
+        if attrs["dyntype"] != "integrator":
+            attrs["dynprm"] = r.dec(1, 20, 0.01)
+        if actearly:
+            attrs["actearly"] = r.pick(("true", "false"))
     return attrs
 
 
@@ -491,30 +578,25 @@ _ONE_OR_TWO = st.integers(1, 2)
 _CHILDREN = {True: st.integers(0, 2), False: st.integers(0, 1)}  # children per body in shallow / deep trees
 
 
-@st.composite
-def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) -> Body:
-    """A body (or a frame holding bodies) with joints, geoms and sites that pick classes."""
-    if draw(_FRAME) == 4 and depth < max_depth:
-        r = _Reader(draw, 12, flags=4)
-        placed, form, childclass = r.flags.coin(), r.flags.below(_FORMS), r.flags.coin()
-        frame = Body("frame", {})
-        if placed:
-            frame.attrs["pos"] = r.pos()
-        frame.attrs.update(r.orientation(ctx.unit, form))
-        if ctx.classes and childclass:
-            frame.attrs["childclass"] = r.pick(ctx.classes)
-        if draw(_COIN):
-            frame.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
-        frame.children = [draw(ctx.strategy(body_tree, depth + 1, top, max_depth)) for _ in range(draw(_ONE_OR_TWO))]
-        return frame
-    r = _Reader(draw, 12, flags=5)
-    placed, form, childclass = r.flags.coin(), r.flags.below(_FORMS), r.flags.one_in(3)
-    body = Body("body", {"name": ctx.name("b")})
+def _frame(draw, ctx: _Context, depth: int, top: bool, max_depth: int) -> Body:
+    """A frame: a pose and a childclass for the one or two bodies it holds, and maybe a geom of its own."""
+    r = _Reader(draw, 12, flags=4)
+    placed, form, childclass = r.flags.coin(), r.flags.below(_FORMS), r.flags.coin()
+    frame = Body("frame", {})
     if placed:
-        body.attrs["pos"] = r.pos()
-    body.attrs.update(r.orientation(ctx.unit, form))
+        frame.attrs["pos"] = r.pos()
+    frame.attrs.update(r.orientation(ctx.unit, form))
     if ctx.classes and childclass:
-        body.attrs["childclass"] = r.pick(["main", *ctx.classes])
+        frame.attrs["childclass"] = r.pick(ctx.classes)
+    if draw(_COIN):
+        frame.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
+    frame.children = [draw(ctx.strategy(body_tree, depth + 1, top, max_depth)) for _ in range(draw(_ONE_OR_TWO))]
+    return frame
+
+
+def _body_joints(draw, ctx: _Context, body: Body, top: bool) -> None:
+    """A body's joints: a free joint (as `freejoint` or a joint of type free) on some top-level bodies, otherwise
+    up to two joints that actuators may drive."""
     if top and draw(_FREE) == 3:
         name = ctx.name("j")
         if draw(_COIN):
@@ -531,6 +613,22 @@ def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) ->
             name = ctx.name("j")
             ctx.joints.append(name)
             body.elements.append(Element("joint", {"name": name, **draw(ctx.strategy(joint_attrs, False))}))
+
+
+@st.composite
+def body_tree(draw, ctx: _Context, depth: int, top: bool, max_depth: int = 3) -> Body:
+    """A body (or a frame holding bodies) with joints, geoms and sites that pick classes."""
+    if draw(_FRAME) == 4 and depth < max_depth:
+        return _frame(draw, ctx, depth, top, max_depth)
+    r = _Reader(draw, 12, flags=5)
+    placed, form, childclass = r.flags.coin(), r.flags.below(_FORMS), r.flags.one_in(3)
+    body = Body("body", {"name": ctx.name("b")})
+    if placed:
+        body.attrs["pos"] = r.pos()
+    body.attrs.update(r.orientation(ctx.unit, form))
+    if ctx.classes and childclass:
+        body.attrs["childclass"] = r.pick(["main", *ctx.classes])
+    _body_joints(draw, ctx, body, top)
     for _ in range(draw(_ONE_OR_TWO)):
         body.elements.append(Element("geom", {"name": ctx.name("g"), **draw(ctx.strategy(geom_attrs, False))}))
     if draw(_SITE) == 3:

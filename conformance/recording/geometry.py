@@ -4,7 +4,8 @@ off the surface (`test_rerun_recording.py::test_sapien_is_drawn_as_outlines_over
 
 MuJoCo draws its collision geoms (contype or conaffinity set); visual-only meshes are drawn on request, in their
 authored colours. Planes are drawn only when the motion shown has contacts on, and at a size fitted to the robot's
-bounding box, not MuJoCo's infinite or rendering size (`test_rerun_recording.py::test_the_failing_contact_rollout_plays_with_the_floor`)."""
+bounding box, not MuJoCo's infinite or rendering size
+(`test_rerun_recording.py::test_the_failing_contact_rollout_plays_with_the_floor`)."""
 
 from __future__ import annotations
 

@@ -3,7 +3,8 @@
 Bodies and links carry per-step world transforms; `deviation` draws, per body and step, an arrow from MuJoCo's body
 origin to SAPIEN's, magnified by a power of ten (named in the view) so that a deviation far below the robot's size
 is still seen (`test_rerun_recording.py::test_deviation_arrows_are_the_deviation_times_the_factor_named`); the
-camera looks at the robot's bounding box from outside it (`test_rerun_recording.py::test_the_view_is_framed_on_the_robot`)."""
+camera looks at the robot's bounding box from outside it
+(`test_rerun_recording.py::test_the_view_is_framed_on_the_robot`)."""
 
 from __future__ import annotations
 

@@ -4,8 +4,8 @@ Good outcomes: `typed_error` (the loader raised MJCFError or another of its type
 structure, kinematics and inertia tiers pass; 50 steps under random ctrl stay finite and within the divergence
 bound MuJoCo's own run sets), `shared_divergence` (MuJoCo's own run blows up too, or
 warns that its joint-space inertia is singular).
-Bad outcomes: `crash` (the process died), `hang` (past its timeout in its own CPU time, or blocked), `untyped_error` (any other exception),
-`silently_wrong` (loaded where MuJoCo rejects the document, or a static tier is
+Bad outcomes: `crash` (the process died), `hang` (past its timeout in its own CPU time, or blocked), `untyped_error`
+(any other exception), `silently_wrong` (loaded where MuJoCo rejects the document, or a static tier is
 `WRONG_FACTOR` times past its tolerance), `divergence` (SAPIEN leaves
 the finite, physical states while MuJoCo does not).
 `classify` runs in the process it is called from; `start` runs it in a forked child with a timeout, so a

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import mujoco
 import numpy as np
 import sapien
@@ -76,78 +78,120 @@ def needs_shape(model: mujoco.MjModel, g: int) -> bool:
     return bool(model.geom_contype[g] or model.geom_conaffinity[g])
 
 
+@dataclass
+class _Findings:
+    """What comparing geoms with their shapes gathers: problems, notes, the errors each metric judges, and how many
+    shapes were compared."""
+
+    mismatches: list[str] = field(default_factory=list)
+    groups_wrong: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    size_err: list[float] = field(default_factory=list)
+    pos_err: list[float] = field(default_factory=list)
+    rot_err: list[float] = field(default_factory=list)
+    mesh_err: list[float] = field(default_factory=list)
+    approx_err: list[float] = field(default_factory=list)
+    checked: int = 0
+
+
 def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
-    mismatches, groups_wrong, notes = [], [], []
-    size_err, pos_err, rot_err, mesh_err, approx_err = [], [], [], [], []
-    checked = 0
+    found = _Findings()
     contact_off = contacts_disabled(model)
     for g in range(model.ngeom):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}"
-        component, shape = sapien_side.geom_component(result, g)
-        if shape is None:
-            if needs_shape(model, g):
-                mismatches.append(f"{name}: colliding geom has no collision shape")
-            continue
-        checked += 1
-        kind = _G(int(model.geom_type[g]))
-        groups = [int(x) for x in shape.get_collision_groups()[:2]]
-        expected = [0, 0] if contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
-        if groups != expected:
-            groups_wrong.append(
-                f"{name}: groups {groups}, expected contype/conaffinity {expected}"
-                + (" (contact disabled)" if contact_off else "")
-            )
-        pose = sapien_side.shape_world_pose(component, shape)
-        p, rot = np.asarray(pose.p, dtype=float), _rotation(pose.q)
-        ref_p, ref_rot = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)
-        size = model.geom_size[g]
-        exact = EXACT.get(kind)
-        if exact is not None and not isinstance(shape, exact):
-            if kind == _G.mjGEOM_MESH and isinstance(shape, MESHLIKE):
-                pass  # a triangle mesh on a static body is the faithful choice
-            else:
-                mismatches.append(f"{name}: {kind.name} became {type(shape).__name__}")
-                continue
-        if kind == _G.mjGEOM_PLANE:
-            normal_ref = ref_rot[:, 2]
-            rot_err.append(line_angle(rot[:, 0], normal_ref))
-            pos_err.append(abs(np.dot(p - ref_p, normal_ref)))
-        elif kind == _G.mjGEOM_SPHERE:
-            size_err.append(abs(shape.radius - size[0]))
-            pos_err.append(np.linalg.norm(p - ref_p))
-        elif kind in (_G.mjGEOM_CAPSULE, _G.mjGEOM_CYLINDER):
-            size_err += [abs(shape.radius - size[0]), abs(shape.half_length - size[1])]
-            pos_err.append(np.linalg.norm(p - ref_p))
-            rot_err.append(line_angle(rot[:, 0], ref_rot[:, 2]))
-        elif kind == _G.mjGEOM_BOX:
-            size_err.append(np.max(np.abs(np.asarray(shape.half_size) - size)))
-            pos_err.append(np.linalg.norm(p - ref_p))
-            rot_err.append(float(quaternion_angle(np.asarray(pose.q, dtype=float), _mat_quat(ref_rot))))
-        elif isinstance(shape, MESHLIKE):
-            lo, hi = geom_world_aabb(model, data, g)
-            verts = shape_world_vertices(component, shape)
-            err = max(np.max(np.abs(verts.min(axis=0) - lo)), np.max(np.abs(verts.max(axis=0) - hi)))
-            if kind in (_G.mjGEOM_MESH, _G.mjGEOM_HFIELD):
-                mesh_err.append(err)
-            else:  # a primitive PhysX lacks (ellipsoid, ...) approximated by a hull: relative to its size
-                approx_err.append(err / max(float(np.max(size[:3])), 1e-9))
-        else:
-            notes.append(f"{name}: {kind.name} as {type(shape).__name__} is not compared")
-    problems = mismatches + groups_wrong
-    notes = problems[:_MAX_NOTES] + notes[:_MAX_NOTES]
+        _check_geom(result, model, data, g, contact_off, found)
+    problems = found.mismatches + found.groups_wrong
+    notes = problems[:_MAX_NOTES] + found.notes[:_MAX_NOTES]
+    mismatches, groups_wrong, checked = len(found.mismatches), len(found.groups_wrong), found.checked
     metrics = [
-        Metric("mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count", model.ngeom),
-        Metric("groups", float(len(groups_wrong)), float(len(groups_wrong)), 0.0, "count", checked),
-        metric("size", size_err, tolerances["collision.size"], "m"),
-        metric("position", pos_err, tolerances["collision.position"], "m"),
-        metric("orientation", rot_err, tolerances["collision.orientation"], "rad"),
-        metric("mesh_aabb", mesh_err, tolerances["collision.mesh_aabb"], "m"),
-        metric("approximation_aabb", approx_err, tolerances["collision.approximation_aabb"], "relative"),
+        Metric("mismatches", float(mismatches), float(mismatches), 0.0, "count", model.ngeom),
+        Metric("groups", float(groups_wrong), float(groups_wrong), 0.0, "count", checked),
+        metric("size", found.size_err, tolerances["collision.size"], "m"),
+        metric("position", found.pos_err, tolerances["collision.position"], "m"),
+        metric("orientation", found.rot_err, tolerances["collision.orientation"], "rad"),
+        metric("mesh_aabb", found.mesh_err, tolerances["collision.mesh_aabb"], "m"),
+        metric("approximation_aabb", found.approx_err, tolerances["collision.approximation_aabb"], "relative"),
     ]
     return judged("collision", metrics, notes, settings={"geoms": model.ngeom, "shapes_checked": checked})
+
+
+def _check_geom(
+    result, model: mujoco.MjModel, data: mujoco.MjData, g: int, contact_off: bool, found: _Findings
+) -> None:
+    """One geom against the shape PhysX holds for it: its presence, collision groups, shape class and geometry."""
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}"
+    component, shape = sapien_side.geom_component(result, g)
+    if shape is None:
+        if needs_shape(model, g):
+            found.mismatches.append(f"{name}: colliding geom has no collision shape")
+        return
+    found.checked += 1
+    kind = _G(int(model.geom_type[g]))
+    groups = [int(x) for x in shape.get_collision_groups()[:2]]
+    expected = [0, 0] if contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
+    if groups != expected:
+        found.groups_wrong.append(
+            f"{name}: groups {groups}, expected contype/conaffinity {expected}"
+            + (" (contact disabled)" if contact_off else "")
+        )
+    pose = sapien_side.shape_world_pose(component, shape)
+    if _wrong_shape_class(kind, shape):
+        found.mismatches.append(f"{name}: {kind.name} became {type(shape).__name__}")
+        return
+    _compare_geometry(model, data, g, kind, component, shape, pose, name, found)
+
+
+def _wrong_shape_class(kind: mujoco.mjtGeom, shape) -> bool:
+    """The shape is not of the PhysX class that holds this geom type exactly."""
+    exact = EXACT.get(kind)
+    if exact is None or isinstance(shape, exact):
+        return False
+    # a triangle mesh on a static body is the faithful choice
+    return not (kind == _G.mjGEOM_MESH and isinstance(shape, MESHLIKE))
+
+
+def _compare_geometry(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    g: int,
+    kind: mujoco.mjtGeom,
+    component,
+    shape,
+    pose: sapien.Pose,
+    name: str,
+    found: _Findings,
+) -> None:
+    """A shape's size, world pose, or (meshes and hulls) world AABB against the geom's, per shape class."""
+    p, rot = np.asarray(pose.p, dtype=float), _rotation(pose.q)
+    ref_p, ref_rot = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)
+    size = model.geom_size[g]
+    if kind == _G.mjGEOM_PLANE:
+        normal_ref = ref_rot[:, 2]
+        found.rot_err.append(line_angle(rot[:, 0], normal_ref))
+        found.pos_err.append(abs(np.dot(p - ref_p, normal_ref)))
+    elif kind == _G.mjGEOM_SPHERE:
+        found.size_err.append(abs(shape.radius - size[0]))
+        found.pos_err.append(np.linalg.norm(p - ref_p))
+    elif kind in (_G.mjGEOM_CAPSULE, _G.mjGEOM_CYLINDER):
+        found.size_err += [abs(shape.radius - size[0]), abs(shape.half_length - size[1])]
+        found.pos_err.append(np.linalg.norm(p - ref_p))
+        found.rot_err.append(line_angle(rot[:, 0], ref_rot[:, 2]))
+    elif kind == _G.mjGEOM_BOX:
+        found.size_err.append(np.max(np.abs(np.asarray(shape.half_size) - size)))
+        found.pos_err.append(np.linalg.norm(p - ref_p))
+        found.rot_err.append(float(quaternion_angle(np.asarray(pose.q, dtype=float), _mat_quat(ref_rot))))
+    elif isinstance(shape, MESHLIKE):
+        lo, hi = geom_world_aabb(model, data, g)
+        verts = shape_world_vertices(component, shape)
+        err = max(np.max(np.abs(verts.min(axis=0) - lo)), np.max(np.abs(verts.max(axis=0) - hi)))
+        if kind in (_G.mjGEOM_MESH, _G.mjGEOM_HFIELD):
+            found.mesh_err.append(err)
+        else:  # a primitive PhysX lacks (ellipsoid, ...) approximated by a hull: relative to its size
+            found.approx_err.append(err / max(float(np.max(size[:3])), 1e-9))
+    else:
+        found.notes.append(f"{name}: {kind.name} as {type(shape).__name__} is not compared")
 
 
 def _mat_quat(rot: np.ndarray) -> np.ndarray:

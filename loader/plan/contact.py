@@ -90,7 +90,8 @@ def plan_collision_filter(
     return result
 
 
-def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, notes: Notes) -> None:
+def _clusters(must_exclude) -> list[list[tuple[int, int]]]:
+    """The excluded body pairs grouped into connected clusters (union-find), each cluster's pairs in order."""
     parent = {}
 
     def find(x):
@@ -103,32 +104,43 @@ def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, not
     clusters: dict[int, list[tuple[int, int]]] = {}
     for a, b in must_exclude:
         clusters.setdefault(find(a), []).append((a, b))
+    return list(clusters.values())
+
+
+def _cluster_bits(model, edges, must_collide, notes: Notes) -> list[set[int]]:
+    """One cluster's excluded pairs packed onto group bits: bodies sharing a bit do not collide, so a bit takes
+    only bodies none of whose pairs must collide; a pair left over once the bits run out is noted."""
 
     def may_share(m: int, x: int) -> bool:
         return m == x or (min(m, x), max(m, x)) not in must_collide
 
+    bit_members: list[set[int]] = []
+    for a, b in edges:
+        if any(a in s and b in s for s in bit_members):
+            continue
+        for members in bit_members:
+            if all(may_share(m, a) and may_share(m, b) for m in members):
+                members.update((a, b))
+                break
+        else:
+            if len(bit_members) == GROUP_BITS:
+                notes.drop(
+                    "contact",
+                    f"{mj.name(model, 'body', a)}/{mj.name(model, 'body', b)}",
+                    "filtered by MuJoCo but not expressible in PhysX's 32 group bits: may collide",
+                )
+                continue
+            bit_members.append({a, b})
+    return bit_members
+
+
+def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, notes: Notes) -> None:
     g2: dict[int, int] = {}
     g3: dict[int, int] = {}
-    for cluster_index, edges in enumerate(clusters.values(), start=1):
-        bit_members: list[set[int]] = []
+    for cluster_index, edges in enumerate(_clusters(must_exclude), start=1):
         for a, b in edges:
             g3[a] = g3[b] = cluster_index
-            if any(a in s and b in s for s in bit_members):
-                continue
-            for members in bit_members:
-                if all(may_share(m, a) and may_share(m, b) for m in members):
-                    members.update((a, b))
-                    break
-            else:
-                if len(bit_members) == GROUP_BITS:
-                    notes.drop(
-                        "contact",
-                        f"{mj.name(model, 'body', a)}/{mj.name(model, 'body', b)}",
-                        "filtered by MuJoCo but not expressible in PhysX's 32 group bits: may collide",
-                    )
-                    continue
-                bit_members.append({a, b})
-        for bit, members in enumerate(bit_members):
+        for bit, members in enumerate(_cluster_bits(model, edges, must_collide, notes)):
             for m in members:
                 g2[m] = g2.get(m, 0) | (1 << bit)
     result.body_words = {b: (g2.get(b, 0), g3.get(b, 0)) for b in set(g2) | set(g3)}

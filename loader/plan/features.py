@@ -27,7 +27,14 @@ def note_ill_conditioned(model: mujoco.MjModel, notes: Notes) -> None:
 
 
 def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
+    """Every element and option the loader does not map, or maps approximately, noted once per load."""
     note_ill_conditioned(model, notes)
+    _elements(model, notes)
+    _options(model, notes)
+
+
+def _elements(model: mujoco.MjModel, notes: Notes) -> None:
+    """Flexes, plugins, explicit contact pairs, mocap bodies, nonlinear joint terms and actuator passive terms."""
     for i in range(model.nflex):
         notes.drop("flex", f"flex{i}", "deformable (flex) objects have no PhysX articulation equivalent")
     for i in range(model.nplugin):
@@ -58,6 +65,10 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
                 mj.name(model, "actuator", a),
                 "actuator damping/armature (passive terms on the transmission) are not mapped",
             )
+
+
+def _options(model: mujoco.MjModel, notes: Notes) -> None:
+    """Limits, the integrator and the model's contact and limit flags."""
     if any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"):
         notes.approximate(
             "joint",

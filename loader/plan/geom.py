@@ -101,6 +101,26 @@ def hfield_triangles(model: mujoco.MjModel, h: int) -> tuple[np.ndarray, np.ndar
     return vertices, triangles
 
 
+def _hull_vertices(model: mujoco.MjModel, g: int, notes: Notes, meshes: dict[int, np.ndarray] | None) -> np.ndarray:
+    """A mesh geom's vertices (PhysX cooks their convex hull), kept in `meshes` for the next geom of the same mesh;
+    a hull of more vertices than PhysX keeps is noted."""
+    mesh = int(model.geom_dataid[g])
+    vertices = meshes.get(mesh) if meshes is not None else None
+    if vertices is None:
+        vertices = mesh_vertices(model, mesh)
+        if meshes is not None:
+            meshes[mesh] = vertices
+    if len(vertices) > PHYSX_HULL_VERTEX_LIMIT:
+        hull = model.mesh_graph[model.mesh_graphadr[mesh]] if model.mesh_graphadr[mesh] >= 0 else 0
+        if hull > PHYSX_HULL_VERTEX_LIMIT:
+            notes.approximate(
+                "geom",
+                mj.name(model, "geom", g),
+                f"convex hull of {hull} vertices simplified by PhysX to {PHYSX_HULL_VERTEX_LIMIT}",
+            )
+    return vertices
+
+
 def plan_shape(
     model: mujoco.MjModel, g: int, static: bool, notes: Notes, meshes: dict[int, np.ndarray] | None = None
 ) -> ShapePlan | None:
@@ -133,19 +153,7 @@ def plan_shape(
             g, "convex", geom_pose, size.copy(), vertices=unit_sphere_points(), scale=size.copy(), friction=friction
         )
     if gtype == MESH:
-        mesh = int(model.geom_dataid[g])
-        vertices = meshes.get(mesh) if meshes is not None else None
-        if vertices is None:
-            vertices = mesh_vertices(model, mesh)
-            if meshes is not None:
-                meshes[mesh] = vertices
-        if len(vertices) > PHYSX_HULL_VERTEX_LIMIT:
-            hull = model.mesh_graph[model.mesh_graphadr[mesh]] if model.mesh_graphadr[mesh] >= 0 else 0
-            if hull > PHYSX_HULL_VERTEX_LIMIT:
-                notes.approximate(
-                    "geom", name, f"convex hull of {hull} vertices simplified by PhysX to {PHYSX_HULL_VERTEX_LIMIT}"
-                )
-        return ShapePlan(g, "convex", geom_pose, vertices=vertices, friction=friction)
+        return ShapePlan(g, "convex", geom_pose, vertices=_hull_vertices(model, g, notes, meshes), friction=friction)
     if gtype == HFIELD:
         if not static:
             notes.drop("geom", name, "height field on a moving body is not supported")

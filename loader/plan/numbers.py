@@ -1,7 +1,7 @@
 """Compiled numbers PhysX can hold: MuJoCo accepts a NaN with a warning and a position far beyond any robot without
 one, but PhysX stores poses, masses and gains in float32, so such a model would load silently wrong or fail deep
-inside the mapping. Every number the loader maps is checked once, before anything is built, and the first that cannot be held
-raises `MJCFError` naming the element, the field and the fix
+inside the mapping. Every number the loader maps is checked once, before anything is built, and the first that
+cannot be held raises `MJCFError` naming the element, the field and the fix
 (tests/test_loader_errors.py::test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element)."""
 
 from __future__ import annotations
@@ -113,6 +113,15 @@ def _bad(values: np.ndarray, length: bool) -> np.ndarray:
 def check_numbers(model: mujoco.MjModel, path) -> None:
     """Raise `MJCFError` for the first element whose compiled numbers PhysX cannot hold, or whose name Python
     cannot read (MuJoCo keeps a name's bytes as they are; the loader names links and notes by them)."""
+    _check_names(model, path)
+    _check_fields(model, path)
+    _check_frames(model, path)
+    _check_joints(model, path)
+    _check_options(model, path)
+
+
+def _check_names(model: mujoco.MjModel, path) -> None:
+    """Every name UTF-8 text."""
     names = bytes(model.names)
     try:
         names.decode("utf-8")
@@ -125,6 +134,10 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
             hint="rename the element in UTF-8 text",
             rejected_by="the loader cannot read the model",
         ) from None
+
+
+def _check_fields(model: mujoco.MjModel, path) -> None:
+    """Every mapped array (`FIELDS`) finite and within float32's reach."""
     for kind, field, length in FIELDS:
         values = getattr(model, field)
         if not len(values) or _held(values, length):
@@ -133,6 +146,10 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
         if rows.size:
             index = int(rows[0]) if kind != "mesh" else int(np.searchsorted(model.mesh_vertadr, rows[0], "right") - 1)
             _raise(path, kind, mj.name(model, kind, index), field, np.asarray(values[rows[0]]), length)
+
+
+def _check_frames(model: mujoco.MjModel, path) -> None:
+    """Every frame quaternion (`FRAME_QUATS`) of unit length."""
     for kind, field in FRAME_QUATS:
         values = getattr(model, field)
         rows = np.flatnonzero(np.abs(np.linalg.norm(values, axis=1) - 1.0) > UNIT) if len(values) else []
@@ -152,6 +169,10 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
                 hint=f"give {label} a quaternion of non-vanishing length (or none)",
                 rejected_by="the loader cannot follow the model",
             )
+
+
+def _check_joints(model: mujoco.MjModel, path) -> None:
+    """Every DoF's numbers (`DOF_FIELDS`) finite, every hinge's and slide's reference within PhysX's reach."""
     for field in DOF_FIELDS:
         rows = np.flatnonzero(_bad(getattr(model, field), False))
         if rows.size:
@@ -172,6 +193,10 @@ def check_numbers(model: mujoco.MjModel, path) -> None:
                     slide,
                     "" if slide else f"beyond {TURNS:g} rad",
                 )
+
+
+def _check_options(model: mujoco.MjModel, path) -> None:
+    """The timestep, the solver's iterations and every real-valued option."""
     if not 0 < model.opt.timestep <= MAX_TIMESTEP:
         _raise(
             path,

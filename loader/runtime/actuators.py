@@ -357,6 +357,13 @@ def plan_actuators(
             law = term.laws.setdefault(key, DofDrive(**vars(passive[key])))
             law.stiffness += entry.stiffness
             law.damping += entry.damping
+    _plan_clamps(model, mapping, term)
+    return term
+
+
+def _plan_clamps(model: mujoco.MjModel, mapping: Mapping, term: ActuatorTerm) -> None:
+    """The DoFs MuJoCo can clamp (`term.limited`: a joint actuator with a forcerange, or a joint with an
+    actuatorfrcrange, whose range goes into `term.joint_range`)."""
     members: dict[DofKey, list[int]] = {}
     for a, entry in enumerate(term.actuators):
         if entry.mapped and entry.joint is not None:
@@ -368,4 +375,3 @@ def plan_actuators(
     for key, indices in members.items():
         if key in term.joint_range or any(term.actuators[a].forcerange for a in indices):
             term.limited[key] = indices
-    return term

@@ -320,10 +320,11 @@ def plan_rows(
     timestep: float | None = None,
 ) -> RowTerm | None:
     """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
-    (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges, slides and free joints) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps
-    only those rows: contacts are PhysX's (solved with the rows only while SAPIEN has them), other equalities are
-    D6 joints, and what the loader does not map (unmapped actuators, ball and free joint rows, rows of tendons
-    that move a ball or free joint) is taken out so both sides see the same forces."""
+    (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges, slides and free
+    joints) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps only those rows:
+    contacts are PhysX's (solved with the rows only while SAPIEN has them), other equalities are D6 joints, and what
+    the loader does not map (unmapped actuators, ball and free joint rows, rows of tendons that move a ball or free
+    joint) is taken out so both sides see the same forces."""
     if mj.disabled(model, "constraint"):
         return None
     limited = [

@@ -221,7 +221,6 @@ def unresolved_identifiers(docs: dict[str, str], files: dict[str, str]) -> list[
     `without(...)` does not know."""
     names, defined = code_names(files)
     known_stages = stages(files)
-    paths = list(files)
     out = []
     for path, text in docs.items():
         if not path.endswith(".md"):
@@ -232,22 +231,23 @@ def unresolved_identifiers(docs: dict[str, str], files: dict[str, str]) -> list[
                     if stage not in known_stages:
                         out.append(f"{path}:{number}: without({stage!r}): no such stage")
             for quoted in QUOTED.findall(line):
-                token = quoted.strip()
-                call = CALL.match(token)
-                if PY_FILE.match(token):
-                    if not any(p == token or p.endswith("/" + token) for p in paths):
-                        out.append(f"{path}:{number}: `{token}`: no such file")
-                elif call and call.group(1) not in defined:
-                    out.append(f"{path}:{number}: `{token}`: no such function or class")
-                elif (
-                    DOTTED.match(token)
-                    and token.rpartition(".")[2] not in FILE_SUFFIXES
-                    and token.split(".")[0] not in THIRD_PARTY
-                ):
-                    missing = [part for part in token.removesuffix("()").split(".") if part not in names]
-                    if missing:
-                        out.append(f"{path}:{number}: `{token}`: the code has no {', '.join(missing)}")
+                problem = _unresolved(quoted.strip(), names, defined, list(files))
+                if problem:
+                    out.append(f"{path}:{number}: {problem}")
     return out
+
+
+def _unresolved(token: str, names: set[str], defined: set[str], paths: list[str]) -> str | None:
+    """What the code lacks of one quoted token (None: it resolves, or it is not a code identifier)."""
+    call = CALL.match(token)
+    if PY_FILE.match(token):
+        return None if any(p == token or p.endswith("/" + token) for p in paths) else f"`{token}`: no such file"
+    if call:
+        return None if call.group(1) in defined else f"`{token}`: no such function or class"
+    if DOTTED.match(token) and token.rpartition(".")[2] not in FILE_SUFFIXES and token.split(".")[0] not in THIRD_PARTY:
+        missing = [part for part in token.removesuffix("()").split(".") if part not in names]
+        return f"`{token}`: the code has no {', '.join(missing)}" if missing else None
+    return None
 
 
 def private_reads(files: dict[str, str]) -> list[str]:
