@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support.cli import SELFTEST, run_cli
 
 from conformance import summary
 from conformance.divergence import SpeedBound, first_divergence
@@ -17,8 +17,6 @@ from conformance.manifest import BAND_FACTOR, Expectation, ModelEntry
 from conformance.report import Metric, judged, verdict
 from conformance.results import ModelResult
 
-ROOT = Path(__file__).resolve().parents[1]
-SELFTEST = ROOT / "corpus" / "selftest.toml"
 BOUND = SpeedBound(factor=10.0, floor=100.0)
 DT = 0.002
 
@@ -159,27 +157,7 @@ def test_the_manifest_cannot_expect_what_only_a_run_can_say(tmp_path, body, mess
 
 
 def _selftest(model: str, tmp_path: Path) -> tuple[subprocess.CompletedProcess, dict]:
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "conformance",
-            "run",
-            "--manifest",
-            str(SELFTEST),
-            "--model",
-            model,
-            "--out",
-            str(tmp_path),
-            "--quiet",
-            "--no-record",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    proc = run_cli("--manifest", str(SELFTEST), "--model", model, "--out", str(tmp_path), "--quiet", "--no-record")
     return proc, json.loads((tmp_path / "latest" / "summary.json").read_text())
 
 

@@ -5,22 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from support.corpus import MENAGERIE
 
 from conformance import corpus, manifest, tolerances
 from conformance.manifest import ModelEntry
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "corpus" / "manifest.toml"
-MENAGERIE_SLICE = {
-    "aloha/scene.xml",
-    "boston_dynamics_spot/spot.xml",
-    "franka_emika_panda/panda.xml",
-    "google_barkour_vb/barkour_vb.xml",
-    "leap_hand/right_hand.xml",
-    "robotiq_2f85_v4/2f85.xml",
-    "tetheria_aero_hand_open/right_hand.xml",
-    "unitree_go1/go1.xml",
-}
+MENAGERIE_SLICE = set(MENAGERIE)
 
 
 def test_default_corpus_is_every_suite_model_and_the_menagerie_slice():

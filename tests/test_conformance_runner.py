@@ -9,23 +9,9 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-SELFTEST = ROOT / "corpus" / "selftest.toml"
-
-
-def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "conformance", "run", *args],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        check=False,
-    )
+from support.cli import ROOT, SELFTEST, run_cli
 
 
 @pytest.fixture(scope="module")
@@ -239,28 +225,17 @@ def test_version_and_help_show_what_a_newcomer_needs():
 
 
 def test_summary_files_are_readable_by_everyone(tmp_path):
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "conformance",
-            "run",
-            "--manifest",
-            str(SELFTEST),
-            "--model",
-            "pendulum",
-            "--out",
-            str(tmp_path),
-            "--quiet",
-            "--no-record",
-            "--tiers",
-            "structure",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
+    proc = run_cli(
+        "--manifest",
+        str(SELFTEST),
+        "--model",
+        "pendulum",
+        "--out",
+        str(tmp_path),
+        "--quiet",
+        "--no-record",
+        "--tiers",
+        "structure",
         preexec_fn=lambda: os.umask(0o022),
     )
     assert proc.returncode == 0, proc.stderr
@@ -279,25 +254,15 @@ def test_third_party_warnings_are_counted_not_printed(tmp_path):
     elsewhere = tmp_path / "cwd"
     elsewhere.mkdir()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "conformance",
-            "run",
-            str(tmp_path / "heavy.xml"),
-            "--out",
-            str(tmp_path / "out"),
-            "--no-record",
-            "--tiers",
-            "structure,inertia",
-        ],
+    proc = run_cli(
+        str(tmp_path / "heavy.xml"),
+        "--out",
+        str(tmp_path / "out"),
+        "--no-record",
+        "--tiers",
+        "structure,inertia",
         cwd=elsewhere,
         env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
     )
     assert proc.returncode == 0, proc.stderr
     terminal = proc.stdout + proc.stderr

@@ -11,7 +11,7 @@ import copy
 import mujoco
 import numpy as np
 import pytest
-from support.corpus import menagerie_root, mjcf_file
+from support.corpus import MENAGERIE, menagerie_root, mjcf_file
 from support.lockstep import contact_free, paired_rollout, replay
 from test_loader_friction import FRICTION_TOLERANCE, SERVO_FRICTION
 
@@ -57,19 +57,7 @@ def test_a_five_percent_kp_error_is_caught():
 
 
 @needs_menagerie
-@pytest.mark.parametrize(
-    "relative",
-    [
-        "aloha/scene.xml",
-        "boston_dynamics_spot/spot.xml",
-        "franka_emika_panda/panda.xml",
-        "google_barkour_vb/barkour_vb.xml",
-        "leap_hand/right_hand.xml",
-        "robotiq_2f85_v4/2f85.xml",
-        "tetheria_aero_hand_open/right_hand.xml",
-        "unitree_go1/go1.xml",
-    ],
-)
+@pytest.mark.parametrize("relative", MENAGERIE)
 def test_every_menagerie_actuator_is_mapped_or_listed_with_its_reason(relative):
     result = MJCFLoader().load(menagerie_root() / relative)
     assert len(result.actuators) == result.model.nu

@@ -26,8 +26,7 @@ from ..model.actuators import SPATIAL, ActuatorMap
 from ..model.drive import DofDrive
 from ..model.mapping import Mapping
 from .dof_step import DofKey, DofLayout, Step
-from .integrated import RootPush
-from .tendons import COUPLED_DAMPING, TendonPaths
+from .tendons import COUPLED_DAMPING, AlongPaths, TendonPaths
 from .term import Compilation, Term
 
 
@@ -185,25 +184,15 @@ class TendonActuators:
                 np.add.at(step.law[5], self.drive, diagonal)
 
 
-class SpatialActuators:
+class SpatialActuators(AlongPaths):
     """The mapped actuators on spatial tendons (`tendons`: actuator id -> tendon id) along `paths`."""
 
     def __init__(self, actuators: list[ActuatorMap], tendons: dict[int, int], paths: TendonPaths, implicit_kv):
         order = list(tendons)
+        super().__init__(paths, [tendons[a] for a in order])
         self.laws = ActuatorLaws(actuators, order)
-        self.paths = paths
-        self.rows = np.array([paths.index(tendons[a]) for a in order], dtype=int)
-        self.push = RootPush(paths.model, paths.mapping) if paths.floating else None  # a free joint's share
         self.implicit_kv = implicit_kv  # (damping, saturated) -> the kv MuJoCo's implicit step keeps
         self.damped = bool(self.laws.damping.any())
-
-    @property
-    def applied(self) -> list | tuple:
-        """This step's root wrenches (the momentum term's)."""
-        return self.push.applied if self.push is not None else ()
-
-    def compile(self, layout) -> None:
-        self.paths.compile(layout)
 
     def contribute(self, step: Step) -> None:
         laws = self.laws

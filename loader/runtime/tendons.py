@@ -191,19 +191,14 @@ class TendonPaths:
         return dict(zip(self.keys, (damping @ (jacobian * jacobian)).tolist()))
 
 
-class SpatialTendons:
-    """The passive spatial tendons `tendons` (MuJoCo ids) along `paths`; `implicit`: MuJoCo's integrator holds
-    dampers implicitly."""
+class AlongPaths:
+    """A force along some of the spatial tendons of `paths` (`rows`: their rows there), its share on a free joint
+    pushed on the root link (`push`, None where every DoF the paths move is a hinge or slide)."""
 
-    def __init__(self, paths: TendonPaths, tendons: list[int], implicit: bool):
-        model = paths.model
+    def __init__(self, paths: TendonPaths, tendons: list[int]):
         self.paths = paths
         self.rows = np.array([paths.index(t) for t in tendons], dtype=int)
-        self.push = RootPush(model, paths.mapping) if paths.floating else None  # a free joint's share
-        stiffness, damping = mj.tendon_passive(model)
-        self.stiffness, self.damping = stiffness[tendons], damping[tendons]
-        self.low, self.high = model.tendon_lengthspring[tendons].T.copy()
-        self.implicit = implicit and bool(self.damping.any())  # the dampers' diagonal joins the drives
+        self.push = RootPush(paths.model, paths.mapping) if paths.floating else None
 
     @property
     def applied(self) -> list | tuple:
@@ -212,6 +207,19 @@ class SpatialTendons:
 
     def compile(self, layout) -> None:
         self.paths.compile(layout)
+
+
+class SpatialTendons(AlongPaths):
+    """The passive spatial tendons `tendons` (MuJoCo ids) along `paths`; `implicit`: MuJoCo's integrator holds
+    dampers implicitly."""
+
+    def __init__(self, paths: TendonPaths, tendons: list[int], implicit: bool):
+        super().__init__(paths, tendons)
+        model = paths.model
+        stiffness, damping = mj.tendon_passive(model)
+        self.stiffness, self.damping = stiffness[tendons], damping[tendons]
+        self.low, self.high = model.tendon_lengthspring[tendons].T.copy()
+        self.implicit = implicit and bool(self.damping.any())  # the dampers' diagonal joins the drives
 
     def contribute(self, step: Step) -> None:
         length, jacobian, v = self.paths.state(step)
