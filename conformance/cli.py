@@ -1,8 +1,9 @@
-"""`python -m conformance run|bench`: the command line of the harness."""
+"""`python -m conformance run|bench|robustness|where|table`: the command line of the harness."""
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 from pathlib import Path
 
@@ -21,11 +22,22 @@ def _default_manifest() -> Path:
 DEFAULT_MANIFEST = _default_manifest()
 
 
+def _needs_maniskill(what: str) -> None:
+    """A usage error naming the `maniskill` extra where ManiSkill is not installed."""
+    if importlib.util.find_spec("mani_skill") is None:
+        raise argparse.ArgumentTypeError(
+            f"{what} needs the maniskill extra: pip install 'mjcf-sapien[maniskill]' (from a clone: "
+            "`pipx run nox -s maniskill` makes an environment with it)"
+        )
+
+
 def _tiers(text: str) -> tuple[str, ...]:
     tiers = tuple(t.strip() for t in text.split(",") if t.strip())
     bad = [t for t in tiers if t not in TIER_NAMES]
     if bad:
         raise argparse.ArgumentTypeError(f"unknown tiers {bad}; choose from {','.join(TIER_NAMES)}")
+    if "maniskill" in tiers:
+        _needs_maniskill("the maniskill tier")
     return tiers
 
 
@@ -45,6 +57,8 @@ def _loader(text: str) -> str:
 
     if text not in LOADERS:
         raise argparse.ArgumentTypeError(f"unknown loader {text!r}; choose from {', '.join(LOADERS)}")
+    if text == "maniskill":
+        _needs_maniskill("the maniskill loader")
     return text
 
 
@@ -143,6 +157,12 @@ def parser() -> argparse.ArgumentParser:
         help="folder that receives one <run>/ folder per run (summary.md, "
         "summary.json, recordings) and the link latest",
     )
+    run.add_argument(
+        "--keep",
+        type=int,
+        default=10,
+        help="the newest runs kept in --out; older ones are deleted after the run (0: keep every run)",
+    )
     run.add_argument("--jobs", type=int, default=0, help="worker processes (0: all cores)")
     run.add_argument(
         "--executor",
@@ -176,6 +196,21 @@ def parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", default=str(Path("reports") / "bench.json"), help="JSON report")
     bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
     bench.add_argument("--repeats", type=int, default=5, help="loads and compiles per model, cold and warm (median)")
+    made = sub.add_parser(
+        "table",
+        help="README's results table from a run (its folder or summary.json); --check FILE: exit 1 where FILE's "
+        "table is not the run's",
+        formatter_class=defaults,
+    )
+    made.add_argument("run", nargs="?", default=str(Path("reports") / "latest"), help="a run folder or summary.json")
+    made.add_argument("--check", default=None, help="a document holding the table (README.md)")
+    where = sub.add_parser(
+        "where",
+        help="print the file of a corpus model (a manifest id of the default or full corpus, or a source such as "
+        "franka_emika_panda/panda.xml)",
+        formatter_class=defaults,
+    )
+    where.add_argument("names", nargs="+", help="manifest ids or sources")
     robust = sub.add_parser(
         "robustness",
         help="mutants of the corpus's real files, each loaded and stepped in its "
@@ -263,6 +298,7 @@ def cmd_run(args) -> int:
         record=not args.no_record,
         visual_meshes=args.visual_meshes,
         loader=loaders[0],
+        keep=args.keep,
         extra={"manifest": args.manifest if not args.paths else None},
     )
     if args.compare:
@@ -273,10 +309,7 @@ def cmd_run(args) -> int:
         print("interrupted: partial summary written", file=sys.stderr)
         return 130
     print(summary.terminal(doc, run_dir, verbose=args.verbose))
-    if not doc["ok"]:
-        print(f"{len(doc['worse_than_expected'])} outcome(s) worse than the manifest expects", file=sys.stderr)
-        return 1
-    return 0
+    return 0 if doc["ok"] else 1
 
 
 def _cmd_compare(entries, options, loaders: tuple[str, ...]) -> int:
@@ -355,10 +388,47 @@ def cmd_robustness(args) -> int:
     return 1 if doc["bad"] or doc["interrupted"] else 0
 
 
+def cmd_table(args) -> int:
+    """Print the run's table, or check a document's against it (exit 1 where it differs)."""
+    from . import table
+
+    summary = table.load_summary(Path(args.run))
+    if args.check is None:
+        print(table.table(summary))
+        return 0
+    problem = table.check(summary, Path(args.check))
+    if problem:
+        print(problem, file=sys.stderr)
+        return 1
+    print(f"{args.check}: the results table is the run's")
+    return 0
+
+
+def cmd_where(args) -> int:
+    """Each name's file, one per line; exit 2 naming what was not found."""
+    from .corpus import where
+
+    status = 0
+    for name in args.names:
+        try:
+            print(where(name))
+        except LookupError as error:
+            print(f"error: {error}", file=sys.stderr)
+            status = 2
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
-        return {"run": cmd_run, "bench": cmd_bench, "robustness": cmd_robustness}[args.command](args)
+        commands = {
+            "run": cmd_run,
+            "bench": cmd_bench,
+            "robustness": cmd_robustness,
+            "where": cmd_where,
+            "table": cmd_table,
+        }
+        return commands[args.command](args)
     except (ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

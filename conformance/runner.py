@@ -3,7 +3,9 @@ cluster); a crash or a hang is that job's failure, the run goes on; the summary 
 
 from __future__ import annotations
 
+import re
 import secrets
+import shutil
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
@@ -34,7 +36,24 @@ class RunOptions:
     visual_meshes: bool = False  # recordings also draw MuJoCo's visual-only geoms
     run_name: str | None = None
     loader: str = "ours"  # the loader plug-in judged (conformance/loaders.py)
+    keep: int = 10  # the newest runs kept in `out` (`prune`); 0: every run
     extra: dict = field(default_factory=dict)
+
+
+RUN_NAME = re.compile(r"^\d{8}T\d{6}Z-[0-9a-f]{4}$")  # what `new_run_dir` names a run
+
+
+def prune(out: Path, keep: int, current: Path) -> list[Path]:
+    """Delete the oldest runs in `out` beyond the newest `keep` (0: none), never `current`, a run named by hand or
+    a folder that is not a run; returns what was deleted
+    (tests/test_conformance_runner.py::test_old_runs_are_pruned_to_the_newest_kept)."""
+    if keep <= 0:
+        return []
+    runs = sorted(p for p in out.iterdir() if p.is_dir() and not p.is_symlink() and RUN_NAME.match(p.name))
+    doomed = [p for p in runs[: max(0, len(runs) - keep)] if p.resolve() != current.resolve()]
+    for run in doomed:
+        shutil.rmtree(run, ignore_errors=True)
+    return doomed
 
 
 def new_run_dir(out: Path, name: str | None = None) -> Path:
@@ -143,6 +162,7 @@ def _run(entries: list[ModelEntry], options: RunOptions, executor: executors.Exe
         bar.close()
     doc = write_summary(interrupted)
     summary.point_latest(out, run_dir)
+    prune(out, options.keep, run_dir)
     if interrupted:
         raise KeyboardInterrupt
     return run_dir, doc

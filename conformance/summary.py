@@ -44,9 +44,14 @@ def _left_band(expectation: Expectation, detail: dict) -> str | None:
     )
 
 
+UNLISTED_OK = ("skipped", "chaotic")  # for a file the manifest does not list: a reason, not a disagreement
+
+
 def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
     """Compare a worker result with what the manifest expects, tier by tier. A divergence is worse than any
-    expectation; an expected failure whose metric left its band is `changed`, also worse. A model that did not load
+    expectation; an expected failure whose metric left its band is `changed`, also worse. For a file the manifest
+    does not list, `skipped` (with its reason) and `chaotic` (MuJoCo's own spread) are not worse. A model that did
+    not load
     is one `error` verdict on `load`, MuJoCo's (or the loader's) message its note, judged against the model's worst
     expectation (tests/test_conformance_summary.py::test_a_load_error_is_one_error_outcome)."""
     if result.status == "error":
@@ -72,11 +77,13 @@ def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
             raw, detail = report["status"], report
         expected = entry.expected(tier)
         expectation = entry.expect.get(tier)
+        if expectation is not None:
+            detail = {**detail, "expected_reason": expectation.reason}
         if raw == "fail" and expected == "fail" and expectation is not None:
             change = _left_band(expectation, detail)
             if change is not None:
                 raw, detail = "changed", {**detail, "notes": [*detail.get("notes", []), change]}
-        worse = OUTCOME_RANK[raw] > OUTCOME_RANK[expected] and not (raw == "skipped" and not entry.listed)
+        worse = OUTCOME_RANK[raw] > OUTCOME_RANK[expected] and not (raw in UNLISTED_OK and not entry.listed)
         claimed = expectation.passes_without if expectation is not None else ()
         if raw == "fail" and claimed and not claim_holds(detail.get("isolation", []), claimed):
             worse = True  # the manifest's reason is a claim the run could not reproduce
@@ -106,7 +113,27 @@ def headline(model_status: str, verdicts: list[Verdict]) -> str:
     if worst.outcome == "pass":
         return "pass"
     where = divergence_text(worst.detail.get("divergence"))
-    return f"{text} in {worst.tier}" + (f" at {where}" if where else "")
+    why = why_text(worst)
+    return f"{text} in {worst.tier}" + (f" at {where}" if where else "") + (f": {why}" if why else "")
+
+
+def why_text(v: Verdict, width: int = 140) -> str:
+    """Why a tier did not pass, on one line: its worst metric against its tolerance, then the reason (the
+    manifest's for an expected outcome, else the tier's first note: a skip's reason, MuJoCo's own spread)."""
+    metric = _worst_metric(v.detail.get("metrics") or [])
+    parts = [f"{metric['name']} {_fmt(metric['max'])} (tol {_fmt(metric['tolerance'])})"] if metric else []
+    reason = v.detail.get("expected_reason") or "" if not v.worse else ""
+    notes = v.detail.get("notes") or []
+    reason = reason or (notes[0] if notes else "")
+    if reason:
+        parts.append(reason)
+    return _clip("; ".join(parts), width)
+
+
+def _worst_metric(metrics: list[dict]) -> dict | None:
+    """The metric furthest past (or closest to) its tolerance, among those with one."""
+    judged = [m for m in metrics if m.get("tolerance") and m.get("max") is not None]
+    return max(judged, key=lambda m: m["max"] / m["tolerance"], default=None)
 
 
 def _clip(text: str, width: int) -> str:
@@ -156,14 +183,18 @@ def terminal(summary: dict, run_dir: Path, verbose: bool = False) -> str:
                 for n in load.get(key, [])
             ]
     worse = sum(1 for m in summary["models"] if any(v["worse_than_expected"] for v in m["verdicts"].values()))
-    lines.append(f"{len(summary['models'])} models, {worse} worse than the manifest expects")
+    outcomes = len(summary["worse_than_expected"])
+    lines.append(
+        f"{len(summary['models'])} models, {worse} worse than the manifest expects"
+        + (f" ({outcomes} model x tier outcomes, listed in summary.md)" if outcomes else "")
+    )
     counts = [sum(m.get("warnings", {}).values()) for m in summary["models"]]
     if sum(counts):
         lines.append(
             f"third-party warnings: {sum(counts)} in {sum(1 for c in counts if c)} models, counted by kind "
             f"in summary.json (MuJoCo's in {run_dir / 'MUJOCO_LOG.TXT'})"
         )
-    lines.append(f"report: {run_dir / 'summary.md'}")
+    lines.append(f"report: {run_dir / 'summary.md'} (outcomes and notes explained: reports/README.md)")
     return "\n".join(lines)
 
 
@@ -259,7 +290,9 @@ def build(
         result = results.get(entry.id) or ModelResult(entry.id, "pending", reason="not finished")
         verdicts = judge(entry, result) if result.status != "pending" else []
         worse += [
-            f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _why_worse(entry, v) for v in verdicts if v.worse
+            f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})" + _why_worse(entry, v) + _metric_why(v)
+            for v in verdicts
+            if v.worse
         ]
         better += [
             f"{v.model}/{v.tier}: {v.raw} (expected {v.expected})"
@@ -328,6 +361,14 @@ def _actuation_lines(summary: dict) -> list[str]:
     return lines
 
 
+def _metric_why(v: Verdict) -> str:
+    """A worse verdict's worst metric and the tier's first note, where `_why_worse` has nothing more to say."""
+    if v.raw in ("diverged", "changed"):
+        return ""
+    why = why_text(v, width=300)
+    return f": {why}" if why else ""
+
+
 def _why_worse(entry: ModelEntry, v: Verdict) -> str:
     if v.raw == "diverged":
         return ": " + (divergence_text(v.detail.get("divergence")) or "a metric is not finite")
@@ -392,6 +433,12 @@ def _seed_text(summary: dict) -> str:
     return f"seeds {seeds[0]}..{seeds[-1]}" if seeds else f"seed {summary['seed']}"
 
 
+READMELINK = (
+    "What each outcome and note means (`chaotic`, `changed`, `diverged`, `expected-fail`, the ctrl scaling, the "
+    "isolation runs): reports/README.md in the project."
+)
+
+
 def markdown(summary: dict, tiers: list[str]) -> str:
     """summary.md: a model x tier table (worst metric max/tolerance per cell), then the failures."""
     lines = [
@@ -418,7 +465,7 @@ def markdown(summary: dict, tiers: list[str]) -> str:
         "and margin = tolerance - max (units and every other metric in summary.json); where float32 cannot "
         "resolve part of an error, max is what is left beyond it and raw the error itself."
     )
-    lines += ["", legend, ""]
+    lines += ["", legend, "", READMELINK, ""]
     if summary["worse_than_expected"]:
         lines += ["## Worse than the manifest expects", ""] + [f"- {w}" for w in summary["worse_than_expected"]]
     else:

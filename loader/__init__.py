@@ -1,9 +1,22 @@
-"""Load MuJoCo MJCF models into SAPIEN, with MuJoCo's own compiler as the front end."""
+"""Load MuJoCo MJCF models into SAPIEN, with MuJoCo's own compiler as the front end.
+
+A load is quiet where nothing was lost: SAPIEN's import-time note that it uses its own libvulkan is dropped, and
+`NoRenderDeviceWarning` is ignored unless a filter asks for it (`warnings.simplefilter("default",
+NoRenderDeviceWarning)`); what a model loses is warned (`UnsupportedFeatureWarning`)
+(tests/test_packaging.py::test_a_plain_load_prints_nothing)."""
+
+import warnings
+
+with warnings.catch_warnings():  # SAPIEN says at import that it falls back to its own libvulkan: nothing to act on
+    warnings.filterwarnings("ignore", message="Failed to find system libvulkan", category=UserWarning)
+    import sapien  # noqa: F401
 
 from .errors import (
+    Approximation,
     ControlError,
     MissingAssetError,
     MJCFError,
+    Note,
     SceneMismatchWarning,
     Unsupported,
     UnsupportedFeatureWarning,
@@ -17,8 +30,11 @@ from .plan.texture import MJCFTexture
 from .plan.visual import NoRenderDeviceWarning, has_render_device
 from .result import LoadResult
 
+warnings.filterwarnings("ignore", category=NoRenderDeviceWarning, append=True)  # a filter of the caller's wins
+
 __all__ = [
     "ActuatorMap",
+    "Approximation",
     "BodyLink",
     "CameraConfig",
     "ControlError",
@@ -32,6 +48,7 @@ __all__ = [
     "Mapping",
     "MissingAssetError",
     "NoRenderDeviceWarning",
+    "Note",
     "SceneMismatchWarning",
     "SiteConfig",
     "Unsupported",

@@ -67,8 +67,8 @@ def command_vector(path: str, name: str, value, size: int, what: str):
 
 
 @dataclass(frozen=True)
-class Unsupported:
-    """A model feature the loader could not map exactly: `kind` is the MJCF concept, `name` the element."""
+class Note:
+    """What the loader says of one element: `kind` is the MJCF concept, `name` the element, `reason` why."""
 
     kind: str
     name: str
@@ -78,8 +78,19 @@ class Unsupported:
         return f"{self.kind} '{self.name}': {self.reason}"
 
 
+@dataclass(frozen=True)
+class Unsupported(Note):
+    """A model feature the loader dropped: SAPIEN does not have it (`LoadResult.unsupported`)."""
+
+
+@dataclass(frozen=True)
+class Approximation(Note):
+    """A model feature the loader maps by a law that is not MuJoCo's exactly; the reason says which
+    (`LoadResult.approximations`)."""
+
+
 class UnsupportedFeatureWarning(UserWarning):
-    """A model feature was dropped or approximated; the load result lists each one."""
+    """A model feature was dropped (or, where asked for, approximated); the load result lists each one."""
 
 
 class SceneMismatchWarning(UserWarning):
@@ -92,20 +103,25 @@ class Notes:
     """What a load could not map exactly: `unsupported` is dropped, `approximations` is mapped inexactly."""
 
     unsupported: list[Unsupported] = field(default_factory=list)
-    approximations: list[Unsupported] = field(default_factory=list)
+    approximations: list[Approximation] = field(default_factory=list)
 
     def drop(self, kind: str, name: str, reason: str) -> None:
         self.unsupported.append(Unsupported(kind, name, reason))
 
     def approximate(self, kind: str, name: str, reason: str) -> None:
-        self.approximations.append(Unsupported(kind, name, reason))
+        self.approximations.append(Approximation(kind, name, reason))
 
 
 def warn_notes(
-    path, unsupported: list[Unsupported], approximations: list[Unsupported], each: bool = False, stacklevel: int = 3
+    path,
+    unsupported: list[Unsupported],
+    approximations: list[Approximation],
+    each: bool = False,
+    stacklevel: int = 3,
 ) -> None:
     """UnsupportedFeatureWarning for a load's notes: one per category and kind, with the count and the first note
-    (the lists on the result hold every one), or one per note with `each`
+    (the lists on the result hold every one), or one per note with `each`; pass no `approximations` to warn of
+    what was dropped alone
     (tests/test_loader_structure.py::test_unsupported_features_are_listed_and_warned_once_per_kind)."""
     import warnings
     from pathlib import Path
@@ -116,7 +132,7 @@ def warn_notes(
             for note in notes:
                 warnings.warn(f"{name}: {category} {note}", UnsupportedFeatureWarning, stacklevel=stacklevel)
             continue
-        kinds: dict[str, list[Unsupported]] = {}
+        kinds: dict[str, list[Note]] = {}
         for note in notes:
             kinds.setdefault(note.kind, []).append(note)
         listed = "result.unsupported" if category == "unsupported" else "result.approximations"

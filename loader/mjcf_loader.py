@@ -57,6 +57,8 @@ class MJCFLoader:
     drives converge (`plan/solver_iterations.py`); a (position, velocity) pair sets them; None keeps SAPIEN's
     (10, 1).
     `warn_each_note`: one UnsupportedFeatureWarning per note instead of one per kind with its count.
+    `warn_approximations`: warn of the approximations too (they are always in `result.approximations`; what is
+    dropped is always warned).
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -66,6 +68,7 @@ class MJCFLoader:
         self.fix_root_link = True
         self.solver_iterations: tuple[int, int] | str | None = "auto"
         self.warn_each_note = False
+        self.warn_approximations = False
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -87,7 +90,15 @@ class MJCFLoader:
         parsed = self._parse(mjcf_file, package_dir)
         articulations = [builder.build() for builder in parsed.articulation_builders]
         actors = [builder.build_static(builder.name) for builder in parsed.actor_builders]
-        return finish(parsed, self.scene, articulations, actors, self.solver_iterations, self.warn_each_note)
+        return finish(
+            parsed,
+            self.scene,
+            articulations,
+            actors,
+            self.solver_iterations,
+            self.warn_each_note,
+            warn_approximations=self.warn_approximations,
+        )
 
     def new_articulation_builder(self) -> MJCFArticulationBuilder:
         """The builder of one kinematic tree (a subclass builds into a scene of sub-scenes: `loader.maniskill`)."""
@@ -199,9 +210,11 @@ def finish(
     solver_iterations: tuple[int, int] | str | None = "auto",
     warn_each_note: bool = False,
     stacklevel: int = 4,
+    warn_approximations: bool = False,
 ) -> LoadResult:
     """The mapping and the per-step terms of built articulations (one per tree, in order) in `scene`: the
-    `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller)."""
+    `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller): what was
+    dropped, and the approximations where `warn_approximations`."""
     model = parsed.compiled.model
     mapping = _mapping(model, parsed, articulations)
     with mj.sharing_qpos0(model, parsed.compiled.at_qpos0):
@@ -228,7 +241,8 @@ def finish(
         controller=controller,
         replanner=replan,
     )
-    warn_notes(result.path, result.unsupported, result.approximations, each=warn_each_note, stacklevel=stacklevel)
+    approximations = result.approximations if warn_approximations else []
+    warn_notes(result.path, result.unsupported, approximations, each=warn_each_note, stacklevel=stacklevel)
     result.reset()
     return result
 

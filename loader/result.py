@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 import sapien
 
-from .errors import ControlError, Unsupported, command_vector
+from .errors import Approximation, ControlError, Unsupported, command_vector
 from .model.actuators import ActuatorMap
 from .model.equalities import EqualityLink
 from .model.mapping import Mapping
@@ -42,7 +42,7 @@ class LoadResult:
     mapping: Mapping
     controller: Controller = field(repr=False)  # the per-step terms (`runtime/`)
     unsupported: list[Unsupported] = field(default_factory=list)
-    approximations: list[Unsupported] = field(default_factory=list)
+    approximations: list[Approximation] = field(default_factory=list)
     actuators: list[ActuatorMap] = field(default_factory=list)
     equalities: list[EqualityLink] = field(default_factory=list)
     replanner: Callable[[LoadResult, mujoco.MjModel], tuple] | None = field(default=None, repr=False)  # `replan`

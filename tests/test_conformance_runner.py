@@ -3,6 +3,7 @@ the exit status reflects it, and summaries are written atomically."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -312,7 +313,7 @@ def test_the_terminal_gets_one_line_per_model_and_the_file_the_table(tmp_path):
     assert plain.stdout.splitlines() == [
         "rack  ok     pass  (loader: approximated geom 3)",
         "1 models, 0 worse than the manifest expects",
-        f"report: {run / 'summary.md'}",
+        f"report: {run / 'summary.md'} (outcomes and notes explained: reports/README.md)",
     ]
     assert "| rack | pass" in (run / "summary.md").read_text()
     detailed = run_cli(*args, "--out", str(tmp_path / "b"), "-v").stdout.splitlines()
@@ -343,3 +344,28 @@ def test_a_seed_sweep_runs_each_model_once_per_seed(tmp_path):
     seed1, seed2 = summary["models"]
     assert _kinematics(seed2) == _kinematics(alone)  # the sweep's seed 2 is the run at --seed 2
     assert _kinematics(seed1) != _kinematics(seed2)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mani_skill") is not None, reason="ManiSkill is installed here")
+@pytest.mark.parametrize("option", [("--tiers", "structure,maniskill"), ("--loader", "maniskill")])
+def test_a_missing_extra_is_a_usage_error_naming_it(tmp_path, option):
+    """The maniskill tier or loader without ManiSkill installed: exit 2 before anything runs, naming the extra."""
+    proc = run_cli(*option, "--model", "pendulum", "--out", str(tmp_path), "--quiet", "--no-record")
+    assert proc.returncode == 2 and "needs the maniskill extra: pip install 'mjcf-sapien[maniskill]'" in proc.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_old_runs_are_pruned_to_the_newest_kept(tmp_path):
+    """A run keeps the newest `keep` run folders: the oldest go, the current one never does, nor a folder named
+    by hand or any other file (the names order the runs by their timestamps)."""
+    from conformance.runner import prune
+
+    runs = [tmp_path / f"20261127T0{h}0000Z-abcd" for h in range(5)]
+    for run in runs:
+        (run / "models").mkdir(parents=True)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "bench.json").write_text("{}")
+    assert prune(tmp_path, 3, runs[-1]) == runs[:2]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([r.name for r in runs[2:]] + ["mine", "bench.json"])
+    assert prune(tmp_path, 0, runs[-1]) == [] and prune(tmp_path, 1, runs[2]) == [runs[3]]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([runs[2].name, runs[4].name, "mine", "bench.json"])

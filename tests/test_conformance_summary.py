@@ -55,10 +55,14 @@ def test_worse_than_expected(raw, expected, worse):
     assert v.worse is worse and v.raw == raw
 
 
-@pytest.mark.parametrize("raw,worse", [("skipped", False), ("fail", True), ("pass", False)])
+@pytest.mark.parametrize(
+    "raw,worse",
+    [("skipped", False), ("chaotic", False), ("fail", True), ("diverged", True), ("error", True), ("pass", False)],
+)
 def test_a_file_from_the_command_line_may_skip_a_tier_it_rules_out(raw, worse):
-    """No manifest names its skips (a model without actuators skips the actuated tiers): a skip is not worse there;
-    a failure still is. A manifest entry's unexpected skip is worse (`test_worse_than_expected`)."""
+    """No manifest names its skips (a model without actuators skips the actuated tiers) or MuJoCo's own chaos: a
+    skip or a `chaotic` verdict is not worse there; a failure, a divergence or an error still is. A manifest
+    entry's unexpected skip or chaos is worse (`test_worse_than_expected`)."""
     entry = ModelEntry(id="m", source="x", tiers=("actuated",), listed=False)
     (v,) = summary.judge(entry, _result("ok", SEEN, actuated=raw))
     assert v.worse is worse and v.outcome == raw
@@ -200,7 +204,12 @@ def test_a_load_error_is_one_error_outcome():
     doc = summary.build(
         {"run": "r", "seed": 0, "versions": {}}, [entry], {"m": ModelResult("m", "error", reason=PARSE_ERROR)}
     )
-    assert not doc["ok"] and doc["worse_than_expected"] == ["m/load: error (expected pass)"]
+    assert not doc["ok"] and doc["worse_than_expected"] == [
+        (
+            "m/load: error (expected pass): ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) "
+            "Line number=1"
+        )
+    ]  # with MuJoCo's message
     assert (
         "| m | **error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1** |  |"
     ) in summary.markdown(doc, ["structure", "dynamics"])
@@ -221,13 +230,41 @@ def test_an_error_is_worse_than_any_expectation_but_error(expected, worse):
 def test_the_headline_is_the_worst_outcome():
     entry = ModelEntry(id="m", source="x", tiers=("structure", "contact", "dynamics"), expect={"dynamics": _gap()})
     result = _result("ok", SEEN, structure="pass", contact="fail", dynamics="fail")
-    assert summary.headline("ok", summary.judge(entry, result)) == "fail (expected pass) in contact"
+    assert summary.headline("ok", summary.judge(entry, result)) == (
+        "fail (expected pass) in contact: rollout_zero_qpos 0.3 (tol 1e-05)"
+    )  # the worst metric against its tolerance
     result = _result("ok", SEEN, structure="pass", contact="pass", dynamics="fail")
-    assert summary.headline("ok", summary.judge(entry, result)) == "expected-fail in dynamics"
+    assert summary.headline("ok", summary.judge(entry, result)) == (
+        "expected-fail in dynamics: rollout_zero_qpos 0.3 (tol 1e-05); tendons are not mapped"
+    )  # and the manifest's reason
     assert summary.headline("error", summary.judge(entry, ModelResult("m", "error", reason=PARSE_ERROR))) == (
         "error: ValueError: XML parse error 15: Error=XML_ERROR_PARSING ErrorID=15 (0xf) Line number=1 (expected fail)"
     )  # judged against the model's worst expectation
     assert summary.headline("crashed", summary.judge(entry, ModelResult("m", "crashed"))) == "crashed"
+    skipped = ModelResult("m", "ok", tiers={"contact": {"status": "skipped", "metrics": [], "notes": ["no floor"]}})
+    listed = ModelEntry(id="m", source="x", tiers=("contact",))
+    assert summary.headline("ok", summary.judge(listed, skipped)) == "skipped (expected pass) in contact: no floor"
+
+
+def test_the_worse_section_says_which_metric_and_why():
+    """summary.md's "worse" lines carry the worst metric against its tolerance and the tier's first note."""
+    entry = ModelEntry(id="ant", source="x", tiers=("contact",))
+    result = ModelResult(
+        "ant",
+        "ok",
+        tiers={
+            "contact": {
+                "status": "fail",
+                "metrics": [{"name": "final_pose_band", "max": 0.12, "tolerance": 0.05, "margin": -0.07}],
+                "notes": ["MuJoCo's own spread 0.002 m"],
+            }
+        },
+    )
+    doc = summary.build({"run": "r", "seed": 0, "versions": {}}, [entry], {"ant": result})
+    assert doc["worse_than_expected"] == [
+        "ant/contact: fail (expected pass): final_pose_band 0.12 (tol 0.05); MuJoCo's own spread 0.002 m"
+    ]
+    assert "- ant/contact: fail (expected pass): final_pose_band 0.12" in summary.markdown(doc, ["contact"])
 
 
 def _swept_manifest(tmp_path, seeds_line: str, seen: str):
@@ -265,3 +302,29 @@ def test_a_range_seen_over_seeds_bands_from_its_low_to_its_high(tmp_path):
 def test_a_bad_range_or_seed_list_is_rejected(tmp_path, seen, seeds):
     with pytest.raises(ValueError, match="m.toml"):
         _swept_manifest(tmp_path, seeds, seen)
+
+
+def test_the_readme_table_is_made_from_a_run_and_checked(tmp_path):
+    """Pass / judged per tier: a load error is judged and failed everywhere, a skip is not judged, `chaotic` and
+    `expected-fail` are judged and not passed. `check` accepts the table made from the run and refuses one number
+    off, or a document without the table."""
+    from conformance import table
+
+    doc = {
+        "seed": 0,
+        "models": [
+            {"verdicts": {"structure": {"outcome": "pass"}, "contact": {"outcome": "chaotic"}}},
+            {"verdicts": {"structure": {"outcome": "pass"}, "contact": {"outcome": "skipped"}}},
+            {"verdicts": {"dynamics": {"outcome": "expected-fail"}, "structure": {"outcome": "pass"}}},
+            {"verdicts": {"load": {"outcome": "error"}}},
+        ],
+    }
+    numbers = table.counts(doc)
+    assert numbers["structure"] == (3, 4) and numbers["contact"] == (0, 2) and numbers["dynamics"] == (0, 2)
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# r\n\n{table.table(doc)}\n\nmore\n")
+    assert table.check(doc, readme) is None
+    readme.write_text(readme.read_text().replace("3/4", "4/4"))
+    assert "is not this run's; replace it with:" in table.check(doc, readme)
+    readme.write_text("# r\n")
+    assert "has no results table" in table.check(doc, readme)

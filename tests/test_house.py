@@ -167,3 +167,24 @@ def test_a_loader_import_beyond_its_core_dependencies_is_found():
         "loader/b.py:3: imports tqdm, which the loader's install does not have",
         "loader/c.py:6: imports torch, which the loader's install does not have",
     ]  # not guarded by ImportError
+
+
+def test_a_command_that_cannot_be_pasted_after_the_set_up_is_found():
+    sessions, commands = {"conformance", "tests"}, {"run", "where"}
+    good = (
+        "`pipx run nox -s conformance -- --model x`, `.nox/conformance/bin/rerun reports/latest/x.rrd`,\n"
+        "`.nox/conformance/bin/python -m conformance where panda`\n"
+    )
+    assert house.unpasteable_commands({"README.md": good}, sessions, commands) == []
+    bad = (
+        "`nox -s conformance`, `pipx run nox -s lint`, `rerun reports/latest/x.rrd`\n"
+        "`python -m conformance where panda`, `.nox/conformance/bin/python -m conformance bench`\n"
+    )
+    assert house.unpasteable_commands({"README.md": bad}, sessions, commands) == [
+        "README.md:1: `nox -s conformance`: README's set-up has `pipx run nox`",
+        "README.md:1: nox session 'lint': the noxfile has none",
+        "README.md:1: `rerun`: the set-up's viewer is .nox/conformance/bin/rerun",
+        "README.md:2: python -m conformance: run it as .nox/conformance/bin/python -m conformance",
+        "README.md:2: python -m conformance bench: the harness has no such command",
+    ]
+    assert house.unpasteable_commands({"docs/a.md": "`python -m conformance where x`\n"}, sessions, commands) == []

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import mujoco
+import numpy as np
 import pytest
 from support.corpus import FIXTURES
 
@@ -30,8 +32,43 @@ def test_unknown_default_class_is_rejected_with_mujocos_message():
 
 
 def test_a_path_that_is_not_a_file():
-    with pytest.raises(MJCFError):
-        MJCFLoader().load(FIXTURES / "does_not_exist.xml")
+    """A missing file, a folder and a document passed as text each say what they are and the fix, without blaming
+    MuJoCo (which was never asked) and without echoing the document."""
+    with pytest.raises(MJCFError) as missing:
+        MJCFLoader().load("franka_emika_panda/panda.xml")
+    assert str(missing.value).startswith("franka_emika_panda/panda.xml: no such file: nothing at this path (relative")
+    assert "python -m conformance where NAME" in str(missing.value) and "MuJoCo" not in str(missing.value)
+    with pytest.raises(MJCFError) as folder:
+        MJCFLoader().load(FIXTURES)
+    assert (
+        str(folder.value) == f"{FIXTURES}: the loader takes a file: it is a folder\n  fix: pass the model's .xml file"
+    )
+    document = "<mujoco><worldbody><body><joint/><geom size='.1'/></body></worldbody></mujoco>"
+    with pytest.raises(MJCFError) as text:
+        MJCFLoader().load(document)
+    assert str(text.value) == (
+        "<string>: the loader takes a file: an MJCF document was passed as text\n"
+        "  fix: pass a path or an MjSpec; for a string use mujoco.MjSpec.from_string(text)"
+    )
+
+
+def test_an_unknown_keyframe_is_a_control_error_naming_the_keyframes():
+    """`reset(key)` with a keyframe the model lacks raises ControlError listing the model's keyframes (none here),
+    before anything changes."""
+    from loader import ControlError
+
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(KEYED.split("<keyframe>")[0] + "</mujoco>"))
+    before = result.get_state()
+    with pytest.raises(ControlError, match=r"no keyframe 'home'; the model's keyframes: none"):
+        result.reset("home")
+    keyed = MJCFLoader().load(mujoco.MjSpec.from_string(KEYED))
+    with pytest.raises(ControlError, match=r"no keyframe 'away'; the model's keyframes: 'home', 'bent'"):
+        keyed.reset("away")
+    assert all(np.array_equal(a, b) for a, b in zip(before, result.get_state()))
+
+
+KEYED = """<mujoco><worldbody><body><joint name="hinge"/><geom size=".1" mass="1"/></body></worldbody>
+  <keyframe><key name="home" qpos="0"/><key name="bent" qpos="0.5"/></keyframe></mujoco>"""
 
 
 ARM = """<mujoco><option timestep="0.002"/><worldbody><body name="arm" pos="0 0 1">

@@ -10,7 +10,7 @@ import pytest
 from support.corpus import FIXTURES, suite_path
 from support.oracle import POSE_TOLERANCE, link_pose_errors
 
-from loader import MJCFLoader, UnsupportedFeatureWarning
+from loader import Approximation, MJCFLoader, Unsupported, UnsupportedFeatureWarning
 from loader.plan.geom import hfield_triangles
 
 
@@ -67,11 +67,24 @@ CYLINDERS = SPATIAL_SPRING.replace(
 
 
 def test_unsupported_features_are_listed_and_warned_once_per_kind(tmp_path):
+    """What a load drops is warned, one warning per kind; approximations are listed and warned only on request
+    (`warn_approximations`), each note of its own class."""
     (tmp_path / "rope.xml").write_text(CYLINDERS)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = MJCFLoader().load(tmp_path / "rope.xml")
-    assert ("tendon", "rope") in {(entry.kind, entry.name) for entry in result.unsupported}  # its armature
+        quiet = MJCFLoader().load(tmp_path / "rope.xml")
+    assert ("tendon", "rope") in {(entry.kind, entry.name) for entry in quiet.unsupported}  # its armature
+    assert {type(n) for n in quiet.unsupported} == {Unsupported} and quiet.approximations
+    assert {type(n) for n in quiet.approximations} == {Approximation}
+    dropped = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
+    assert {str(w.message).split(" x")[0] for w in dropped} == {
+        f"rope.xml: unsupported {e.kind}" for e in quiet.unsupported
+    }
+    loader = MJCFLoader()
+    loader.warn_approximations = True
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = loader.load(tmp_path / "rope.xml")
     ours = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
     kinds = {("unsupported", e.kind) for e in result.unsupported} | {
         ("approximated", e.kind) for e in result.approximations
@@ -81,7 +94,6 @@ def test_unsupported_features_are_listed_and_warned_once_per_kind(tmp_path):
     assert len(geoms) == 1 and "2 more in result.approximations" in geoms[0]
     assert all(w.filename == __file__ for w in ours), "the warning points at the caller's line, not the loader's"
     assert not any(str(tmp_path) in str(w.message) for w in ours), "the file's name, not its whole path"
-    loader = MJCFLoader()
     loader.warn_each_note = True
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

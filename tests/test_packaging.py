@@ -99,3 +99,31 @@ def test_an_installed_wheel_runs_the_cli_from_another_folder(wheel, tmp_path):
         check=True,
     )
     assert Path(probe.stdout.strip()).is_relative_to(site)  # the wheel's copy, not the checkout's
+
+
+def test_a_plain_load_prints_nothing(tmp_path):
+    """A load of a model that loses nothing, on a machine without a render device, prints nothing at all: no
+    SAPIEN import note, no render-device warning, no note on approximations (they are in the result)."""
+    code = (
+        "from loader import MJCFLoader\n"
+        "result = MJCFLoader().load('corpus/fixtures/pendulum.xml')\n"
+        "assert result.approximations and not result.unsupported\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=False)
+    assert done.returncode == 0 and done.stdout == "" and done.stderr == "", done.stdout + done.stderr
+
+
+def test_the_core_install_names_the_harness_extra(monkeypatch):
+    """`python -m conformance` in a core install (no rerun, dm_control, tqdm) says which extra to install instead
+    of failing on an import; .ci/run runs it in a core install (exit 2). Here the missing packages are simulated."""
+    import importlib.util
+
+    from conformance.extras import missing_harness
+
+    assert missing_harness() is None
+    found = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None if name == "tqdm" else found(name))
+    assert missing_harness() == (
+        "python -m conformance needs the harness extra (tqdm missing): pip install 'mjcf-sapien[harness]' (from a "
+        "clone: pip install '.[harness]', or run it through `pipx run nox -s conformance`)"
+    )

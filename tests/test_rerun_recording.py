@@ -339,6 +339,31 @@ def test_the_verdict_panel_shows_the_expected_outcome_and_reason(judged):
     assert reason in text
 
 
+def test_the_verdict_panel_opens_on_the_failing_tier_and_why(judged):
+    """The panel's first lines, under the title, name the failing tier, its outcome, its metric against its
+    tolerance and the manifest's reason; the table below starts with it too. Passing tiers come after."""
+    _, _, reason, rrd, _ = judged
+    lines = rrd["/verdict"]["TextDocument:text"][-1][0].splitlines()
+    assert lines[0] == "# instanced_meshes" and lines[1] == ""
+    first = lines[2]
+    assert first.startswith("- **contact: expected-fail**; final_pose_band ") and " against 1e-12 m" in first
+    assert first.endswith(reason)
+    rows = [line for line in lines if line.startswith("| ") and not line.startswith("| tier")]
+    assert rows[0].startswith("| contact |")
+
+
+def test_every_plotted_series_has_a_name(judged):
+    """Every plot's lines are named (a legend, not anonymous lines until hovered): one name per scalar column."""
+    *_, rrd, _ = judged
+    plotted = {entity: cols for entity, cols in rrd.items() if "Scalars:scalars" in cols}
+    assert plotted
+    for entity, cols in plotted.items():
+        names = cols.get("SeriesLines:names")
+        assert names, f"{entity} has no series names"
+        width = len(np.atleast_1d(cols["Scalars:scalars"][0]))
+        assert len(names[-1]) == width and all(names[-1]), (entity, names[-1])
+
+
 def tier_line(rrd, tier: str, series: str) -> tuple[str, np.ndarray]:
     """(entity, values) of a tier series' line, found by its label `<tier> <series> / <tolerance> <unit>`; a line
     shorter than its batch ends in NaN, dropped here."""

@@ -6,21 +6,54 @@ from __future__ import annotations
 
 import json
 
+from ..manifest import OUTCOME_RANK
 from ..report import TierReport
+
+
+def _order(reports: dict[str, TierReport], judged: dict) -> list[str]:
+    """The tiers, those worse than expected first, then by how bad their outcome is (passes last)."""
+
+    def badness(tier: str) -> tuple:
+        v = judged.get(tier, {})
+        return (not v.get("worse", False), -OUTCOME_RANK.get(v.get("raw", reports[tier].status), 0))
+
+    return sorted(reports, key=badness)
+
+
+def headlines(reports: dict[str, TierReport], judged: dict) -> list[str]:
+    """One line per tier that did not pass, the worst first: its outcome, its metric furthest past its tolerance and
+    why (the manifest's reason, else the tier's first note)."""
+    lines = []
+    for tier in _order(reports, judged):
+        report, v = reports[tier], judged.get(tier, {})
+        outcome = v.get("outcome", report.status)
+        if outcome == "pass":
+            continue
+        worst = max((m for m in report.metrics if m.tolerance > 0), key=lambda m: m.max / m.tolerance, default=None)
+        parts = [f"**{tier}: {outcome}**" + (" (worse than expected)" if v.get("worse") else "")]
+        if worst is not None:
+            parts.append(f"{worst.name} {worst.max:.3g} against {worst.tolerance:.3g} {worst.unit}")
+        why = v.get("reason") or (report.notes[0] if report.notes else "")
+        if why:
+            parts.append(why)
+        lines.append("- " + "; ".join(parts))
+    return lines or ["- every tier passes"]
 
 
 def verdict_markdown(reports: dict[str, TierReport], meta: dict) -> str:
     """`meta["verdicts"]` maps a tier to the summary's judgement (outcome, expected, reason, worse); without it a
-    tier shows its raw status."""
+    tier shows its raw status. The first lines say what did not pass and why, the worst first; the table below
+    orders the tiers the same way."""
     judged = meta.get("verdicts", {})
-    lines = [f"# {meta.get('model', '')}", ""]
+    lines = [f"# {meta.get('model', '')}", "", *headlines(reports, judged), ""]
     if meta.get("shown"):
         lines += [f"3D view: {meta['shown']}", ""]
     lines += [
         "| tier | outcome | metric | max | tolerance | max / tolerance | expected |",
         "|---|---|---|---|---|---|---|",
     ]
-    for tier, report in reports.items():
+    for tier in _order(reports, judged):
+        report = reports[tier]
         v = judged.get(tier, {})
         outcome = v.get("outcome", report.status) + (" (worse than expected)" if v.get("worse") else "")
         expected = v.get("expected", "")

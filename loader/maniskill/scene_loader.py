@@ -84,7 +84,14 @@ class MJCFLoader(CoreLoader):
         alone = dataclasses.replace(parsed, actor_builders=[])  # the world's geoms are ManiSkill's business
         self.results = [
             finish(
-                alone, sub_scene, [articulation], [], self.solver_iterations, self.warn_each_note, stacklevel=6
-            )  # the caller of the builder's build()
+                alone,
+                sub_scene,
+                [articulation],
+                [],
+                self.solver_iterations,
+                self.warn_each_note,
+                stacklevel=6,  # the caller of the builder's build()
+                warn_approximations=self.warn_approximations,
+            )
             for sub_scene, articulation in built.built
         ]

@@ -36,6 +36,33 @@ def _raise_for(path: Path, error: Exception) -> None:
     ) from None
 
 
+def _readable(mjcf_file: str | os.PathLike) -> Path:
+    """The path of an MJCF file to read, or MJCFError saying why there is none: an XML document passed as a string,
+    a folder, a path with no file (relative paths start at the working directory)."""
+    if isinstance(mjcf_file, str) and mjcf_file.lstrip().startswith("<"):
+        raise MJCFError(
+            "<string>",
+            "an MJCF document was passed as text",
+            rejected_by="the loader takes a file",
+            hint="pass a path or an MjSpec; for a string use mujoco.MjSpec.from_string(text)",
+        )
+    path = Path(mjcf_file)
+    if path.is_dir():
+        raise MJCFError(
+            path, "it is a folder", rejected_by="the loader takes a file", hint="pass the model's .xml file"
+        )
+    if not path.is_file():
+        where = "" if path.is_absolute() else f" (relative to {Path.cwd()})"
+        raise MJCFError(
+            path,
+            f"nothing at this path{where}",
+            rejected_by="no such file",
+            hint="pass the path of an MJCF .xml file or an MjSpec (`python -m conformance where NAME` prints where a "
+            "corpus model is)",
+        )
+    return path
+
+
 def compile_mjcf(
     mjcf_file: str | os.PathLike | mujoco.MjSpec, package_dir: str | os.PathLike | None = None
 ) -> CompiledModel:
@@ -48,9 +75,7 @@ def compile_mjcf(
         spec = mjcf_file
         path = Path(spec.modelfiledir or ".") / f"{spec.modelname or 'spec'}.xml"
     else:
-        path = Path(mjcf_file)
-        if not path.is_file():
-            raise MJCFError(path, f"no such file: {path}", hint="pass the path of an MJCF .xml file or an MjSpec")
+        path = _readable(mjcf_file)
         try:
             spec = mujoco.MjSpec.from_file(str(path))
         except ValueError as error:

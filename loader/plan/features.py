@@ -69,13 +69,13 @@ def _elements(model: mujoco.MjModel, notes: Notes) -> None:
 
 def _options(model: mujoco.MjModel, notes: Notes) -> None:
     """Limits, the integrator and the model's contact and limit flags."""
-    if any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"):
+    limited = int(np.count_nonzero(model.jnt_limited))
+    if limited and not mj.disabled(model, "limit", "constraint"):
         notes.approximate(
-            "joint",
-            "limits",
-            "MuJoCo solves the limit rows at SAPIEN's state with its own soft "
-            "contacts (runtime/rows.py, set_ctrl every step), and PhysX applies its rigid ones; "
-            "PhysX's hard limits after release()",
+            "joint limits",
+            f"{limited} joint{'s' if limited > 1 else ''}",
+            "MuJoCo's soft limit rows, solved at SAPIEN's state by set_ctrl every step (runtime/rows.py); after "
+            "release(), PhysX's rigid limits at the range",
         )
     integrator = int(model.opt.integrator)
     if integrator == int(mujoco.mjtIntegrator.mjINT_RK4):

@@ -14,7 +14,11 @@
   they or the source name exists, and README.md stays under `MAX_README_LINES` lines;
 - every code identifier README.md and docs/*.md quote in backticks resolves: a dotted name or a call `name()`
   against the names the code defines and uses, a `file.py` against the tree, a `without("...")` against the
-  controller's stages.
+  controller's stages;
+- every command README.md, docs/*.md and reports/README.md give can be pasted after README's set-up: `pipx run nox
+  -s SESSION` with a session the noxfile has, the viewer through the environment the set-up made
+  (`.nox/conformance/bin/rerun`), a harness command it has (in README: `.nox/conformance/bin/python -m conformance
+  COMMAND`).
 
 Run as `python tests/support/house.py` from the project root; exits non-zero on a finding."""
 
@@ -28,6 +32,7 @@ from pathlib import Path
 
 E_NOTATION = re.compile(r"(?<![\w.])\d+(?:\.\d+)?[eE][-+]?\d+\b")
 MAX_README_LINES = 120
+REPORTS = Path("reports") / "README.md"  # the one tracked file in the runs' folder
 PACKAGES = ("loader", "conformance")
 CORE = ("mujoco", "sapien", "numpy")  # the loader's install: everything else is an extra
 MANISKILL = ("loader/maniskill/", ("mani_skill", "torch", "gymnasium"))  # the one module the `maniskill` extra adds
@@ -185,6 +190,54 @@ THIRD_PARTY = (
 )  # their names are theirs to resolve
 
 
+NOX = re.compile(r"(?<![\w-])(?:(pipx run )?nox) -s (\w+)")
+VIEWER = re.compile(r"(?<![\w/.-])rerun (?=\S+\.rrd)")
+HARNESS = re.compile(r"(\S*)python -m conformance (\w+)")
+
+
+def unpasteable_commands(docs: dict[str, str], sessions: set[str], commands: set[str]) -> list[str]:
+    """`path:line: ...` for every command in `docs` a user could not paste after README's set-up (`sessions`: the
+    noxfile's; `commands`: the harness's)."""
+    out = []
+    for path, text in docs.items():
+        if not path.endswith(".md"):
+            continue
+        for number, line in enumerate(text.splitlines(), 1):
+            out += [f"{path}:{number}: {problem}" for problem in _command_problems(line, path, sessions, commands)]
+    return out
+
+
+def _command_problems(line: str, path: str, sessions: set[str], commands: set[str]) -> list[str]:
+    problems = []
+    for pipx, session in NOX.findall(line):
+        if not pipx:
+            problems.append(f"`nox -s {session}`: README's set-up has `pipx run nox`")
+        elif session not in sessions:
+            problems.append(f"nox session {session!r}: the noxfile has none")
+    if VIEWER.search(line):
+        problems.append("`rerun`: the set-up's viewer is .nox/conformance/bin/rerun")
+    for prefix, command in HARNESS.findall(line):
+        if command not in commands:
+            problems.append(f"python -m conformance {command}: the harness has no such command")
+        elif path == "README.md" and prefix.lstrip("`(") != ".nox/conformance/bin/":
+            problems.append("python -m conformance: run it as .nox/conformance/bin/python -m conformance")
+    return problems
+
+
+def nox_sessions(noxfile: str) -> set[str]:
+    """The noxfile's sessions: its functions decorated `@nox.session`."""
+    return {
+        node.name
+        for node in ast.walk(ast.parse(noxfile))
+        if isinstance(node, ast.FunctionDef) and any("session" in ast.unparse(d) for d in node.decorator_list)
+    }
+
+
+def harness_commands(cli: str) -> set[str]:
+    """The harness's commands: what `conformance/cli.py` adds as subparsers."""
+    return set(re.findall(r'sub\.add_parser\(\s*"(\w+)"', cli))
+
+
 def code_names(files: dict[str, str]) -> tuple[set[str], set[str]]:
     """(every identifier the code defines or uses: names, attributes, functions, classes, arguments, modules; the
     functions and classes it defines)."""
@@ -311,7 +364,7 @@ def long_readme(text: str, limit: int = MAX_README_LINES) -> list[str]:
 
 def documents(root: Path) -> dict[str, str]:
     """README.md, docs/*.md and every other file they may link to (by path relative to the root)."""
-    files = {"README.md": (root / "README.md").read_text()}
+    files = {"README.md": (root / "README.md").read_text(), "reports/README.md": (root / REPORTS).read_text()}
     files.update({str(p.relative_to(root)): p.read_text() for p in sorted((root / "docs").glob("*.md"))})
     for p in sorted(root.rglob("*")):
         rel = p.relative_to(root)
@@ -375,6 +428,9 @@ def findings(root: Path) -> list[str]:
         + broken_links(docs)
         + long_readme(docs["README.md"])
         + unresolved_identifiers(docs, {**every, **tests, "noxfile.py": (root / "noxfile.py").read_text()})
+        + unpasteable_commands(
+            docs, nox_sessions((root / "noxfile.py").read_text()), harness_commands(every["conformance/cli.py"])
+        )
         + broken_test_references(
             {**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
             {str(p.relative_to(root)): p.read_text() for p in sorted((root / "tests").rglob("*.py"))},
