@@ -425,7 +425,7 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
             "limit_steps": left["at_limit"],
             "mujoco_self_spread": float(spread.max(initial=0.0)),
         },
-        series={"final_pose_band": poses.series},
+        series={"final_pose_band_per_step": poses.series},  # the largest body distance each step
         traces=[settle_trace(result, ref, run, sp, "actuated_contact")],
         actuators=ActuatorTrace(
             [a.name for a in result.actuators],

@@ -70,6 +70,6 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
             "chaos": gate.to_dict(),
             "mujoco_self_spread": float(spread.max(initial=0.0)),
         },
-        series={"final_pose_band": poses.series},
+        series={"final_pose_band_per_step": poses.series},  # the largest body distance each step
         traces=[settle_trace(result, ref, run, sp, "contact")],
     )
