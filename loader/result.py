@@ -62,13 +62,16 @@ class LoadResult:
         """Plan the per-step terms again from `model` as the caller has edited it: actuator gains and ranges,
         joint damping, stiffness and friction, limits' solref, tendons, equalities' solref and activity, the
         integrator, the flags. What the load built once (bodies, inertia, shapes, the joints' PhysX ranges, the
-        D6 joints of equalities, the scene's timestep) stays as built: load again for those. The state is kept;
-        activations are kept where the model's actuators are the same."""
+        D6 joints of equalities, the solver iterations, the scene's timestep) stays as built: load again for those.
+        The state is kept, and contacts stay off where `set_contacts(False)` turned them off; activations are kept
+        where the model's actuators are the same."""
         if self.replanner is None:
             raise ControlError(f"{self.path}: this result was not built to be planned again")
         act = self.act
         self.controller.release()
         self.actuators, self.controller = self.replanner(self, copy.copy(self.model))
+        if self._saved_collision_groups is not None:  # the new terms start with SAPIEN's contacts on
+            self.controller.contacts(False)
         if self.controller.activation is not None and act.size == self.controller.model.na:
             self.controller.activation.reset(act)
         self.set_ctrl(self.held_ctrl, advance=False)

@@ -525,3 +525,21 @@ def test_model_edits_reach_the_steps_only_through_replan(tmp_path):
     result.replan()
     assert _lockstep(result, edited, np.zeros(2)) < TERM_TOLERANCE
     assert result.actuators[0].stiffness == pytest.approx(8.0)
+
+
+LIMITED_ON_A_FLOOR = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="1 1 .1"/>
+  <body pos="0 0 1"><joint axis="0 1 0" range="-20 20"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/></body>
+</worldbody></mujoco>"""
+
+
+def test_replan_keeps_contacts_off_where_they_were_turned_off():
+    """MuJoCo's limit rows are solved with MuJoCo's contacts only while SAPIEN has contacts; the terms `replan()`
+    makes start with them on, so a result whose contacts were turned off hands that on to them. Mutation: the new
+    rows told contacts are on (they would solve the limit rows against contacts PhysX no longer has)."""
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(LIMITED_ON_A_FLOOR))
+    assert result.controller.term("rows").with_contacts
+    result.set_contacts(False)
+    result.replan()
+    assert not result.controller.term("rows").with_contacts
+    result.set_contacts(True)
+    assert result.controller.term("rows").with_contacts

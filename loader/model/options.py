@@ -25,11 +25,12 @@ class Options:
     timestep: float
     integrator: int
     disableflags: int
+    explicit_damping: bool  # MuJoCo takes joint damping explicitly (`mj.explicit_damping`)
 
     @classmethod
     def of(cls, model: mujoco.MjModel, timestep: float | None = None) -> Options:
         step = float(model.opt.timestep if timestep is None else timestep)
-        return cls(step, int(model.opt.integrator), int(model.opt.disableflags))
+        return cls(step, int(model.opt.integrator), int(model.opt.disableflags), mj.explicit_damping(model))
 
     @property
     def implicit(self) -> bool:
@@ -37,13 +38,5 @@ class Options:
         return self.integrator in IMPLICIT
 
     @property
-    def explicit_damping(self) -> bool:
-        """Euler with `eulerdamp` disabled: MuJoCo takes joint damping explicitly (`mj.explicit_damping`)."""
-        return self.integrator == int(mujoco.mjtIntegrator.mjINT_EULER) and self.disabled("eulerdamp")
-
-    @property
     def clamps_ctrl(self) -> bool:
         return not self.disableflags & CLAMPCTRL
-
-    def disabled(self, *flags: str) -> bool:
-        return mj.disabled_bits(self.disableflags, *flags)

@@ -119,19 +119,24 @@ class Controller:
         self.stale = True
         return self.term(name)
 
-    def laws(self) -> dict[DofKey, DofDrive]:
-        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps),
-        as copies."""
-        actuators = self.term("actuators")
-        laws = {**self.passive, **(actuators.laws if actuators is not None else {})}
-        return {key: DofDrive(**vars(law)) for key, law in laws.items()}
+    def planned(self) -> list[Term]:
+        """Every term the model has, switched on or off."""
+        return [*self.terms, *self.off.values()]
 
-    def edit_laws(self) -> dict[DofKey, DofDrive]:
-        """The drive laws themselves (passive, and with joint actuators), for the caller to change; the next
-        `set_ctrl` compiles them."""
-        self.stale = True
+    def drive_laws(self) -> dict[DofKey, DofDrive]:
+        """Every hinge/slide DoF's drive law with its joint actuators (what the drive carries while nothing clamps):
+        the objects themselves."""
         actuators = self.term("actuators")
         return {**self.passive, **(actuators.laws if actuators is not None else {})}
+
+    def laws(self) -> dict[DofKey, DofDrive]:
+        """`drive_laws`, as copies to read."""
+        return {key: DofDrive(**vars(law)) for key, law in self.drive_laws().items()}
+
+    def edit_laws(self) -> dict[DofKey, DofDrive]:
+        """`drive_laws` for the caller to change; the next `set_ctrl` compiles them."""
+        self.stale = True
+        return self.drive_laws()
 
     def drive_weights(self) -> dict[DofKey, float]:
         """Per drive DoF, dt (D' + dt K) of the law its PhysX drive holds while nothing clamps: D' the drive's
@@ -142,7 +147,7 @@ class Controller:
         tendon_kv = actuators.tendon_kv_diagonal() if implicit and actuators is not None else {}
         passive_diagonal = tendons.implicit_diagonal() if implicit and tendons is not None else {}
         weights = {}
-        for key, law in self.laws().items():
+        for key, law in self.drive_laws().items():
             law = DofDrive(law.stiffness, law.damping + passive_diagonal.get(key, 0.0))
             damping = law.physx_damping(timestep) + tendon_kv.get(key, 0.0)
             weights[key] = timestep * (damping + timestep * law.stiffness)
@@ -152,7 +157,7 @@ class Controller:
         """Every term's arrays from its plan, and the step's starting law (`Step.law`): the passive laws, no
         via-damping force, implicit extra or offset."""
         laws = law_arrays([self.passive[key] for key in self.layout.keys])
-        every = [*self.terms, *self.off.values()]
+        every = self.planned()
         compilation = Compilation(self.layout, laws, frozenset(term.name for term in every))
         for term in every:
             term.compile(compilation)
@@ -203,12 +208,12 @@ class Controller:
 
     def forget(self) -> None:
         """A state set from outside: no step ends at it (`momentum`), MuJoCo's solve starts cold (`rows`)."""
-        for term in [*self.terms, *self.off.values()]:
+        for term in self.planned():
             term.forget()
 
     def contacts(self, enabled: bool) -> None:
         """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
-        for term in [*self.terms, *self.off.values()]:
+        for term in self.planned():
             term.contacts(enabled)
 
     def velocity_readers(self) -> list:
@@ -222,12 +227,12 @@ class Controller:
         """Hand the joints to a caller that drives them itself: passive drives, own armature, PhysX's hard limits at
         MuJoCo's range, no `qf`, equalities locked; the next `set_ctrl` takes them over again."""
         handover = Handover(self.joints, self.articulations, self.timestep)
-        for term in [*self.terms, *self.off.values()]:
+        for term in self.planned():
             term.release(handover)
 
     def set_equality_active(self, equality: int, active: bool) -> None:
         """MuJoCo's `data.eq_active[equality] = active`: for every term (MuJoCo's rows) and the equality's D6 joint."""
-        for term in [*self.terms, *self.off.values()]:
+        for term in self.planned():
             term.set_active(equality, active)
         if equality in self.soft_joints:
             self.soft_joints[equality].set_active(active)
@@ -236,7 +241,7 @@ class Controller:
         """Every equality back to the model's `eq_active0`, as MuJoCo's mj_resetData."""
         for equality, law in self.soft_joints.items():
             law.set_active(bool(self.model.eq_active0[equality]))
-        for term in [*self.terms, *self.off.values()]:
+        for term in self.planned():
             term.reset_active()
 
     def soft_joint(self, equality: int) -> SoftConnect | None:
