@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support.cli import SELFTEST, run_cli
+from support.cli import run_selftest
 
 from conformance import summary
 from conformance.divergence import SpeedBound, first_divergence
@@ -157,7 +157,7 @@ def test_the_manifest_cannot_expect_what_only_a_run_can_say(tmp_path, body, mess
 
 
 def _selftest(model: str, tmp_path: Path) -> tuple[subprocess.CompletedProcess, dict]:
-    proc = run_cli("--manifest", str(SELFTEST), "--model", model, "--out", str(tmp_path), "--quiet", "--no-record")
+    proc = run_selftest(model, tmp_path)
     return proc, json.loads((tmp_path / "latest" / "summary.json").read_text())
 
 

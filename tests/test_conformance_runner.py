@@ -12,7 +12,7 @@ import sys
 import time
 
 import pytest
-from support.cli import ROOT, SELFTEST, run_cli
+from support.cli import ROOT, SELFTEST, run_cli, run_selftest
 
 
 @pytest.fixture(scope="module")
@@ -82,18 +82,7 @@ def test_exit_status_is_nonzero_exactly_when_worse_than_expected(selftest_run, t
     assert any(w.startswith("crash/") for w in summary["worse_than_expected"])
     assert not any(w.startswith("pendulum/") for w in summary["worse_than_expected"])
     # the healthy fixture alone meets every expectation
-    ok = run_cli(
-        "--manifest",
-        str(SELFTEST),
-        "--model",
-        "pendulum",
-        "--out",
-        str(tmp_path),
-        "--quiet",
-        "--no-record",
-        "--tiers",
-        "structure,kinematics",
-    )
+    ok = run_selftest("pendulum", tmp_path, "--tiers", "structure,kinematics")
     assert ok.returncode == 0, ok.stdout + ok.stderr
 
 
@@ -226,19 +215,7 @@ def test_version_and_help_show_what_a_newcomer_needs():
 
 
 def test_summary_files_are_readable_by_everyone(tmp_path):
-    proc = run_cli(
-        "--manifest",
-        str(SELFTEST),
-        "--model",
-        "pendulum",
-        "--out",
-        str(tmp_path),
-        "--quiet",
-        "--no-record",
-        "--tiers",
-        "structure",
-        preexec_fn=lambda: os.umask(0o022),
-    )
+    proc = run_selftest("pendulum", tmp_path, "--tiers", "structure", preexec_fn=lambda: os.umask(0o022))
     assert proc.returncode == 0, proc.stderr
     run = (tmp_path / "latest").resolve()
     written = [run / "summary.json", run / "summary.md", run / "models" / "pendulum.json"]

@@ -3,6 +3,7 @@ itself where the recording claims a physical fact (where a mesh sits, whether th
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import warnings
@@ -111,13 +112,8 @@ def judged(tmp_path_factory):
     first = evaluate(Job(probe, str(MESHES), str(folder), 0, probe.tiers, record=False))
     seen = next(m["max"] for m in first.tiers["contact"]["metrics"] if m["name"] == "final_pose_band")
     reason = "a band no run can meet, so that the contact tier fails"
-    entry = ModelEntry(
-        id="instanced_meshes",
-        source=str(MESHES),
-        tiers=("contact", "dynamics"),
-        tolerances=tight,
-        override_reason="the recording test: contact must fail",
-        expect={"contact": Expectation("contact", "fail", reason, metric="final_pose_band", seen=seen)},
+    entry = dataclasses.replace(
+        probe, expect={"contact": Expectation("contact", "fail", reason, metric="final_pose_band", seen=seen)}
     )
     result = evaluate(Job(entry, str(MESHES), str(folder), 0, entry.tiers, record=True))
     path = folder / "instanced_meshes.rrd"

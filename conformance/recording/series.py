@@ -92,6 +92,13 @@ def _plot(rec, path: str, index_columns, values: np.ndarray, names: list[str], c
     )
 
 
+def _plot_both(rec, path: str, index_columns, mujoco_values, sapien_values, names: list[str]) -> None:
+    """One plot of the same quantity on both sides: MuJoCo's lines then SAPIEN's, each named and in its colour."""
+    values = np.concatenate([mujoco_values, sapien_values], axis=1)
+    labels = [f"MuJoCo {n}" for n in names] + [f"SAPIEN {n}" for n in names]
+    _plot(rec, path, index_columns, values, labels, [MUJOCO_COLOR] * len(names) + [SAPIEN_COLOR] * len(names))
+
+
 def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> tuple[list[str], list[str], list[str]]:
     """Per joint group: positions of both sides (none for ball joints), SAPIEN - MuJoCo per DoF, and the command
     when there is one. Returns the groups, those with positions and those with a command."""
@@ -102,15 +109,7 @@ def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> 
         group = part(name)
         q, names = _columns(model, joints, model.jnt_qposadr, positions)
         if q:
-            values = np.concatenate([trace.mujoco_qpos[:, q], trace.sapien_qpos[:, q]], axis=1)
-            _plot(
-                rec,
-                f"joints/{group}/position",
-                idx,
-                values,
-                [f"MuJoCo {n}" for n in names] + [f"SAPIEN {n}" for n in names],
-                [MUJOCO_COLOR] * len(q) + [SAPIEN_COLOR] * len(q),
-            )
+            _plot_both(rec, f"joints/{group}/position", idx, trace.mujoco_qpos[:, q], trace.sapien_qpos[:, q], names)
             positioned.append(name)
         dof, names = _columns(model, joints, model.jnt_dofadr, lambda kind: _NV.get(kind, 1))
         _plot(rec, f"joints/{group}/difference", idx, trace.qpos_error[:, dof], names)
@@ -156,15 +155,7 @@ def log_actuators(
         for group, rows in actuator_groups(model, trace.names):
             base, label = f"actuators/{part(tier)}/{part(group)}", [names[r] for r in rows]
             _plot(rec, f"{base}/ctrl", idx, np.asarray(trace.ctrl, dtype=float)[:, rows], label)
-            force = np.concatenate([trace.mujoco_force[:, rows], trace.sapien_force[:, rows]], axis=1)
-            _plot(
-                rec,
-                f"{base}/force",
-                idx,
-                force,
-                [f"MuJoCo {x}" for x in label] + [f"SAPIEN {x}" for x in label],
-                [MUJOCO_COLOR] * len(rows) + [SAPIEN_COLOR] * len(rows),
-            )
+            _plot_both(rec, f"{base}/force", idx, trace.mujoco_force[:, rows], trace.sapien_force[:, rows], label)
             logged.setdefault(tier, []).append(group)
     return logged
 

@@ -21,3 +21,10 @@ def run_cli(*args: str, timeout: float = 300, cwd: Path = ROOT, **options) -> su
         check=False,
         **options,
     )
+
+
+def run_selftest(model: str, out: Path, *args: str, **options) -> subprocess.CompletedProcess:
+    """`run_cli` over the self-test manifest's `model`, into `out`, quiet and unrecorded, with more `args`."""
+    return run_cli(
+        "--manifest", str(SELFTEST), "--model", model, "--out", str(out), "--quiet", "--no-record", *args, **options
+    )
