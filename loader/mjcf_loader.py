@@ -257,7 +257,7 @@ def _runtime(
     notes: Notes,
 ) -> Controller:
     """The per-step terms of `model` (the runtime's own: nobody else edits it), at the scene's timestep."""
-    options = Options.of(model, physx_settings.scene_timestep(scene, model))
+    options = Options.of(model, physx_settings.scene_timestep(scene, model), physx_settings.uses_tgs(scene))
     return runtime_plan(model, options, mapping, scene, articulations, maps, equalities, notes)
 
 

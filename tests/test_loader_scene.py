@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 import sapien
-from support.corpus import suite_path
+from support.corpus import FIXTURES, suite_path
 from support.lockstep import replay
 
 from loader import MJCFLoader, SceneMismatchWarning
@@ -82,4 +82,10 @@ def test_a_scene_with_other_gravity_or_solver_is_warned_about(distinct_global_co
         MJCFLoader().set_scene(scene).load(suite_path("pendulum"))
     messages = " ".join(str(w.message) for w in caught if issubclass(w.category, SceneMismatchWarning))
     assert "its gravity is [0.5, 0.0, -3.0], the model's [0.0, 0.0, -9.8" in messages and "timestep" not in messages
-    assert "TGS solver" in messages and "enable_tgs=False" in messages
+    assert "TGS" not in messages  # the drives are written as joint forces (tests/test_loader_solver.py)
+    ball = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    ball.timestep = 0.002
+    with pytest.warns(SceneMismatchWarning) as caught:
+        MJCFLoader().set_scene(ball).load(FIXTURES / "ball_joint.xml")
+    messages = " ".join(str(w.message) for w in caught if issubclass(w.category, SceneMismatchWarning))
+    assert "TGS solver" in messages and "ball joints" in messages and "enable_tgs=False" in messages

@@ -1,4 +1,5 @@
-"""PhysX solver iterations from the coupling of an articulation's drives (loader/plan/solver_iterations.py).
+"""PhysX's solver: its iterations from the coupling of an articulation's drives (loader/plan/solver_iterations.py),
+and under TGS the drives written as joint forces (loader/runtime/drive_forces.py).
 
 MuJoCo is the oracle: dm_control finger's two damped, motor-driven hinges couple strongly (Gauss-Seidel radius
 0.49), and SAPIEN's default 10 position iterations leave its drives unconverged. Measured over 1 s of
@@ -7,12 +8,16 @@ sinusoidal ctrl, contact off, MuJoCo implicitfast: 4.0e-7 rad at the loader's 20
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
+import pytest
 from support.corpus import FIXTURES, suite_path
 from support.lockstep import contact_free, replay
 
 from loader import MJCFLoader
+from loader.plan import physx_settings
 from loader.plan.solver_iterations import drive_radii, gauss_seidel_radius, sweeps_needed
 
 ROLLOUT_TOLERANCE = 5e-6  # rad, measured 4.0e-7
@@ -132,3 +137,64 @@ def test_the_radii_run_on_one_blas_thread(monkeypatch):
         after = blas_threads()
     assert seen and all(threads == {1} for threads in seen), seen
     assert after == {2}
+
+
+# PhysX's TGS solver: the drives written as joint forces (loader/runtime/drive_forces.py)
+
+# rad, the largest |SAPIEN - MuJoCo| joint position over 0.5 s of a sine on every ctrl, contact off, SAPIEN on TGS:
+# measured 2.3e-5 (folding_servo_arm from its keyframe), 5.5e-6 (humanoid), 6.0e-7 (cheetah) (mujoco 3.17.0,
+# sapien 3.0.3); with TGS stepping the PhysX drives instead: 6.1e-3, 0.15, 9.2e-2
+TGS_TOLERANCE = 1e-4
+
+
+def _tgs_scene(model: mujoco.MjModel):
+    import sapien
+
+    previous = sapien.physx.get_scene_config()
+    sapien.physx.set_scene_config(gravity=model.opt.gravity, enable_tgs=True)
+    try:
+        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    finally:
+        sapien.physx.set_scene_config(previous)
+    scene.timestep = float(model.opt.timestep)
+    return scene
+
+
+def _tgs_rollout(path) -> float:
+    model = mujoco.MjModel.from_xml_path(str(path))
+    loader = MJCFLoader().set_scene(_tgs_scene(model))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = loader.load(str(path))
+    result.set_contacts(False)
+    model = result.model
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    rates = 2 * np.pi * model.opt.timestep * np.arange(1, model.nu + 1)
+    base = model.key_ctrl[0].copy() if model.nkey else np.zeros(model.nu)
+    return float(replay(result, model, lambda step, data: base + 0.5 * np.sin(rates * step), 0.5).max())
+
+
+@pytest.mark.parametrize("path", [FIXTURES / "folding_servo_arm.xml", suite_path("humanoid"), suite_path("cheetah")])
+def test_under_tgs_the_drives_are_written_as_forces_and_follow_mujoco(path, monkeypatch):
+    """Stiff position servos (folding_servo_arm), a floating humanoid's motors and joint springs and dampers: under
+    TGS they follow MuJoCo as under PGS; with TGS stepping PhysX's drives they do not."""
+    assert _tgs_rollout(path) < TGS_TOLERANCE
+    monkeypatch.setattr(physx_settings, "uses_tgs", lambda scene: False)  # the drives left to TGS
+    assert _tgs_rollout(path) > 10 * TGS_TOLERANCE
+
+
+def test_a_force_limit_edited_into_a_law_holds_under_tgs():
+    """A drive law's force limit holds where TGS has no drive to clamp: no joint force passes it, and it binds."""
+    path = FIXTURES / "folding_servo_arm.xml"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    result = MJCFLoader().set_scene(_tgs_scene(model)).load(str(path))
+    limit = 30.0
+    for law in result.controller.edit_laws().values():
+        law.force_limit = limit
+    result.reset(0)
+    articulation, worst = result.articulations[0], 0.0
+    for step in range(100):
+        result.set_ctrl(model.key_ctrl[0] + 0.8 * np.sin(2 * np.pi * 0.002 * step * np.arange(1, model.nu + 1)))
+        worst = max(worst, float(np.abs(articulation.get_qf()).max()))
+        result.scene.step()
+    assert worst == pytest.approx(limit, rel=1e-6)

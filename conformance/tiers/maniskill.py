@@ -1,7 +1,9 @@
 """Tier `maniskill` (opt-in: `--tiers maniskill`): the model as a ManiSkill robot (`loader.maniskill.register_agent`)
-in `Empty-v1` (physx_cpu, no rendering, state observations), driven under `mujoco_ctrl` through ManiSkill's own
-`env.step` with the `actuated` tier's ctrl sequence and judged as that tier judges, so that what holds for the loader
-is shown to hold inside ManiSkill. ManiSkill's action is float32: the ctrl it applies is MuJoCo's rounded to it.
+in `Empty-v1` (physx_cpu, no rendering, state observations, ManiSkill's default scene configuration but MuJoCo's
+gravity: its TGS solver), driven under `mujoco_ctrl` through ManiSkill's own `env.step` with the `actuated` tier's ctrl
+sequence and judged as that tier judges (fixed-base tolerances from `[tolerance.maniskill]`), so that what holds for the
+loader is shown to hold inside ManiSkill as its users run it. ManiSkill's action is float32: the ctrl it applies is
+MuJoCo's rounded to it.
 
 Skipped, with the reason: without mani_skill (the `maniskill` extra); when the model's timestep is not 1/n s for an
 integer n (ManiSkill sets the simulation frequency); when the model is not one kinematic tree (ManiSkill's loader
@@ -20,9 +22,10 @@ from loader.plan.physx_settings import matched_config
 
 from ..report import TierReport, skipped
 from ..tolerances import Tolerances
-from .actuated import actuated
+from .actuated import actuated, unmapped_reason
 
 TIER = "maniskill"
+TGS_TOLERANCES = ("one_step_qvel_fixed", "rollout_qpos_fixed")  # `[tolerance.maniskill]` replaces actuated's
 
 
 class _Scene:
@@ -71,8 +74,11 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         return skipped(TIER, f"the timestep {model.opt.timestep:g} s is not 1/n s: ManiSkill sets a frequency")
     if len(result.articulations) != 1:
         return skipped(TIER, f"{len(result.articulations)} kinematic trees: ManiSkill's loader builds one robot")
+    nothing = unmapped_reason(result, model, TIER, tolerances)  # where `actuated` skips, before any env is made
+    if nothing is not None:
+        return nothing
     uid = "conformance-" + hashlib.sha256(str(result.path).encode()).hexdigest()[:12]
-    scene_config = {"enable_tgs": False, "gravity": np.asarray(matched_config(model).gravity).tolist()}
+    scene_config = {"gravity": np.asarray(matched_config(model).gravity).tolist()}  # ManiSkill's solver: TGS
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the loader's notes were counted by the session's load
         register_agent(result.path, uid, override=True)
@@ -88,7 +94,11 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     try:
         env.reset(seed=seed)
         (agent_result,) = env.unwrapped.agent.results
-        report = actuated(ThroughEnv(agent_result, env), model, seed, tolerances)
+        under_tgs = tolerances.with_overrides(
+            {f"actuated.{name}": tolerances[f"maniskill.{name}"] for name in TGS_TOLERANCES},
+            why="ManiSkill's default solver (TGS): tolerances.toml [tolerance.maniskill]",
+        )
+        report = actuated(ThroughEnv(agent_result, env), model, seed, under_tgs)
     finally:
         env.close()
     notes = [*report.notes, f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl, {sim_freq} Hz)"]

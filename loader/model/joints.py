@@ -14,6 +14,12 @@ KIND = {HINGE: "hinge", SLIDE: "slide", BALL: "ball", FREE: "free"}
 DRIVEN = ("hinge", "slide")  # the kinds whose one DoF is a PhysX drive (a "drive DoF")
 
 
+def mujoco_coordinates(model: mujoco.MjModel) -> bool:
+    """Whether every joint SAPIEN steps has MuJoCo's coordinates (no ball joint: SAPIEN's three angles are not
+    MuJoCo's), so that MuJoCo's joint-space inertia is PhysX's."""
+    return not any(int(t) == BALL for t in model.jnt_type)
+
+
 def joint_stiffness(model: mujoco.MjModel, j: int) -> float:
     return float(model.jnt_stiffness[j]) if not mj.disabled(model, "spring") else 0.0
 

@@ -20,17 +20,19 @@ CLAMPCTRL = int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
 @dataclass(frozen=True)
 class Options:
     """`timestep`: the scene's, one PhysX step (the model's unless the scene was given another); `integrator`:
-    MuJoCo's; `disableflags`: MuJoCo's `<flag ... ="disable">` bits."""
+    MuJoCo's; `disableflags`: MuJoCo's `<flag ... ="disable">` bits; `tgs`: the scene's PhysX solver is TGS, whose
+    drives do not step as MuJoCo's (`runtime/drive_forces.py`)."""
 
     timestep: float
     integrator: int
     disableflags: int
     explicit_damping: bool  # MuJoCo takes joint damping explicitly (`mj.explicit_damping`)
+    tgs: bool = False
 
     @classmethod
-    def of(cls, model: mujoco.MjModel, timestep: float | None = None) -> Options:
+    def of(cls, model: mujoco.MjModel, timestep: float | None = None, tgs: bool = False) -> Options:
         step = float(model.opt.timestep if timestep is None else timestep)
-        return cls(step, int(model.opt.integrator), int(model.opt.disableflags), mj.explicit_damping(model))
+        return cls(step, int(model.opt.integrator), int(model.opt.disableflags), mj.explicit_damping(model), tgs)
 
     @property
     def implicit(self) -> bool:

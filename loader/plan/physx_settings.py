@@ -14,6 +14,7 @@ import sapien
 from ..errors import SceneMismatchWarning
 from ..model import drive, mj
 from ..model.drive import DofDrive
+from ..model.joints import mujoco_coordinates
 from ..model.options import MAX_DEPENETRATION_VELOCITY
 
 MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
@@ -77,6 +78,18 @@ def scene_timestep(scene: sapien.Scene, model: mujoco.MjModel) -> float:
     return float(scene.timestep)
 
 
+def scene_config(scene: sapien.Scene):
+    """The PhysX configuration the scene's system was created with (None where SAPIEN does not say)."""
+    system = getattr(scene, "physx_system", None) or getattr(scene, "px", None)  # a scene of sub-scenes: `px`
+    return getattr(system, "config", None)
+
+
+def uses_tgs(scene: sapien.Scene) -> bool:
+    """Whether the scene's PhysX solver is TGS (the per-step terms then write the drives as joint forces)."""
+    config = scene_config(scene)
+    return bool(config is not None and config.enable_tgs)
+
+
 def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
     """What a caller's scene sets differently from what MuJoCo simulates, each with what to set: the timestep,
     gravity and the solver (tests/test_loader_scene.py::test_a_scene_with_another_timestep_is_warned_and_used)."""
@@ -87,8 +100,7 @@ def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
             "drives, actuators and constraint rows for the scene's timestep, so the motion is MuJoCo's at "
             "that timestep, not the file's (set scene.timestep to keep the file's)"
         )
-    system = getattr(scene, "physx_system", None) or getattr(scene, "px", None)  # a scene of sub-scenes: `px`
-    config = getattr(system, "config", None)
+    config = scene_config(scene)
     if config is None:
         return out
     wanted = matched_config(model)
@@ -97,10 +109,10 @@ def scene_mismatches(scene: sapien.Scene, model: mujoco.MjModel) -> list[str]:
             f"its gravity is {np.asarray(config.gravity).tolist()}, the model's {wanted.gravity.tolist()} "
             "(sapien.physx.set_scene_config(gravity=...) before creating the scene's PhysX system)"
         )
-    if config.enable_tgs:
+    if config.enable_tgs and not mujoco_coordinates(model):
         out.append(
-            "it uses PhysX's TGS solver, which adds a gap of order dt to MuJoCo's semi-implicit Euler "
-            "(sapien.physx.set_scene_config(enable_tgs=False) before creating the scene's PhysX system)"
+            "it uses PhysX's TGS solver, whose drives do not step as MuJoCo's, and the model's ball joints keep "
+            "them (sapien.physx.set_scene_config(enable_tgs=False) before creating the scene's PhysX system)"
         )
     return out
 

@@ -19,10 +19,12 @@ import numpy as np
 from ..model.actuators import MAPPED_DYNAMICS, ActuatorMap
 from ..model.drive import DofDrive
 from ..model.equalities import EqualityLink
+from ..model.joints import mujoco_coordinates
 from ..model.options import Options
 from .activation import Activation, Command
 from .actuators import plan_actuators
 from .dof_step import DofKey, DofLayout, Step, law_arrays, passive_laws, refresh_link_velocities
+from .drive_forces import DriveForces
 from .drive_writer import DriveWriter, dof_inertia
 from .equalities import EqualityTerm, SoftConnect, plan_equalities
 from .fluid import plan_fluid
@@ -307,9 +309,11 @@ def plan(
     spatial = plan_spatial(model, mapping, notes, options.implicit, paths)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
-    slides = map_slides(articulations)
+    forces = options.tgs and mujoco_coordinates(model)  # the drives as joint forces (`drive_forces.py`)
+    slides = [] if forces else map_slides(articulations)
     connects = [soft[link.index] for link in equalities if link.kind == "D6 joint"]
-    terms = [actuators, StiffnessTerm(options.explicit_damping), DriveWriter(passive, dof_inertia(model, mapping))]
+    writer = DriveForces(passive, model, mapping) if forces else DriveWriter(passive, dof_inertia(model, mapping))
+    terms = [actuators, StiffnessTerm(options.explicit_damping), writer]
     terms += [TendonTerm(tendons, spatial)] if tendons or spatial is not None else []
     terms += [rows] if rows is not None else []
     terms += [SlideTerm(slides)] if slides else []

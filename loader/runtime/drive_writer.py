@@ -93,6 +93,12 @@ class DriveWriter(Term):
     def contribute(self, step: Step) -> None:
         """`drive.apply` on every drive DoF at once: the position target carries the constant where the drive has
         stiffness, the velocity target what is left where it has damping, `qf` the rest."""
+        regime, target, velocity_target = self.split(step)
+        self.write(np.array([regime.stiffness, regime.damping, regime.force_limit, target, velocity_target]))
+        self.write_qf(step)
+
+    def split(self, step: Step) -> tuple[DriveRegime, np.ndarray, np.ndarray]:
+        """The step's drive regime, position and velocity targets; what neither target carries joins `step.force`."""
         law, force, timestep = step.law, step.force, step.timestep
         key = step.explicit_kv if step.regular else None
         regime = self.regimes.get(key)
@@ -109,8 +115,12 @@ class DriveWriter(Term):
         constant += via_damping  # what is left after the position target
         velocity_target = regime.velocity_target(constant, offset)
         force[self.layout.flat] += constant
-        self.write(np.array([regime.stiffness, regime.damping, regime.force_limit, target, velocity_target]))
-        for articulation, qf in zip(step.articulations, step.layout.split(force)):
+        return regime, target, velocity_target
+
+    @staticmethod
+    def write_qf(step: Step) -> None:
+        """The gathered generalized forces, per articulation, as PhysX's `qf`."""
+        for articulation, qf in zip(step.articulations, step.layout.split(step.force)):
             if articulation.dof:
                 articulation.set_qf(qf.astype(np.float32))
 
