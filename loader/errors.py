@@ -111,6 +111,11 @@ class Notes:
     def approximate(self, kind: str, name: str, reason: str) -> None:
         self.approximations.append(Approximation(kind, name, reason))
 
+    def extend(self, other: Notes) -> None:
+        """Take `other`'s notes too (after this one's)."""
+        self.unsupported += other.unsupported
+        self.approximations += other.approximations
+
 
 def warn_notes(
     path,

@@ -59,6 +59,9 @@ class MJCFLoader:
     `warn_each_note`: one UnsupportedFeatureWarning per note instead of one per kind with its count.
     `warn_approximations`: warn of the approximations too (they are always in `result.approximations`; what is
     dropped is always warned).
+    `maniskill_dialect`: load as ManiSkill's own MJCF loader does: links named as it names them (`dummy_root_<i>`,
+    `<body>_dummy_<k>`; `plan/tree.py`), and its spellings that MuJoCo rejects read with a note (`plan/dialect.py`);
+    the ManiSkill drop-in sets it. Without it the loader loads what MuJoCo compiles and names links after bodies.
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -69,6 +72,7 @@ class MJCFLoader:
         self.solver_iterations: tuple[int, int] | str | None = "auto"
         self.warn_each_note = False
         self.warn_approximations = False
+        self.maniskill_dialect = False
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -109,7 +113,7 @@ class MJCFLoader:
         return MJCFActorBuilder()
 
     def _parse(self, mjcf_file, package_dir) -> _Parsed:
-        compiled = compile_mjcf(mjcf_file, package_dir)
+        compiled = compile_mjcf(mjcf_file, package_dir, self.maniskill_dialect)
         with mj.sharing_qpos0(compiled.model, compiled.at_qpos0):
             return self._plan(compiled)
 
@@ -117,8 +121,9 @@ class MJCFLoader:
         model = compiled.model
         check_numbers(model, compiled.path)  # before anything is built: a failed load leaves the scene as it was
         self.scene = physx_settings.matched_scene(self.scene, model, compiled.path)  # warns where a given one differs
-        tree = plan_tree(model, self.fix_root_link)
+        tree = plan_tree(model, self.fix_root_link, self.maniskill_dialect)
         notes = tree.notes
+        notes.extend(compiled.notes)
         find_unmapped(model, notes)
         geom_class = {g.id: g.classname.name for g in compiled.spec.geoms}
         kept = [g for g in range(model.ngeom) if geom_class.get(g) not in self.ignore_classes]

@@ -27,9 +27,9 @@ class ClassBlind:
         self.root = None
         compile_mjcf = loader.mjcf_loader.compile_mjcf
 
-        def remembering(path, package_dir=None):
+        def remembering(path, package_dir=None, dialect=False):
             self.root = ET.parse(path).getroot()
-            return compile_mjcf(path, package_dir)
+            return compile_mjcf(path, package_dir, dialect)
 
         monkeypatch.setattr(loader.mjcf_loader, "compile_mjcf", remembering)
 

@@ -173,12 +173,13 @@ def test_a_command_that_cannot_be_pasted_after_the_set_up_is_found():
     sessions, commands = {"conformance", "tests"}, {"run", "where"}
     good = (
         "`pipx run nox -s conformance -- --model x`, `.nox/conformance/bin/rerun reports/latest/x.rrd`,\n"
-        "`.nox/conformance/bin/python -m conformance where panda`\n"
+        "`.nox/conformance/bin/python -m conformance where panda`, `.nox/tests/bin/python -m conformance run`\n"
     )
     assert house.unpasteable_commands({"README.md": good}, sessions, commands) == []
     bad = (
         "`nox -s conformance`, `pipx run nox -s lint`, `rerun reports/latest/x.rrd`\n"
         "`python -m conformance where panda`, `.nox/conformance/bin/python -m conformance bench`\n"
+        "`.nox/lint/bin/python -m conformance run`\n"
     )
     assert house.unpasteable_commands({"README.md": bad}, sessions, commands) == [
         "README.md:1: `nox -s conformance`: README's set-up has `pipx run nox`",
@@ -186,5 +187,6 @@ def test_a_command_that_cannot_be_pasted_after_the_set_up_is_found():
         "README.md:1: `rerun`: the set-up's viewer is .nox/conformance/bin/rerun",
         "README.md:2: python -m conformance: run it as .nox/conformance/bin/python -m conformance",
         "README.md:2: python -m conformance bench: the harness has no such command",
+        "README.md:3: python -m conformance: run it as .nox/conformance/bin/python -m conformance",
     ]
     assert house.unpasteable_commands({"docs/a.md": "`python -m conformance where x`\n"}, sessions, commands) == []

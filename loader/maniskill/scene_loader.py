@@ -1,9 +1,11 @@
 """MJCFLoader for a ManiSkill scene: the drop-in for `mani_skill.utils.building.mjcf_loader.MJCFLoader`.
 
-The planning is the core loader's (`loader/mjcf_loader.py`); only the builders differ (`builders.py`). On the CPU
-each sub-scene also gets its own `LoadResult` (`results`): the mapping and the per-step terms that `set_ctrl` runs,
-which the `mujoco_ctrl` controller drives. On the GPU, PhysX holds the build-time settings by itself; the per-step
-terms are not carried and one `UnsupportedFeatureWarning` says so."""
+The planning is the core loader's (`loader/mjcf_loader.py`); only the builders differ (`builders.py`), and links are
+named, and ManiSkill's spellings read, as ManiSkill's own loader does (`maniskill_dialect`). On the CPU each sub-scene
+also gets its own `LoadResult` (`results`): the mapping and the per-step terms that `set_ctrl` runs, which the
+`mujoco_ctrl` controller drives; until it does, the joints are released (`LoadResult.release`: PhysX's hard limits at
+MuJoCo's range), as ManiSkill's PD modes need them. On the GPU, PhysX holds the build-time settings by itself; the
+per-step terms are not carried and one `UnsupportedFeatureWarning` says so."""
 
 from __future__ import annotations
 
@@ -34,6 +36,7 @@ class MJCFLoader(CoreLoader):
         self.name: str | None = None
         self.disable_self_collisions = False
         self.load_multiple_collisions_from_file = False  # ManiSkill's URDF option; MJCF meshes load as MuJoCo's
+        self.maniskill_dialect = True  # ManiSkill's names (`dummy_root_<i>`) and spellings, as its tasks expect
         self.results: list[LoadResult] = []  # per sub-scene of the last build, CPU only
 
     def new_articulation_builder(self) -> SceneArticulationBuilder:
@@ -95,3 +98,5 @@ class MJCFLoader(CoreLoader):
             )
             for sub_scene, articulation in built.built
         ]
+        for result in self.results:  # ManiSkill's PD modes drive PhysX alone; `mujoco_ctrl` takes the joints over
+            result.release()

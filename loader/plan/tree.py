@@ -4,6 +4,12 @@ Every child of the world body, and every body with a free joint, starts an artic
 plus one massless helper link for each extra joint DoF it carries (several joints in one body, or the three
 revolutes of a ball joint), so that every SAPIEN link carries at most one joint, in MuJoCo's joint order.
 A root body with joints hangs from a fixed anchor link at its parent's frame.
+
+`maniskill_names` (`MJCFLoader.maniskill_dialect`) names the links as ManiSkill's own MJCF loader does, for task code
+written against it: each tree's root is a link `dummy_root_<i>` (i: the root body's place among the world body's
+children), carrying the body by a fixed joint unless the body is a wrapper (no geom, no joint but a free one, one child
+body: ManiSkill skips it, and its link takes the root's name), and a body's extra joints ride on `<body>_dummy_<k>`
+links (tests/test_maniskill.py::test_names_and_dof_order_match_maniskills_loader).
 """
 
 from __future__ import annotations
@@ -75,7 +81,7 @@ def _body_inertial(model: mujoco.MjModel, b: int, link: LinkPlan, notes: Notes, 
     link.cmass = pose(centre, model.body_iquat[b])
 
 
-def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
+def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True, maniskill_names: bool = False) -> TreePlan:
     data = mj.forward_at(model, kinematics_only=True)
     notes = Notes()
     centre = centres(model)
@@ -114,8 +120,9 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
         for k, sub in enumerate(subs):
             last = k == len(subs) - 1
             base = relative if k == 0 else sapien.Pose()
+            helper = f"{name}_dummy_{k}" if maniskill_names else f"{name}:{sub.name}"
             link = LinkPlan(
-                name if last else f"{name}:{sub.name}",
+                name if last else helper,
                 parent_index,
                 b if last else None,
                 sub,
@@ -128,4 +135,37 @@ def plan_tree(model: mujoco.MjModel, fix_root_link: bool = True) -> TreePlan:
         body_link[b] = (a, len(art.links) - 1)
     if len(articulations) == 1 and mj.model_name(model):  # one tree is the model: it takes the model's name
         articulations[0].name = mj.model_name(model)
-    return TreePlan(articulations, body_link, notes)
+    tree = TreePlan(articulations, body_link, notes)
+    if maniskill_names:
+        _dummy_roots(model, tree, centre)
+    return tree
+
+
+def _is_wrapper(model: mujoco.MjModel, b: int) -> bool:
+    """ManiSkill's loader skips a root body with no geom, no joint (a free joint aside) and exactly one child body."""
+    joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+    children = np.count_nonzero(model.body_parentid[1:] == b)
+    return model.body_geomnum[b] == 0 and all(model.jnt_type[j] == FREE for j in joints) and children == 1
+
+
+def _dummy_roots(model: mujoco.MjModel, tree: TreePlan, centre: np.ndarray) -> None:
+    """Each world-child tree's root named `dummy_root_<i>` as ManiSkill's loader names it: an anchor link or a
+    wrapper body's link takes the name; otherwise a helper link becomes the root and carries the body by a fixed
+    joint. A floating helper keeps its centre of mass at the body's, so PhysX's root velocities stay the body's."""
+    world_children = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
+    for a, art in enumerate(tree.articulations):
+        if art.root_body not in world_children:
+            continue  # a free body deeper in the tree: ManiSkill's loader has no articulation for it
+        name = f"dummy_root_{world_children.index(art.root_body)}"
+        root = art.links[0]
+        if root.body is None or _is_wrapper(model, root.body):
+            root.name = name
+            continue
+        helper = LinkPlan(name, None, None, JointPlan(root.joint.type), cmass=pose(centre[root.body]))
+        root.joint = JointPlan("fixed")
+        for link in art.links:
+            link.parent = 0 if link.parent is None else link.parent + 1
+        art.links.insert(0, helper)
+        for b, (tree_index, link) in tree.body_link.items():
+            if tree_index == a:
+                tree.body_link[b] = (a, link + 1)

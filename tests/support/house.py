@@ -219,7 +219,7 @@ def _command_problems(line: str, path: str, sessions: set[str], commands: set[st
     for prefix, command in HARNESS.findall(line):
         if command not in commands:
             problems.append(f"python -m conformance {command}: the harness has no such command")
-        elif path == "README.md" and prefix.lstrip("`(") != ".nox/conformance/bin/":
+        elif path == "README.md" and prefix.lstrip("`(") not in {f".nox/{s}/bin/" for s in sessions}:
             problems.append("python -m conformance: run it as .nox/conformance/bin/python -m conformance")
     return problems
 
