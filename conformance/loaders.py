@@ -15,6 +15,9 @@ SKIPS = {
         "actuated": "ManiSkill's loader maps no actuators",
         "maniskill": "the maniskill tier runs this project's loader inside ManiSkill, not ManiSkill's own",
     },
+    "physx": {
+        "maniskill": "the maniskill tier runs this project's loader with its per-step terms, in ManiSkill",
+    },
 }
 
 
@@ -44,7 +47,19 @@ def maniskill(path: str) -> Session:
     )
 
 
-LOADERS = {"ours": ours, "maniskill": maniskill}
+def physx(path: str) -> Session:
+    """This project's build with PhysX alone: servos as drives, motors as joint forces, no per-step terms
+    (conformance/physx_loader.py), as ManiSkill's PD modes and GPU backend run it."""
+    from .physx_loader import NAME, PhysxAlone
+    from .session import open_session
+
+    session = open_session(path)
+    session.result = PhysxAlone(session.result)
+    session.loader, session.skips, session.isolates = NAME, dict(SKIPS[NAME]), False
+    return session
+
+
+LOADERS = {"ours": ours, "maniskill": maniskill, "physx": physx}
 EXTRAS = {"maniskill": ("mani_skill", "the maniskill extra")}  # what a loader needs beyond the harness
 DISTRIBUTIONS = {"maniskill": ("mani-skill",)}  # whose versions its reports record
 

@@ -1,7 +1,7 @@
-"""ManiSkill robots from MJCF files: `register_agent(mjcf_path, uid)` registers a `BaseAgent` subclass whose robot
-is built by this package's loader, whose keyframes are the file's `<key>`s and whose control modes come from its
-actuators (`servos.py`): `pd_joint_pos` and `pd_joint_delta_pos` from position servos, `pd_joint_vel` from velocity
-servos, `mujoco_ctrl` (CPU) for MuJoCo's ctrl vector. Docs: docs/maniskill.md."""
+"""ManiSkill robots from MJCF files: `register_agent(mjcf_path, uid)` registers a `BaseAgent` subclass whose robot is
+built by this package's loader, whose keyframes are the file's `<key>`s and whose control modes come from its actuators
+(`loader/servos.py`): `pd_joint_pos` and `pd_joint_delta_pos` from position servos, `pd_joint_vel` from velocity servos,
+`mujoco_ctrl` (CPU) for MuJoCo's ctrl vector. Docs: docs/maniskill.md."""
 
 from __future__ import annotations
 
@@ -20,9 +20,9 @@ from mani_skill.agents.controllers.pd_joint_vel import PDJointVelControllerConfi
 from mani_skill.utils.structs.pose import Pose
 
 from ..mjcf_loader import MJCFLoader as CoreLoader
+from ..servos import Motor, Servo, derive, motors
 from .mujoco_ctrl import MujocoCtrlConfig
 from .scene_loader import MJCFLoader
-from .servos import Motor, Servo, derive, motors
 
 DELTA = 0.1  # pd_joint_delta_pos: ManiSkill's usual bound on a step's change of target (rad or m)
 
@@ -62,9 +62,10 @@ class MJCFAgent(BaseAgent):
         positions = [s for s in self.servos if s.kind == "position"]
         velocities = [s for s in self.servos if s.kind == "velocity"]
         if positions:
+            timestep = float(self.scene.timestep)
             configs = {
-                "pd_joint_pos": _pd_joint_pos(positions, delta=False),
-                "pd_joint_delta_pos": _pd_joint_pos(positions, delta=True),
+                "pd_joint_pos": _pd_joint_pos(positions, timestep, delta=False),
+                "pd_joint_delta_pos": _pd_joint_pos(positions, timestep, delta=True),
             }
         else:  # ManiSkill's default PD gains on the joints the motors drive (all joints without motors)
             configs = dict(super()._controller_configs)
@@ -89,9 +90,10 @@ class MJCFAgent(BaseAgent):
         return configs
 
 
-def _pd_joint_pos(servos: list[Servo], delta: bool) -> dict:
+def _pd_joint_pos(servos: list[Servo], timestep: float, delta: bool) -> dict:
     """One controller for the single-joint servos, one mimic controller per coupled servo; gravity on, as the
-    servos hold against it in MuJoCo. Delta mode moves the target (`use_target`), so zero actions hold it."""
+    servos hold against it in MuJoCo; damping less K dt (`Servo.physx_damping`). Delta mode moves the target
+    (`use_target`), so zero actions hold it."""
     bounds = (
         {"lower": -DELTA, "upper": DELTA, "normalize_action": True, "use_delta": True, "use_target": True}
         if delta
@@ -103,7 +105,7 @@ def _pd_joint_pos(servos: list[Servo], delta: bool) -> dict:
         configs["arm"] = PDJointPosControllerConfig(
             [s.joints[0] for s in single],
             stiffness=[s.stiffness[0] for s in single],
-            damping=[s.damping[0] for s in single],
+            damping=[s.physx_damping(timestep)[0] for s in single],
             force_limit=[s.force_limit[0] for s in single],
             **(
                 bounds
@@ -116,7 +118,7 @@ def _pd_joint_pos(servos: list[Servo], delta: bool) -> dict:
         configs[s.actuator] = PDJointPosMimicControllerConfig(
             s.joints,
             stiffness=s.stiffness,
-            damping=s.damping,
+            damping=s.physx_damping(timestep),
             force_limit=s.force_limit,
             mimic=s.mimic,
             **(bounds or {"lower": s.lower, "upper": s.upper, "normalize_action": False}),

@@ -32,6 +32,18 @@ class Servo:
     lower: float | None  # the driven joint's target (position or velocity) at the ends of ctrlrange
     upper: float | None
     mimic: dict[str, dict] = field(default_factory=dict)  # ManiSkill's: joint -> {"joint", "multiplier", "offset"}
+    index: int = -1  # the actuator's
+    slope: float = 0.0  # the driven joint's target is slope ctrl + intercept
+    intercept: float = 0.0
+
+    def target(self, ctrl: float) -> float:
+        """The driven joint's drive target (position or velocity) for the actuator's ctrl."""
+        return self.slope * ctrl + self.intercept
+
+    def physx_damping(self, timestep: float) -> list[float]:
+        """Per joint, the drive damping D - K dt (at least 0) whose implicit PhysX drive gives over one step the force
+        of MuJoCo's servo, kp explicit and kv implicit (`DofDrive.physx_damping`; docs/mapping.md#joint-drives)."""
+        return [max(d - k * timestep, 0.0) for k, d in zip(self.stiffness, self.damping)]
 
 
 @dataclass
@@ -128,18 +140,16 @@ def derive(result) -> list[Servo]:
         if any(k <= 0 for k in per_joint) or scale == 0:
             continue
         limit = max(abs(x) for x in act.forcerange) if act.forcerange is not None else None
-        ends = (
-            sorted(((act.gain * c + b0) / (gain_of * g) - offset_sum) / scale for c in act.ctrlrange)
-            if act.ctrlrange is not None
-            else [None, None]
-        )
+        slope, intercept = act.gain / (gain_of * g * scale), (b0 / (gain_of * g) - offset_sum) / scale
         ordered = sorted(terms, key=lambda t: t[0] != control)  # the driven joint first
         dof_damping = [float(model.dof_damping[model.jnt_dofadr[j]]) for j, _, _ in ordered]
         if kind == "velocity":  # one joint: the drive's damping holds the joint's too, so its target is scaled
             actuator_damping = per_joint[0] * -b2
             if act.ctrlrange is None:
                 dof_damping = [0.0]  # unscalable without normalized actions: the joint's damping is not carried
-            ends = [None if e is None else e * actuator_damping / (actuator_damping + dof_damping[0]) for e in ends]
+            share = actuator_damping / (actuator_damping + dof_damping[0])
+            slope, intercept = slope * share, intercept * share
+        ends = sorted(slope * c + intercept for c in act.ctrlrange) if act.ctrlrange is not None else [None, None]
         servos.append(
             Servo(
                 actuator=act.name,
@@ -157,6 +167,9 @@ def derive(result) -> list[Servo]:
                     for j, _, _ in ordered
                     if j != control
                 },
+                index=a,
+                slope=slope,
+                intercept=intercept,
             )
         )
     return servos
