@@ -27,11 +27,12 @@ def random_configuration(model: mujoco.MjModel, gen: np.random.Generator) -> np.
         elif kind == mujoco.mjtJoint.mjJNT_BALL:
             qpos[a : a + 4] = random_unit_quaternion(gen)
         else:
-            if model.jnt_limited[j]:
-                lo, hi = model.jnt_range[j]
-            else:
-                span = _UNLIMITED_HINGE if kind == mujoco.mjtJoint.mjJNT_HINGE else _UNLIMITED_SLIDE
+            span = _UNLIMITED_HINGE if kind == mujoco.mjtJoint.mjJNT_HINGE else _UNLIMITED_SLIDE
+            lo, hi = model.jnt_range[j] if model.jnt_limited[j] else (-np.inf, np.inf)
+            if np.isinf(lo) and np.isinf(hi):  # unlimited, or a range open at both ends
                 lo, hi = qpos[a] - span, qpos[a] + span
+            elif np.isinf(lo) or np.isinf(hi):  # open at one end: the bounded span from the other
+                lo, hi = (hi - 2 * span, hi) if np.isinf(lo) else (lo, lo + 2 * span)
             qpos[a] = gen.uniform(lo, hi)
     return qpos
 

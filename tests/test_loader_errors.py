@@ -130,7 +130,7 @@ def test_a_bad_command_is_a_control_error_and_changes_nothing(ctrl, qfrc, messag
 UNHOLDABLE = (
     '<mujoco><option timestep="{timestep}" tolerance="{tolerance}"/>'
     '<worldbody><body name="arm" pos="{pos}" gravcomp="{gravcomp}">'
-    '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="-3 3"/>'
+    '<joint name="hinge" axis="0 1 0" damping="{damping}" ref="{ref}" margin="{margin}" range="{range}"/>'
     '<geom name="rod" type="capsule" fromto="0 0 0 .3 0 0" size="{size}" mass="1"/></body></worldbody>'
     "</mujoco>"
 )
@@ -143,6 +143,7 @@ HOLDABLE = {
     "timestep": "0.002",
     "tolerance": "1e-8",
     "margin": "0",
+    "range": "-3 3",
 }
 
 
@@ -160,6 +161,8 @@ HOLDABLE = {
         ("timestep", "1e30", "option 'timestep'", r"is not within \(0, 1\] s"),  # float32 states overflow
         ("tolerance", "inf", "option 'tolerance'", "opt.tolerance .* is non-finite"),  # MuJoCo's solver stops at once
         ("margin", "1e30", "joint 'hinge'", "jnt_margin .* is beyond"),  # MuJoCo's own run reached 4e11 rad/s
+        ("range", "-1e30 3", "joint 'hinge'", r"jnt_range .* is beyond 1e\+15"),  # an infinite end is open; this not
+        ("range", "nan 3", "joint 'hinge'", "jnt_range .* is non-finite"),
     ],
 )
 def test_a_compiled_number_physx_cannot_hold_is_a_typed_error_naming_the_element(

@@ -343,3 +343,49 @@ def test_the_rows_solve_with_the_loaded_model_and_leave_it_as_it_was():
     assert not changed, changed
     assert runtime.opt.disableflags == before.opt.disableflags
     assert runtime.opt.timestep == before.opt.timestep
+
+
+# rad over 1 s of a motor torque one way then the other (the wheel at 12 rad), measured 4.8e-6 (mujoco 3.17.0,
+# sapien 3.0.3); before open ends were read, the file did not load
+OPEN_TOLERANCE = 2e-5
+OPEN_RANGES = """<mujoco><option timestep="0.002" gravity="0 0 0"/><worldbody>
+  <body name="wheel"><joint name="spin" axis="0 0 1" range="-inf inf" limited="true" damping="0.01"/>
+    <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/></body>
+  <body name="door" pos="1 0 0"><joint name="hinge" axis="0 0 1" range="-10 inf" limited="true"/>
+    <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02" mass=".3"/></body></worldbody>
+  <actuator><motor joint="spin"/><motor joint="hinge"/></actuator></mujoco>"""
+
+
+def test_an_open_range_end_limits_one_side_only(tmp_path):
+    """`range="-inf inf"` is no limit (a wheel spins past any turn); `range="-10 inf"` stops the door on its lower
+    end only, as MuJoCo's rows do, whichever way the motors turn them."""
+    path = tmp_path / "open.xml"
+    path.write_text(OPEN_RANGES)
+    result = MJCFLoader().load(path)
+    model = result.model
+    wheel, door = result.articulations[0].active_joints[0], result.articulations[1].active_joints[0]
+    assert np.isinf(wheel.limit).all() and np.isfinite(door.limit).all()
+    data = mujoco.MjData(model)
+    result.set_state(data.qpos, data.qvel)
+    paired = paired_rollout(result, model, data, 500, lambda step, data: [0.2, -0.05 if step < 250 else 0.1])
+    assert data.qpos[0] > 2 * np.pi and data.qpos[1] > np.radians(-10.5)  # the wheel turned, the door was stopped
+    assert paired.qpos.max() < OPEN_TOLERANCE
+
+
+def test_after_release_physx_holds_the_closed_end_of_an_open_range(tmp_path):
+    """Released, PhysX's hard limit stands at the door's finite end and `OPEN_END` beyond it, so the door is
+    stopped one way and turns freely past any MuJoCo-sized angle the other."""
+    path = tmp_path / "open.xml"
+    path.write_text(OPEN_RANGES)
+    result = MJCFLoader().load(path)
+    result.release()
+    door = result.articulations[1]
+    ends = []
+    for torque in (-0.2, 0.2):
+        door.set_qpos(np.zeros(1, np.float32))
+        door.set_qvel(np.zeros(1, np.float32))
+        for _ in range(500):
+            door.set_qf(np.array([torque], np.float32))
+            result.scene.step()
+        ends.append(float(door.get_qpos()[0]))
+    assert ends[0] == pytest.approx(np.radians(-10), abs=1e-3) and ends[1] > 2 * np.pi

@@ -198,7 +198,7 @@ def _check_joint_limits(model: mujoco.MjModel, j: int, name: str, joint, soft, c
     if soft is not None:  # MuJoCo's soft limit rows (loader/runtime/rows.py): their ends are the range,
         checks.limit_err.append(_limit_error(ref, (soft.lower, soft.upper)))  # and PhysX's hard limit lies beyond
         low, high = np.asarray(joint.limit, dtype=float).ravel()
-        if not (low < ref[0] and high > ref[1]):
+        if not ((low < ref[0] or np.isinf(ref[0])) and (high > ref[1] or np.isinf(ref[1]))):  # inf: an open end
             checks.mismatches.append(
                 f"joint {name!r}: PhysX's limit {low:.6g}..{high:.6g} does not clear the soft "
                 f"limit rows at {ref[0]:.6g}..{ref[1]:.6g}"

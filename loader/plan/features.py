@@ -7,6 +7,7 @@ import numpy as np
 
 from ..errors import Notes
 from ..model import mj
+from ..model.joints import is_limited
 
 FLOAT32_CONDITION = 1e8  # a joint-space inertia conditioned worse leaves float32 (7 digits) no digit to solve with
 
@@ -69,7 +70,7 @@ def _elements(model: mujoco.MjModel, notes: Notes) -> None:
 
 def _options(model: mujoco.MjModel, notes: Notes) -> None:
     """Limits, the integrator and the model's contact and limit flags."""
-    limited = int(np.count_nonzero(model.jnt_limited))
+    limited = sum(is_limited(model, j) for j in range(model.njnt))
     if limited and not mj.disabled(model, "limit", "constraint"):
         notes.approximate(
             "joint limits",

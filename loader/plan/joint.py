@@ -17,7 +17,7 @@ import sapien
 from ..errors import Notes
 from ..model import mj
 from ..model.frames import pose, quat_from_axis_angle, quat_x_to
-from ..model.joints import FREE, HINGE, SLIDE, dof_damping, joint_stiffness
+from ..model.joints import FREE, HINGE, SLIDE, closed_range, dof_damping, is_limited, joint_stiffness
 
 
 @dataclass
@@ -64,8 +64,8 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
             )
         return []
     if jtype in (HINGE, SLIDE):
-        limited = bool(model.jnt_limited[j]) and not mj.disabled(model, "limit", "constraint")
-        limits = tuple(float(x) for x in model.jnt_range[j]) if limited else (-np.inf, np.inf)
+        limited = is_limited(model, j) and not mj.disabled(model, "limit", "constraint")
+        limits_held = closed_range(*(float(x) for x in model.jnt_range[j])) if limited else (-np.inf, np.inf)
         ref = float(model.qpos0[model.jnt_qposadr[j]])
         axis = model.jnt_axis[j]
         if jtype == HINGE:
@@ -79,7 +79,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
             JointPlan(
                 kind,
                 name,
-                limits,
+                limits_held,
                 pose(anchor, quat_x_to(axis)),
                 ref_offset,
                 damping,

@@ -31,7 +31,6 @@ FIELDS = (
     ("body", "body_gravcomp", False),
     ("joint", "jnt_pos", True),
     ("joint", "jnt_axis", False),
-    ("joint", "jnt_range", False),
     ("joint", "jnt_stiffness", False),
     ("joint", "jnt_solref", False),
     ("joint", "jnt_solimp", False),
@@ -172,7 +171,13 @@ def _check_frames(model: mujoco.MjModel, path) -> None:
 
 
 def _check_joints(model: mujoco.MjModel, path) -> None:
-    """Every DoF's numbers (`DOF_FIELDS`) finite, every hinge's and slide's reference within PhysX's reach."""
+    """Every DoF's numbers (`DOF_FIELDS`) finite, every range end a number (an infinite end leaves that side open:
+    `model.joints.closed_range`) that float32 holds, every hinge's and slide's reference within PhysX's reach."""
+    ranges = np.asarray(model.jnt_range, dtype=np.float64)
+    bad = np.isnan(ranges).any(axis=1) | (np.isfinite(ranges) & (np.abs(ranges) > MAGNITUDE)).any(axis=1)
+    if bad.any():
+        joint = int(np.flatnonzero(bad)[0])
+        _raise(path, "joint", mj.name(model, "joint", joint), "jnt_range", ranges[joint], False)
     for field in DOF_FIELDS:
         rows = np.flatnonzero(_bad(getattr(model, field), False))
         if rows.size:

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from ..model import mj
+from ..model.joints import closed_range, is_limited
 from ..model.mapping import Mapping
 from ..model.options import MAX_DEPENETRATION_VELOCITY
 from .dof_step import DofKey, Step
@@ -36,7 +37,8 @@ JOINT_ROW = np.isin(np.arange(len(mujoco.mjtConstraint.__members__)), JOINT_ROWS
 
 @dataclass(frozen=True)
 class HardLimit:
-    """A limited hinge/slide DoF: MuJoCo's range and the wider one PhysX keeps while the rows run."""
+    """A limited hinge/slide DoF: MuJoCo's range (an end may be open, `inf`) and the wider one PhysX keeps while the
+    rows run."""
 
     key: DofKey
     lower: float
@@ -44,15 +46,23 @@ class HardLimit:
     slide: bool
 
     @property
+    def held(self) -> tuple[float, float]:
+        """MuJoCo's range as PhysX's limit holds it: an open end `OPEN_END` beyond the finite one
+        (`model.joints.closed_range`)."""
+        return closed_range(self.lower, self.upper)
+
+    @property
     def margin(self) -> float:
-        return max(SLIDE_MARGIN if self.slide else HINGE_MARGIN, self.upper - self.lower)
+        low, high = self.held
+        return max(SLIDE_MARGIN if self.slide else HINGE_MARGIN, high - low)
 
     def widened(self, q: float | None = None) -> tuple[float, float]:
         """PhysX's limit while the rows run: `margin` beyond MuJoCo's ends, and beyond `q` (a joint started or
         pushed that far past an end) as well."""
-        low, high = self.lower - self.margin, self.upper + self.margin
+        (low, high), margin = self.held, self.margin
+        low, high = low - margin, high + margin
         if q is not None:
-            low, high = min(low, q - self.margin), max(high, q + self.margin)
+            low, high = min(low, q - margin), max(high, q + margin)
         return low, high
 
 
@@ -247,7 +257,7 @@ class RowTerm(Term):
             art, dof = limit.key
             self.physx[i] = limit.widened()
             self.near = None
-            low, high = self.physx[i] if soft else (limit.lower, limit.upper)
+            low, high = self.physx[i] if soft else limit.held
             joints[art][dof].set_limit(np.array([[low, high]], np.float32))
         for loop in self.standby:
             if soft:
@@ -330,7 +340,7 @@ def plan_rows(
     limited = [
         j
         for j, t in enumerate(mapping.joints)
-        if t.kind in MAPPED_JOINTS and model.jnt_limited[j] and not mj.disabled(model, "limit")
+        if t.kind in MAPPED_JOINTS and is_limited(model, j) and not mj.disabled(model, "limit")
     ]
     frictional = [
         j
