@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 import sapien
 
+from loader.errors import DivergenceError
+
 NAN_POSE = np.full(7, np.nan)
 
 
@@ -31,6 +33,9 @@ def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.nda
     poses = np.zeros((steps + 1, len(links(result)), 7))
     qpos[0], qvel[0], poses[0] = q, v, link_poses(result)
     for t in range(steps):
+        if not (np.isfinite(qpos[t]).all() and np.isfinite(qvel[t]).all()):  # diverged: `set_ctrl` refuses it, and
+            qpos[t + 1 :], qvel[t + 1 :], poses[t + 1 :] = np.nan, np.nan, np.nan  # PhysX would step NaN on
+            break
         before_step(t, qpos[t], qvel[t])
         result.scene.step()
         qpos[t + 1], qvel[t + 1] = get_state(result)
@@ -143,8 +148,14 @@ def apply_generalized_force(result, qfrc: np.ndarray) -> None:
 def clear_command(result, nv: int) -> None:
     """After a run: no command left in `qf` (set_qf persists). No physics step follows, so the call does not begin
     one (`advance=False`): link forces it added would wait in PhysX for the next run's first step, on top of that
-    step's own (tests/test_tiers_mutations.py::test_a_run_after_another_starts_with_no_link_force_left)."""
-    result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
+    step's own (tests/test_tiers_mutations.py::test_a_run_after_another_starts_with_no_link_force_left). A run that
+    ended diverged has its joint forces zeroed directly: `set_ctrl` refuses a state that is not finite."""
+    try:
+        result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
+    except DivergenceError:
+        for articulation in result.articulations:
+            if articulation.dof:
+                articulation.set_qf(np.zeros(articulation.dof, np.float32))
 
 
 def contacts_enabled(result) -> bool:

@@ -14,6 +14,7 @@ with warnings.catch_warnings():  # SAPIEN says at import that it falls back to i
 from .errors import (
     Approximation,
     ControlError,
+    DivergenceError,
     MissingAssetError,
     MJCFError,
     Note,
@@ -38,6 +39,7 @@ __all__ = [
     "BodyLink",
     "CameraConfig",
     "ControlError",
+    "DivergenceError",
     "EqualityLink",
     "GeomShape",
     "JointDofs",

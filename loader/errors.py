@@ -38,6 +38,12 @@ class ControlError(ValueError):
     scene or of the activations has changed when it is raised."""
 
 
+class DivergenceError(RuntimeError):
+    """SAPIEN's state is no longer finite: `set_ctrl` (and `step`) refuse it, naming the first DoF that is not and the
+    physics steps `set_ctrl` has run, rather than stepping NaN on
+    (tests/test_loader_errors.py::test_a_state_that_is_no_longer_finite_is_refused_naming_the_dof_and_the_step)."""
+
+
 def command_vector(path: str, name: str, value, size: int, what: str):
     """`value` as a float64 vector of `size` finite numbers (None stays None), else ControlError naming the model
     file, the argument and the fix."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from support.corpus import FIXTURES
+from support.corpus import FIXTURES, suite_path
 
 from loader import MissingAssetError, MJCFError, MJCFLoader
 
@@ -244,3 +244,22 @@ def test_a_model_mujoco_compiles_but_cannot_run_is_a_typed_error(tmp_path):
     assert caught.value.line is None  # MuJoCo's source line is not the document's
     path.write_text(f'<mujoco><size memory="10M"/><worldbody>{bodies}</worldbody></mujoco>')
     assert MJCFLoader().load(str(path)).model.nbody == 201
+
+
+def test_a_state_that_is_no_longer_finite_is_refused_naming_the_dof_and_the_step():
+    """A NaN in SAPIEN's state (a diverged step) stops the next `set_ctrl` with DivergenceError naming the first DoF
+    that is not finite and the physics steps run; nothing is written to PhysX. Mutation: the check skipped (the NaN
+    steps on silently)."""
+    from loader import DivergenceError
+
+    result = MJCFLoader().load(suite_path("acrobot"))
+    for _ in range(3):
+        result.step(np.zeros(result.model.nu))
+    articulation = result.articulations[0]
+    articulation.set_qvel(np.array([0.0, np.nan], np.float32))
+    with pytest.raises(DivergenceError, match=r"joint 'elbow' .* after 3 physics steps"):
+        result.set_ctrl(np.zeros(result.model.nu))
+    with pytest.raises(DivergenceError):
+        result.step(np.zeros(result.model.nu))
+    articulation.set_qvel(np.zeros(2, np.float32))
+    result.step(np.zeros(result.model.nu))  # finite again, it steps on

@@ -16,6 +16,7 @@ from contextlib import contextmanager
 import mujoco
 import numpy as np
 
+from ..errors import DivergenceError
 from ..model.actuators import MAPPED_DYNAMICS, ActuatorMap
 from ..model.drive import DofDrive
 from ..model.equalities import EqualityLink
@@ -84,6 +85,7 @@ class Controller:
         self.base: np.ndarray | None = None  # the step's starting law (`compile`)
         self.running: list[Term] = []  # the terms with work (`compile`)
         self.readers: list | None = None  # the articulations whose link velocities the terms read
+        self.steps = 0  # physics steps begun by `set_ctrl` (its advancing calls)
 
     @property
     def timestep(self) -> float:
@@ -182,6 +184,9 @@ class Controller:
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         refresh_link_velocities(self.velocity_readers())
         q, v = layout.read(articulations)
+        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+            raise DivergenceError(self.diverged(q, v))
+        self.steps += advance
         step = Step(
             articulations,
             self.joints,
@@ -201,6 +206,17 @@ class Controller:
         )
         for term in self.running:
             term.contribute(step)
+
+    def diverged(self, q: np.ndarray, v: np.ndarray) -> str:
+        """The first DoF whose position or velocity is not finite, and the physics steps `set_ctrl` began."""
+        i = int(np.flatnonzero(~(np.isfinite(q) & np.isfinite(v)))[0])
+        a = int(np.searchsorted(self.layout.starts, i, side="right") - 1)
+        joint = self.joints[a][i - self.layout.starts[a]]
+        return (
+            f"SAPIEN's state is not finite: joint {joint.name!r} (articulation {a}) has q = {q[i]:g}, "
+            f"v = {v[i]:g} after {self.steps} physics steps under set_ctrl; the simulation diverged there "
+            "(a smaller timestep, or more solver iterations, may hold it)"
+        )
 
     def settle(self) -> None:
         """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
