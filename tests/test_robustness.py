@@ -81,12 +81,27 @@ def _diverging(real, path):
     return result
 
 
+def _gone_nan(real, path):
+    result = real(path)
+    step = result.step
+
+    def poisoned(*args, **kwargs):
+        step(*args, **kwargs)
+        art = result.articulations[0]
+        art.set_qvel(np.full(art.dof, np.nan, dtype=np.float32))
+
+    result.step = poisoned
+    return result
+
+
 @pytest.mark.parametrize(
-    "mistake, expected", [(_raise, "untyped_error"), (_moved_body, "silently_wrong"), (_diverging, "divergence")]
+    "mistake, expected",
+    [(_raise, "untyped_error"), (_moved_body, "silently_wrong"), (_diverging, "divergence"), (_gone_nan, "divergence")],
 )
 def test_a_deliberate_mistake_is_a_bad_outcome(mistake, expected, monkeypatch, workspace):
-    """A loader that raises an untyped error, one that moves a body 5 cm, one whose state runs off: each is the
-    bad outcome it is; the real loader on the same document is `loaded_right`."""
+    """A loader that raises an untyped error, one that moves a body 5 cm, one whose state runs off, one whose state
+    goes NaN (the next `step` refuses it: DivergenceError): each is the bad outcome it is; the real loader on the
+    same document is `loaded_right`."""
     source = suite_path("cartpole")
     path = _write(workspace, source, source.read_bytes())
     assert start(path).join().outcome == "loaded_right"

@@ -80,17 +80,25 @@ def _steps(result, model, seed: int, tolerances) -> Outcome:
     """Both simulators from qpos0 under the same random ctrl; SAPIEN judged against MuJoCo's own run."""
     import mujoco
 
+    from loader import DivergenceError
+
     from ..divergence import SpeedBound, first_divergence
 
     data = mujoco.MjData(model)
     rng = np.random.default_rng(seed)
     qpos, qvel, reference = [], [], []
+    gone = (np.full(model.nq, np.nan), np.full(model.nv, np.nan))  # SAPIEN's state once `step` refused it
+    diverged = False
     for _ in range(STEPS):
         ctrl = _ctrl(model, rng)
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data)
-        result.step(ctrl)
-        q, v = result.get_state()
+        try:
+            if not diverged:
+                result.step(ctrl)
+        except DivergenceError:  # the loader's verdict on a state no longer finite: judged as such below
+            diverged = True
+        q, v = gone if diverged else result.get_state()
         qpos.append(q), qvel.append(v), reference.append(data.qvel.copy())
     warned = {
         w: data.warning[getattr(mujoco.mjtWarning, f"mjWARN_{w.upper()}")].number > 0 for w in ("badqacc", "inertia")
