@@ -17,7 +17,7 @@ import sapien
 from ..errors import Notes
 from ..model import mj
 from ..model.frames import pose, quat_from_axis_angle, quat_x_to
-from ..model.joints import FREE, HINGE, SLIDE, closed_range, dof_damping, is_limited, joint_stiffness
+from ..model.joints import BALL, FREE, HINGE, SLIDE, closed_range, dof_damping, is_limited, joint_stiffness
 
 
 @dataclass
@@ -48,7 +48,7 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     damping = dof_damping(model, dof)
     armature = float(model.dof_armature[dof])
     stiffness = joint_stiffness(model, j)
-    if model.dof_frictionloss[dof] > 0 and jtype not in (HINGE, SLIDE):  # hinges and slides: `runtime/actuators.py`
+    if model.dof_frictionloss[dof] > 0 and jtype == BALL:  # hinges, slides, free joints: `runtime/rows.py`
         notes.drop(
             "joint",
             name,

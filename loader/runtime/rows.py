@@ -28,6 +28,7 @@ from .term import Compilation, Handover, Term
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
 SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
 MAPPED_JOINTS = ("hinge", "slide")
+FRICTIONAL_JOINTS = (*MAPPED_JOINTS, "free")  # a free joint's frictionloss force goes on its root link (`RootPush`)
 JOINT_ROWS = tuple(
     int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}"))
     for name in ("LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON", "EQUALITY")
@@ -345,8 +346,8 @@ def plan_rows(
     frictional = [
         j
         for j, t in enumerate(mapping.joints)
-        if t.kind in MAPPED_JOINTS
-        and model.dof_frictionloss[model.jnt_dofadr[j]] > 0
+        if t.kind in FRICTIONAL_JOINTS
+        and np.any(model.dof_frictionloss[model.dof_jntid == j] > 0)
         and not mj.disabled(model, "frictionloss")
     ]
     couplings = [] if mj.disabled(model, "equality") else couplings
@@ -366,7 +367,8 @@ def plan_rows(
     for j, target in enumerate(mapping.joints):
         if target.kind not in MAPPED_JOINTS:
             edit("jnt_limited", j, 1, 0)
-            edit("dof_frictionloss", int(model.jnt_dofadr[j]), {"ball": 3, "free": 6}.get(target.kind, 1), 0.0)
+        if target.kind not in FRICTIONAL_JOINTS:
+            edit("dof_frictionloss", int(model.jnt_dofadr[j]), {"ball": 3}.get(target.kind, 1), 0.0)
     for t in range(model.ntendon):  # a tendon's DoFs, only where it has rows: finding them walks its path
         if (model.tendon_limited[t] or model.tendon_frictionloss[t] > 0) and not mapping.joint_dofs_only(
             model, mj.tendon_dofs(model, t)
