@@ -1,11 +1,12 @@
-"""Documents of the classes real robots showed and the general generator missed: arms exported from URDF
-(frictionloss with no armature and tiny damping on every joint), joints started past their ends (several at once,
-so that many limit rows act together), tiny and zero inertias (dummy links, welded sensor frames), gripper fingers
-coupled by a joint equality under position servos, a floating base and a tossed free object whose free joints
-carry damping and armature, and MuJoCo Playground's solver setting of one iteration."""
+"""Documents of the classes real robots showed and the general generator missed: arms exported from URDF (frictionloss
+with no armature and tiny damping on every joint), joints started past their ends (several at once, so that many limit
+rows act together), ranges left open at one end or both (`inf`), tiny and zero inertias (dummy links, welded sensor
+frames), gripper fingers coupled by a joint equality under position servos, a floating base and a tossed free object
+whose free joints carry damping, armature and frictionloss, and MuJoCo Playground's solver setting of one iteration."""
 
 from __future__ import annotations
 
+import numpy as np
 from hypothesis import strategies as st
 
 from .document import RawDocument
@@ -37,19 +38,25 @@ def _link(draw, index: int) -> tuple[str, str, float, float, bool]:
             f'diaginertia="{_f(mass * 1e-3)} {_f(mass * 4e-3)} {_f(mass * 4e-3)}"/>'
         )
     name = f"j{index}"
+    ends = [_f(lo), _f(hi)]
+    opened = draw(st.sampled_from(["closed"] * 4 + ["upper", "both"])) if not slide else "closed"
+    if opened != "closed":  # a range left open (a wheel's "-inf inf", a door's "lo inf"): no limit that side
+        ends = ["-inf" if opened == "both" else ends[0], "inf"]
+        lo, hi = (-np.inf if opened == "both" else lo), np.inf
     joint = (
         f'<joint name="{name}" type="{"slide" if slide else "hinge"}" axis="{draw(st.sampled_from(AXES))}" '
-        f'range="{_f(lo)} {_f(hi)}" frictionloss="{friction}" damping="{damping}" armature="{armature}"/>'
+        f'range="{" ".join(ends)}" frictionloss="{friction}" damping="{damping}" armature="{armature}"/>'
     )
     pos = f"{_f(draw(st.floats(0.1, 0.3)))} 0 0" if index else "0 0 1"
     return f'<body name="l{index}" pos="{pos}">{joint}{inertial}', name, lo, hi, slide
 
 
 def _free_joint(draw) -> str:
-    """A free joint's damping and armature (each present half of the time), as attributes."""
+    """A free joint's damping, armature and frictionloss (each present half of the time), as attributes."""
     damping = _f(draw(st.floats(0.001, 0.5))) if draw(st.booleans()) else "0"
     armature = _f(draw(st.floats(0.001, 0.05))) if draw(st.booleans()) else "0"
-    return f'damping="{damping}" armature="{armature}"'
+    friction = _f(draw(st.floats(0.001, 0.05))) if draw(st.booleans()) else "0"
+    return f'damping="{damping}" armature="{armature}" frictionloss="{friction}"'
 
 
 @st.composite
@@ -89,14 +96,17 @@ def robot_classes(draw) -> RawDocument:
     past = draw(st.lists(st.integers(0, count - 1), min_size=1, max_size=min(3, count), unique=True))
     for i, (_, _, lo, hi, slide) in enumerate(links):
         beyond = draw(st.floats(0.02, 0.1 if slide else 0.5))
-        qpos.append((hi + beyond if draw(st.booleans()) else lo - beyond) if i in past else 0.0)
+        high = draw(st.booleans())
+        closed = np.isfinite(hi if high else lo)  # past a closed end only
+        qpos.append((hi + beyond if high else lo - beyond) if i in past and closed else 0.0)
     actuators = []
     for i, (_, name, lo, hi, _) in enumerate(links):
         if draw(st.booleans()):
             kp = draw(st.floats(5.0, 200.0))
+            span = (lo if np.isfinite(lo) else -3.0, hi if np.isfinite(hi) else 3.0)  # servo targets: a closed span
             actuators.append(
                 f'<position joint="{name}" kp="{_f(kp)}" kv="{_f(draw(st.floats(0, 0.1)) * kp)}" '
-                f'ctrlrange="{_f(lo)} {_f(hi)}"/>'
+                f'ctrlrange="{_f(span[0])} {_f(span[1])}"/>'
             )
         elif draw(st.booleans()):
             actuators.append(f'<motor joint="{name}" gear="{_f(draw(st.floats(1, 50)))}" ctrlrange="-1 1"/>')
