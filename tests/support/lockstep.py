@@ -13,7 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from loader import MJCFLoader
+from loader import DivergenceError, MJCFLoader
 
 CtrlAt = Callable[[int, mujoco.MjData], "np.ndarray | None"]
 
@@ -25,7 +25,7 @@ def no_ctrl(step: int, data: mujoco.MjData) -> None:
 @dataclass
 class Paired:
     """Per step: the worst |SAPIEN - MuJoCo| position and velocity, and each side's fastest DoF (inf where
-    SAPIEN's velocity is not finite)."""
+    SAPIEN's velocity is not finite; a run whose state `set_ctrl` refused ends with one such step)."""
 
     qpos: np.ndarray
     qvel: np.ndarray
@@ -68,7 +68,12 @@ def paired_rollout(
         if ctrl is not None:
             data.ctrl[:] = ctrl
         if set_ctrl:
-            result.set_ctrl(data.ctrl.copy())
+            try:
+                result.set_ctrl(data.ctrl.copy())
+            except DivergenceError:  # SAPIEN's state is no longer finite: the paired run ends there
+                qpos.append(np.inf), qvel.append(np.inf), sapien_speed.append(np.inf)
+                mujoco_speed.append(np.abs(data.qvel).max(initial=0.0))
+                break
         mujoco.mj_step(model, data)
         result.scene.step()
         q, v = result.get_state()
