@@ -68,30 +68,25 @@ def _moved_body(real, path):
     return real(moved)
 
 
-def _diverging(real, path):
-    result = real(path)
-    step = result.step
+def _velocities_after_each_step(value: float):
+    """A loader whose articulation's velocities are set to `value` after every `step` (a state running off)."""
 
-    def blow_up(*args, **kwargs):
-        step(*args, **kwargs)
-        art = result.articulations[0]
-        art.set_qvel(np.full(art.dof, 1e6, dtype=np.float32))
+    def mistake(real, path):
+        result = real(path)
+        step = result.step
 
-    result.step = blow_up
-    return result
+        def set_after(*args, **kwargs):
+            step(*args, **kwargs)
+            art = result.articulations[0]
+            art.set_qvel(np.full(art.dof, value, dtype=np.float32))
+
+        result.step = set_after
+        return result
+
+    return mistake
 
 
-def _gone_nan(real, path):
-    result = real(path)
-    step = result.step
-
-    def poisoned(*args, **kwargs):
-        step(*args, **kwargs)
-        art = result.articulations[0]
-        art.set_qvel(np.full(art.dof, np.nan, dtype=np.float32))
-
-    result.step = poisoned
-    return result
+_diverging, _gone_nan = _velocities_after_each_step(1e6), _velocities_after_each_step(np.nan)
 
 
 @pytest.mark.parametrize(
