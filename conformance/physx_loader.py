@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from loader.servos import derive
+from loader.servos import derive, is_motor
 
 NAME = "physx"
 
@@ -25,19 +25,17 @@ class PhysxAlone:
         self.result = result
         joints = {joint.name: joint for art in result.articulations for joint in art.active_joints}
         self.servos = [(servo, [joints[name] for name in servo.joints]) for servo in derive(result)]
-        driven = {servo.index for servo, _ in self.servos}
-        self.forces = self._motor_forces(result, driven)
+        self.forces = self._motor_forces(result)
 
     @staticmethod
-    def _motor_forces(result, driven: set[int]) -> np.ndarray:
-        """(nu, nv): MuJoCo's generalized force per unit ctrl of each motor (gain, no bias, no dynamics) on a hinge
-        or slide that no servo drives: gear times gain on its DoF."""
+    def _motor_forces(result) -> np.ndarray:
+        """(nu, nv): MuJoCo's generalized force per unit ctrl of each motor (`loader.servos.is_motor`; a servo has a
+        bias, so none is one): gear times gain on its DoF."""
         model = result.model
         out = np.zeros((model.nu, model.nv))
         for a, act in enumerate(result.actuators):
-            if a in driven or not act.mapped or act.joint is None or act.dynamics != "none" or any(act.bias):
-                continue
-            out[a, int(model.jnt_dofadr[model.actuator_trnid[a, 0]])] = act.gear * act.gain
+            if is_motor(act):
+                out[a, int(model.jnt_dofadr[model.actuator_trnid[a, 0]])] = act.gear * act.gain
         return out
 
     def set_ctrl(self, ctrl=None, qfrc_applied=None, advance: bool = True) -> None:

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from .model.drive import DofDrive
+
 UNLIMITED = 1e10  # ManiSkill's force limit for "none"
 
 
@@ -41,9 +43,9 @@ class Servo:
         return self.slope * ctrl + self.intercept
 
     def physx_damping(self, timestep: float) -> list[float]:
-        """Per joint, the drive damping D - K dt (at least 0) whose implicit PhysX drive gives over one step the force
-        of MuJoCo's servo, kp explicit and kv implicit (`DofDrive.physx_damping`; docs/mapping.md#joint-drives)."""
-        return [max(d - k * timestep, 0.0) for k, d in zip(self.stiffness, self.damping)]
+        """Per joint, the drive damping whose implicit PhysX drive gives over one step the force of MuJoCo's servo,
+        kp explicit and kv implicit: the loader's own drive law (`DofDrive.physx_damping`)."""
+        return [DofDrive(k, d).physx_damping(timestep) for k, d in zip(self.stiffness, self.damping)]
 
 
 @dataclass
@@ -56,12 +58,17 @@ class Motor:
     force_limit: float
 
 
+def is_motor(act) -> bool:
+    """Whether an actuator (an `ActuatorMap`) is a mapped motor on a hinge or slide: a gain, no bias, no dynamics."""
+    return act.mapped and act.joint is not None and act.dynamics == "none" and not any(act.bias) and act.gain != 0
+
+
 def motors(result) -> list[Motor]:
-    """The mapped motors (gain, no bias, no dynamics) on hinge and slide joints."""
+    """The mapped motors (`is_motor`) on hinge and slide joints."""
     model = result.model
     out = []
     for a, act in enumerate(result.actuators):
-        if not act.mapped or act.joint is None or act.dynamics != "none" or any(act.bias) or act.gain == 0:
+        if not is_motor(act):
             continue
         j = int(model.actuator_trnid[a, 0])
         target = result.mapping.joints[j]
