@@ -8,8 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 import sapien
 
-from loader.errors import DivergenceError
-
 NAN_POSE = np.full(7, np.nan)
 
 
@@ -148,14 +146,9 @@ def apply_generalized_force(result, qfrc: np.ndarray) -> None:
 def clear_command(result, nv: int) -> None:
     """After a run: no command left in `qf` (set_qf persists). No physics step follows, so the call does not begin
     one (`advance=False`): link forces it added would wait in PhysX for the next run's first step, on top of that
-    step's own (tests/test_tiers_mutations.py::test_a_run_after_another_starts_with_no_link_force_left). A run that
-    ended diverged has its joint forces zeroed directly: `set_ctrl` refuses a state that is not finite."""
-    try:
-        result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
-    except DivergenceError:
-        for articulation in result.articulations:
-            if articulation.dof:
-                articulation.set_qf(np.zeros(articulation.dof, np.float32))
+    step's own (tests/test_tiers_mutations.py::test_a_run_after_another_starts_with_no_link_force_left); after a run
+    that ended diverged it only clears `qf`."""
+    result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
 
 
 def contacts_enabled(result) -> bool:

@@ -248,8 +248,8 @@ def test_a_model_mujoco_compiles_but_cannot_run_is_a_typed_error(tmp_path):
 
 def test_a_state_that_is_no_longer_finite_is_refused_naming_the_dof_and_the_step():
     """A NaN in SAPIEN's state (a diverged step) stops the next `set_ctrl` with DivergenceError naming the first DoF
-    that is not finite and the physics steps run; nothing is written to PhysX. Mutation: the check skipped (the NaN
-    steps on silently)."""
+    that is not finite and the physics steps run; nothing is written to PhysX. A call that begins no step (a setting
+    rewritten) only clears `qf`. Mutation: the check skipped (the NaN steps on silently)."""
     from loader import DivergenceError
 
     result = MJCFLoader().load(suite_path("acrobot"))
@@ -261,5 +261,9 @@ def test_a_state_that_is_no_longer_finite_is_refused_naming_the_dof_and_the_step
         result.set_ctrl(np.zeros(result.model.nu))
     with pytest.raises(DivergenceError):
         result.step(np.zeros(result.model.nu))
+    articulation.set_qf(np.ones(2, np.float32))
+    result.disable_actuators()  # a setting rewritten, no step begun: it only clears qf
+    np.testing.assert_array_equal(articulation.get_qf(), np.zeros(2))
+    result.disable_actuators(False)
     articulation.set_qvel(np.zeros(2, np.float32))
     result.step(np.zeros(result.model.nu))  # finite again, it steps on

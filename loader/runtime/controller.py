@@ -171,11 +171,22 @@ class Controller:
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
-        None: zeros). `advance`: the first call of this physics step (activations, link forces)."""
+        None: zeros). `advance`: the first call of this physics step (activations, link forces). On a state that is
+        not finite, a call that begins a step raises DivergenceError and one that does not (a setting rewritten:
+        `disable_actuators`, a cleared command) only clears `qf`; nothing else changes."""
         self.settle()
         if self.stale:
             self.compile()
         articulations, layout = self.articulations, self.layout
+        q, v = layout.read(articulations)
+        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+            if advance:
+                raise DivergenceError(self.diverged(q, v))
+            for articulation in articulations:
+                if articulation.dof:
+                    articulation.set_qf(np.zeros(articulation.dof, np.float32))
+            return
+        self.steps += advance
         actuated = "actuators" not in self.off
         ctrl, inputs, act = self.command(ctrl, actuated, advance)
         force = np.zeros(layout.size)
@@ -183,10 +194,6 @@ class Controller:
             applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         refresh_link_velocities(self.velocity_readers())
-        q, v = layout.read(articulations)
-        if not (np.isfinite(q).all() and np.isfinite(v).all()):
-            raise DivergenceError(self.diverged(q, v))
-        self.steps += advance
         step = Step(
             articulations,
             self.joints,
