@@ -170,23 +170,36 @@ def test_a_loader_import_beyond_its_core_dependencies_is_found():
 
 
 def test_a_command_that_cannot_be_pasted_after_the_set_up_is_found():
-    sessions, commands = {"conformance", "tests"}, {"run", "where"}
+    sessions, commands, environments = {"conformance", "tests"}, {"run", "where"}, {"project", "maniskill"}
     good = (
-        "`pipx run nox -s conformance -- --model x`, `.nox/conformance/bin/rerun reports/latest/x.rrd`,\n"
-        "`.nox/conformance/bin/python -m conformance where panda`, `.nox/tests/bin/python -m conformance run`\n"
+        "`pipx run nox -s conformance -- --model x`, `.nox/project/bin/rerun reports/latest/x.rrd`,\n"
+        "`.nox/project/bin/python -m conformance where panda`, `.nox/maniskill/bin/python -m conformance run`\n"
     )
-    assert house.unpasteable_commands({"README.md": good}, sessions, commands) == []
+    assert house.unpasteable_commands({"README.md": good}, sessions, commands, environments) == []
     bad = (
         "`nox -s conformance`, `pipx run nox -s lint`, `rerun reports/latest/x.rrd`\n"
-        "`python -m conformance where panda`, `.nox/conformance/bin/python -m conformance bench`\n"
-        "`.nox/lint/bin/python -m conformance run`\n"
+        "`python -m conformance where panda`, `.nox/project/bin/python -m conformance bench`\n"
+        "`.nox/tests/bin/python -m conformance run`\n"
     )
-    assert house.unpasteable_commands({"README.md": bad}, sessions, commands) == [
+    assert house.unpasteable_commands({"README.md": bad}, sessions, commands, environments) == [
         "README.md:1: `nox -s conformance`: README's set-up has `pipx run nox`",
         "README.md:1: nox session 'lint': the noxfile has none",
-        "README.md:1: `rerun`: the set-up's viewer is .nox/conformance/bin/rerun",
-        "README.md:2: python -m conformance: run it as .nox/conformance/bin/python -m conformance",
+        "README.md:1: `rerun`: the set-up's viewer is .nox/project/bin/rerun",
+        "README.md:2: python -m conformance: run it as .nox/project/bin/python -m conformance",
         "README.md:2: python -m conformance bench: the harness has no such command",
-        "README.md:3: python -m conformance: run it as .nox/conformance/bin/python -m conformance",
+        "README.md:3: python -m conformance: run it as .nox/project/bin/python -m conformance",
     ]
-    assert house.unpasteable_commands({"docs/a.md": "`python -m conformance where x`\n"}, sessions, commands) == []
+    assert (
+        house.unpasteable_commands({"docs/a.md": "`python -m conformance where x`\n"}, sessions, commands, environments)
+        == []
+    )
+
+
+def test_the_environments_are_the_shared_one_and_each_session_that_makes_its_own():
+    noxfile = (
+        'SHARED = ROOT / ".nox" / "project"\n'
+        '@nox.session(venv_backend="none")\ndef tests(session): pass\n'
+        "@nox.session\ndef maniskill(session): pass\n"
+    )
+    assert house.nox_environments(noxfile) == {"project", "maniskill"}
+    assert house.nox_environments((ROOT / "noxfile.py").read_text()) == {"project", "maniskill"}

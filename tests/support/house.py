@@ -17,7 +17,7 @@
   controller's stages;
 - every command README.md, docs/*.md and reports/README.md give can be pasted after README's set-up: `pipx run nox
   -s SESSION` with a session the noxfile has, the viewer through the environment the set-up made
-  (`.nox/conformance/bin/rerun`), a harness command it has (in README: `.nox/conformance/bin/python -m conformance
+  (`.nox/project/bin/rerun`), a harness command it has (in README: `.nox/project/bin/python -m conformance
   COMMAND`).
 
 Run as `python tests/support/house.py` from the project root; exits non-zero on a finding."""
@@ -195,19 +195,26 @@ VIEWER = re.compile(r"(?<![\w/.-])rerun (?=\S+\.rrd)")
 HARNESS = re.compile(r"(\S*)python -m conformance (\w+)")
 
 
-def unpasteable_commands(docs: dict[str, str], sessions: set[str], commands: set[str]) -> list[str]:
+def unpasteable_commands(
+    docs: dict[str, str], sessions: set[str], commands: set[str], environments: set[str]
+) -> list[str]:
     """`path:line: ...` for every command in `docs` a user could not paste after README's set-up (`sessions`: the
-    noxfile's; `commands`: the harness's)."""
+    noxfile's; `commands`: the harness's; `environments`: the folders under .nox/ its sessions make)."""
     out = []
     for path, text in docs.items():
         if not path.endswith(".md"):
             continue
         for number, line in enumerate(text.splitlines(), 1):
-            out += [f"{path}:{number}: {problem}" for problem in _command_problems(line, path, sessions, commands)]
+            out += [
+                f"{path}:{number}: {problem}"
+                for problem in _command_problems(line, path, sessions, commands, environments)
+            ]
     return out
 
 
-def _command_problems(line: str, path: str, sessions: set[str], commands: set[str]) -> list[str]:
+def _command_problems(
+    line: str, path: str, sessions: set[str], commands: set[str], environments: set[str]
+) -> list[str]:
     problems = []
     for pipx, session in NOX.findall(line):
         if not pipx:
@@ -215,12 +222,12 @@ def _command_problems(line: str, path: str, sessions: set[str], commands: set[st
         elif session not in sessions:
             problems.append(f"nox session {session!r}: the noxfile has none")
     if VIEWER.search(line):
-        problems.append("`rerun`: the set-up's viewer is .nox/conformance/bin/rerun")
+        problems.append("`rerun`: the set-up's viewer is .nox/project/bin/rerun")
     for prefix, command in HARNESS.findall(line):
         if command not in commands:
             problems.append(f"python -m conformance {command}: the harness has no such command")
-        elif path == "README.md" and prefix.lstrip("`(") not in {f".nox/{s}/bin/" for s in sessions}:
-            problems.append("python -m conformance: run it as .nox/conformance/bin/python -m conformance")
+        elif path == "README.md" and prefix.lstrip("`(") not in {f".nox/{e}/bin/" for e in environments}:
+            problems.append("python -m conformance: run it as .nox/project/bin/python -m conformance")
     return problems
 
 
@@ -231,6 +238,21 @@ def nox_sessions(noxfile: str) -> set[str]:
         for node in ast.walk(ast.parse(noxfile))
         if isinstance(node, ast.FunctionDef) and any("session" in ast.unparse(d) for d in node.decorator_list)
     }
+
+
+def nox_environments(noxfile: str) -> set[str]:
+    """The folders under .nox/ the noxfile's sessions make: the shared one (`SHARED`) and one per session that makes
+    its own (any not declared `venv_backend="none"`)."""
+    tree = ast.parse(noxfile)
+    own = {
+        node.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.FunctionDef)
+        and any(
+            "session" in ast.unparse(d) and "venv_backend='none'" not in ast.unparse(d) for d in node.decorator_list
+        )
+    }
+    return own | set(re.findall(r'"\.nox" / "(\w+)"', noxfile))
 
 
 def harness_commands(cli: str) -> set[str]:
@@ -418,6 +440,7 @@ def findings(root: Path) -> list[str]:
     tests = {str(p.relative_to(root)): p.read_text() for p in sorted((root / "tests").rglob("*.py"))}
     loader = {p: t for p, t in every.items() if p.startswith("loader")}
     docs = documents(root)
+    noxfile = (root / "noxfile.py").read_text()
     return (
         docstring_numbers(loader)
         + import_cycles(every)
@@ -427,9 +450,9 @@ def findings(root: Path) -> list[str]:
         + foreign_imports({p: t for p, t in loader.items() if p.startswith(MANISKILL[0])}, CORE + MANISKILL[1])
         + broken_links(docs)
         + long_readme(docs["README.md"])
-        + unresolved_identifiers(docs, {**every, **tests, "noxfile.py": (root / "noxfile.py").read_text()})
+        + unresolved_identifiers(docs, {**every, **tests, "noxfile.py": noxfile})
         + unpasteable_commands(
-            docs, nox_sessions((root / "noxfile.py").read_text()), harness_commands(every["conformance/cli.py"])
+            docs, nox_sessions(noxfile), harness_commands(every["conformance/cli.py"]), nox_environments(noxfile)
         )
         + broken_test_references(
             {**{p: t for p, t in docs.items() if p.endswith(".md")}, **every},
