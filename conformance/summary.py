@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +43,35 @@ def _left_band(expectation: Expectation, detail: dict) -> str | None:
         f"changed: {expectation.metric} {value:.3g} left the band [{lo:.3g}, {hi:.3g}] around the "
         f"{expectation.seen_text} the manifest's reason was measured at: re-measure the reason"
     )
+
+
+# A manifest reason that says the loader leaves elements unmapped ("8 of its 78 actuators ... the loader does not
+# map", "12 tendons / 4 equalities are not mapped") names counts of MJCF concepts; the loader's notes of the run must
+# say the same, or the reason is stale.
+UNMAPPED = re.compile(r"not mapped|does not map|do not map|unmapped")
+COUNTED = re.compile(
+    r"\b(\d+)(?: of (?:its|the) \d+)? (actuator|tendon|equalit|sensor|joint|geom|flex|plugin)(?:s|y|ies)?\b"
+)
+CONCEPT = {"equalit": "equality"}
+
+
+def unmapped_mismatch(reason: str, load: dict | None) -> str | None:
+    """Where `reason` says N elements of a kind are not mapped and the loader's notes of this run (`load`, the
+    worker's load record) drop another number of them, what differs; else None
+    (tests/test_conformance_summary.py::test_a_reason_naming_unmapped_elements_is_checked_against_the_notes)."""
+    if not load or not UNMAPPED.search(reason):
+        return None
+    dropped: dict[str, int] = {}
+    for note in load.get("unsupported", []):
+        dropped[note["kind"]] = dropped.get(note["kind"], 0) + 1
+    wrong = []
+    for count, stem in COUNTED.findall(reason):
+        kind = CONCEPT.get(stem, stem)
+        if dropped.get(kind, 0) != int(count):
+            wrong.append(f"{count} {kind} (the loader drops {dropped.get(kind, 0)})")
+    if not wrong:
+        return None
+    return f"stale: the manifest's reason says {', '.join(wrong)} not mapped; re-check it against the loader's notes"
 
 
 UNLISTED_OK = ("skipped", "chaotic")  # for a file the manifest does not list: a reason, not a disagreement
@@ -89,6 +119,10 @@ def judge(entry: ModelEntry, result: ModelResult) -> list[Verdict]:
             worse = True  # the manifest's reason is a claim the run could not reproduce
             claim = f"the manifest claims the tier passes without {', '.join(claimed)}; it did not"
             detail = {**detail, "notes": [*detail.get("notes", []), claim]}
+        stale = unmapped_mismatch(expectation.reason, result.load) if expectation is not None else None
+        if stale is not None:
+            worse = True  # the reason names unmapped elements the loader's notes do not
+            detail = {**detail, "notes": [*detail.get("notes", []), stale]}
         outcome = "expected-fail" if raw == "fail" and expected == "fail" and not worse else raw
         verdicts.append(Verdict(entry.id, tier, outcome, raw, expected, worse, detail))
     return verdicts

@@ -328,3 +328,25 @@ def test_the_readme_table_is_made_from_a_run_and_checked(tmp_path):
     assert "is not this run's; replace it with:" in table.check(doc, readme)
     readme.write_text("# r\n")
     assert "has no results table" in table.check(doc, readme)
+
+
+def test_a_reason_naming_unmapped_elements_is_checked_against_the_notes():
+    reason = "8 of its 78 actuators are adhesion actuators on body transmissions, which the loader does not map"
+    entry = ModelEntry(
+        id="m", source="x", tiers=("actuated",), expect={"actuated": Expectation("actuated", "skipped", reason)}
+    )
+    dropped = [{"kind": "actuator", "name": f"a{i}", "reason": "body transmission is not mapped"} for i in range(8)]
+    result = ModelResult("m", "ok", tiers={"actuated": {"status": "skipped", "metrics": [], "notes": []}})
+    (v,) = summary.judge(entry, dataclasses.replace(result, load={"unsupported": dropped}))
+    assert not v.worse
+    (v,) = summary.judge(entry, dataclasses.replace(result, load={"unsupported": dropped[:7]}))
+    assert v.worse and v.detail["notes"][-1] == (
+        "stale: the manifest's reason says 8 actuator (the loader drops 7) not mapped; "
+        "re-check it against the loader's notes"
+    )
+    stale = "12 tendons / 4 equalities are not mapped"  # the quadruped's old reason, its elements since mapped
+    assert summary.unmapped_mismatch(stale, {"unsupported": [{"kind": "tendon"}] * 12}) == (
+        "stale: the manifest's reason says 4 equality (the loader drops 0) not mapped; "
+        "re-check it against the loader's notes"
+    )
+    assert summary.unmapped_mismatch("12 tendons are mapped", {"unsupported": []}) is None  # no claim of a gap
