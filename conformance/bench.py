@@ -115,6 +115,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
     mujoco_s, _ = _timed(lambda: reference.rollout(ref, qpos0, qvel0, steps, command))
     sapien_s, _ = _timed(lambda: sapien_rollout(result, model, qpos0, qvel0, command))
     set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
+    stages = _stage_costs(result, steps)
     return {
         **row,
         "steps": steps,
@@ -123,6 +124,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
         "set_ctrl_us": 1e6 * set_ctrl_s / steps,
         "physx_step_us": 1e6 * step_s / steps,
         "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
+        "set_ctrl_stages_us": stages,
         "nbody": model.nbody,
         "nv": model.nv,
         "ngeom": model.ngeom,
@@ -143,6 +145,25 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
         set_ctrl_s, step_s = set_ctrl_s + t1 - t0, step_s + time.perf_counter() - t1
     result.disable_actuators(True)
     return set_ctrl_s, step_s
+
+
+def _stage_costs(result, steps: int) -> dict[str, float]:
+    """Microseconds per step in each stage of `set_ctrl` (its `contribute` and `settle`), and in `controller`: the
+    rest of the call (the state read, the command, the step record), over a second run of `steps` actuated steps at
+    zero ctrl, timed apart from `_set_ctrl_cost` so that its figure carries no timer."""
+    controller, ctrl = result.controller, np.zeros(result.model.nu)
+    result.disable_actuators(False)
+    timings, total = controller.timed(), 0.0
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        result.set_ctrl(ctrl)
+        total += time.perf_counter() - t0
+        result.scene.step()
+    controller.timed(False)
+    result.disable_actuators(True)
+    out = {name: 1e6 * seconds / steps for name, seconds in sorted(timings.items(), key=lambda kv: -kv[1])}
+    out["controller"] = 1e6 * total / steps - sum(out.values())
+    return out
 
 
 def totals(models: dict) -> dict:

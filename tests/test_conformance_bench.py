@@ -28,6 +28,9 @@ def test_bench_writes_timings_per_model(tmp_path):
         assert row[f"{when}load_over_compile"] == row[f"{when}loader_load_s"] / row[f"{when}mujoco_compile_s"]
     assert row["steps"] == 50 and row["harness_sapien_steps_per_s"] > 0 and row["harness_mujoco_steps_per_s"] > 0
     assert row["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_us"] / row["physx_step_us"])
+    stages = row["set_ctrl_stages_us"]  # the pendulum's limits are MuJoCo's rows; its drives always run
+    assert {"rows", "drives", "controller"} <= set(stages) and all(stages[s] > 0 for s in ("rows", "drives"))
+    assert list(stages)[:-1] == sorted(list(stages)[:-1], key=lambda s: -stages[s])  # costliest first
     assert "nope.xml" in doc["models"]["missing"]["skipped"]
     assert doc["versions"]["sapien"]
     totals = doc["totals"]

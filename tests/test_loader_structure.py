@@ -543,3 +543,17 @@ def test_replan_keeps_contacts_off_where_they_were_turned_off():
     assert not result.controller.term("rows").with_contacts
     result.set_contacts(True)
     assert result.controller.term("rows").with_contacts
+
+
+def test_a_timed_controller_sums_each_stages_seconds_and_stops_when_asked():
+    result = MJCFLoader().load(str(FIXTURES.parent.parent / "corpus" / "fixtures" / "pendulum.xml"))
+    controller = result.controller
+    timings = controller.timed()
+    for _ in range(3):
+        result.set_ctrl(None)
+        result.scene.step()
+    assert set(timings) == set(controller.names) and all(t > 0 for t in timings.values())  # settle: every term
+    seen = dict(timings)
+    controller.timed(False)
+    result.set_ctrl(None)
+    assert timings == seen and controller.timings is None  # no longer timed

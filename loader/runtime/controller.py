@@ -11,6 +11,7 @@ isolation use); `release()` hands the joints to a caller that drives them itself
 
 from __future__ import annotations
 
+import time
 from contextlib import contextmanager
 
 import mujoco
@@ -86,6 +87,7 @@ class Controller:
         self.running: list[Term] = []  # the terms with work (`compile`)
         self.readers: list | None = None  # the articulations whose link velocities the terms read
         self.steps = 0  # physics steps begun by `set_ctrl` (its advancing calls)
+        self.timings: dict[str, float] | None = None  # seconds per stage while timed (`timed`)
 
     @property
     def timestep(self) -> float:
@@ -211,8 +213,24 @@ class Controller:
             not self.options.implicit,
             advance,
         )
-        for term in self.running:
-            term.contribute(step)
+        if self.timings is None:
+            for term in self.running:
+                term.contribute(step)
+        else:
+            for term in self.running:
+                self.time(term.name, term.contribute, step)
+
+    def time(self, name: str, hook, *args) -> None:
+        """Run a term's hook and add its seconds to `timings[name]`."""
+        start = time.perf_counter()
+        hook(*args)
+        self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - start
+
+    def timed(self, on: bool = True) -> dict[str, float]:
+        """Time each stage's hooks (`contribute` and `settle`) from now on, into the dict returned (seconds summed
+        over calls), or stop timing (`on` False). The bench reads it (`conformance/bench.py`)."""
+        self.timings = {} if on else None
+        return self.timings if on else {}
 
     def diverged(self, q: np.ndarray, v: np.ndarray) -> str:
         """The first DoF whose position or velocity is not finite, and the physics steps `set_ctrl` began."""
@@ -229,7 +247,10 @@ class Controller:
         """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
         wrenches = [wrench for term in self.terms for wrench in term.applied]
         for term in self.terms:
-            term.settle(self.articulations, wrenches)
+            if self.timings is None:
+                term.settle(self.articulations, wrenches)
+            else:
+                self.time(term.name, term.settle, self.articulations, wrenches)
 
     def forget(self) -> None:
         """A state set from outside: no step ends at it (`momentum`), MuJoCo's solve starts cold (`rows`)."""
