@@ -77,6 +77,8 @@ class ModelEntry:
     settings: dict[str, dict] = field(default_factory=dict)
     override_reason: str = ""
     expect: dict[str, Expectation] = field(default_factory=dict)
+    # a tier's further expectations, each scoped to seeds none of the tier's others hold at (`at_seed` picks)
+    scoped: tuple[Expectation, ...] = ()
     fault: str | None = None  # harness self-test only: make the worker crash, hang or poison SAPIEN's state
     base_dir: str = "."
     # from a manifest, whose expectations name every skip; False for a file given on the command line, where a tier
@@ -90,7 +92,9 @@ class ModelEntry:
     def at_seed(self, seed: int) -> ModelEntry:
         """The entry as judged at `seed`: expectations scoped to other seeds dropped
         (tests/test_conformance_summary.py::test_an_expectation_scoped_to_seeds_holds_only_there)."""
-        return replace(self, expect={t: e for t, e in self.expect.items() if not e.seeds or seed in e.seeds})
+        expect = {t: e for t, e in self.expect.items() if not e.seeds or seed in e.seeds}
+        expect.update({e.tier: e for e in self.scoped if seed in e.seeds})
+        return replace(self, expect=expect, scoped=())
 
 
 @dataclass(frozen=True)
@@ -119,7 +123,7 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
     override = raw.get("override", {})
     if override and not override.get("reason"):
         raise ValueError(f"{where}: model {raw['id']!r} overrides without a reason")
-    expect = _expectations(raw, where)
+    expect, scoped = _expectations(raw, where)
     fault = raw.get("fault")
     if fault is not None and fault not in FAULTS:
         raise ValueError(f"{where}: model {raw['id']!r} fault must be one of {FAULTS}")
@@ -132,20 +136,34 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
         settings={k: dict(v) for k, v in override.get("settings", {}).items()},
         override_reason=str(override.get("reason", "")),
         expect=expect,
+        scoped=scoped,
         fault=fault,
         base_dir=base_dir,
     )
 
 
-def _expectations(raw: dict, where: str) -> dict[str, Expectation]:
-    """A model entry's expectations by tier; `maniskill` inherits the `actuated` one unless it has its own."""
-    expect = {}
+def _expectations(raw: dict, where: str) -> tuple[dict[str, Expectation], tuple[Expectation, ...]]:
+    """A model entry's expectations by tier, and those that scope a tier again to other seeds (every one of a
+    tier's expectations then names its seeds, none shared); `maniskill` inherits the `actuated` one unless it has
+    its own."""
+    expect: dict[str, Expectation] = {}
+    scoped: list[Expectation] = []
     for exp in raw.get("expect", []):
-        expect[exp.get("tier")] = _expectation(exp, raw["id"], where)
+        found = _expectation(exp, raw["id"], where)
+        earlier = [e for e in (expect.get(found.tier), *scoped) if e is not None and e.tier == found.tier]
+        if not earlier:
+            expect[found.tier] = found
+            continue
+        if not found.seeds or any(not e.seeds or set(e.seeds) & set(found.seeds) for e in earlier):
+            raise ValueError(
+                f"{where}: model {raw['id']!r} tier {found.tier!r} is expected twice: a tier's expectations must "
+                "each name their seeds, none shared"
+            )
+        scoped.append(found)
     if "actuated" in expect and "maniskill" not in expect:  # the same rollout through ManiSkill: the same known gap
         known = expect["actuated"]
         expect["maniskill"] = replace(known, tier="maniskill", reason=f"as actuated: {known.reason}", passes_without=())
-    return expect
+    return expect, tuple(scoped)
 
 
 def _expectation(exp: dict, model_id: object, where: str) -> Expectation:

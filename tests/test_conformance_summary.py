@@ -267,14 +267,14 @@ def test_the_worse_section_says_which_metric_and_why():
     assert "- ant/contact: fail (expected pass): final_pose_band 0.12" in summary.markdown(doc, ["contact"])
 
 
-def _swept_manifest(tmp_path, seeds_line: str, seen: str):
+def _swept_manifest(tmp_path, seeds_line: str, seen: str, more: str = ""):
     from conformance import manifest
 
     path = tmp_path / "m.toml"
     path.write_text(
         f'[[model]]\nid = "m"\nsource = "fixture:fixtures/pendulum.xml"\n[[model.expect]]\ntier = "dynamics"\n'
         f'outcome = "fail"\nmetric = "rollout_zero_qpos"\nseen = {seen}\n{seeds_line}'
-        'reason = "measured over seeds"\n'
+        f'reason = "measured over seeds"\n{more}'
     )
     return dataclasses.replace(manifest.load(path).models[0], tiers=("dynamics",))
 
@@ -286,6 +286,22 @@ def test_an_expectation_scoped_to_seeds_holds_only_there(tmp_path):
     assert [v.outcome for v in summary.judge(entry.at_seed(2), failing)] == ["expected-fail"]
     (v,) = summary.judge(entry.at_seed(0), failing)
     assert v.worse and v.expected == "pass"
+
+
+def test_a_tier_expected_differently_at_other_seeds_takes_each_seeds_own(tmp_path):
+    """Chaotic at seed 0, a failure at seeds 1 and 2: each seed judged against its own; a tier expected twice
+    without disjoint seeds is refused."""
+    chaotic = '[[model.expect]]\ntier = "dynamics"\noutcome = "chaotic"\nseeds = [0]\nreason = "spread"\n'
+    entry = _swept_manifest(tmp_path, "seeds = [1, 2]\n", "0.2", chaotic)
+    failing, unpredictable = _result("ok", SEEN, dynamics="fail"), _result("ok", SEEN, dynamics="chaotic")
+    (v,) = summary.judge(entry.at_seed(0), unpredictable)
+    assert (v.outcome, v.expected, v.worse) == ("chaotic", "chaotic", False)
+    assert [v.outcome for v in summary.judge(entry.at_seed(1), failing)] == ["expected-fail"]
+    (v,) = summary.judge(entry.at_seed(3), failing)
+    assert v.worse and v.expected == "pass"
+    for overlapping in ("seeds = [0, 1]\n", ""):
+        with pytest.raises(ValueError, match="expected twice"):
+            _swept_manifest(tmp_path, overlapping, "0.2", chaotic)
 
 
 def test_a_range_seen_over_seeds_bands_from_its_low_to_its_high(tmp_path):

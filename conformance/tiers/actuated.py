@@ -43,6 +43,7 @@ from .rollouts import (
     settings_metric,
     settings_mismatches,
     settle_trace,
+    settled_verdict,
 )
 
 
@@ -401,18 +402,13 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
         metric("final_pose_band", poses.band, tolerances["actuated_contact.final_pose_band"], "m"),
         metric("rest_height", poses.rest, tolerances["actuated_contact.rest_height"], "m"),
     ]
-    notes = removal + _ctrl_notes(scale, left, steps, smooth=False)
-    limit = tolerances.setting("contact", "spread_fraction") * tolerances["actuated_contact.final_pose_band"]
-    chaotic = bool(spread.size and spread.max() > limit)
-    if chaotic:
-        notes.append(
-            f"MuJoCo's own settled pose moves {spread.max():.3g} m under a {size:g} perturbation of the "
-            "start: outcome not predictable"
-        )
+    band = tolerances["actuated_contact.final_pose_band"]
+    status, why = settled_verdict(metrics, spread, band, tolerances, diverged)
+    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why
     time = np.arange(steps + 1) * dt
     return TierReport(
         "actuated_contact",
-        verdict(metrics, chaotic, diverged),
+        status,
         metrics,
         notes,
         divergence=diverged,

@@ -12,9 +12,9 @@ import numpy as np
 
 from .. import chaos, reference, sapien_side
 from ..divergence import SpeedBound, first_divergence
-from ..report import TierReport, metric, skipped, verdict
+from ..report import TierReport, metric, skipped
 from ..tolerances import Tolerances
-from .rollouts import carried, compare_settled, sapien_rollout, settle_trace
+from .rollouts import carried, compare_settled, sapien_rollout, settle_trace, settled_verdict
 
 
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -46,20 +46,11 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
         metric("final_pose_band", poses.band, tolerances["contact.final_pose_band"], "m"),
         metric("rest_height", poses.rest, tolerances["contact.rest_height"], "m"),
     ]
-    notes = []
     spread = poses.spread
-    chaotic = (
-        spread.size
-        and spread.max() > tolerances.setting("contact", "spread_fraction") * tolerances["contact.final_pose_band"]
-    )
-    if chaotic:
-        notes.append(
-            f"MuJoCo's own settled pose moves {spread.max():.3g} m under a "
-            f"{tolerances.setting('contact', 'perturbation'):g} perturbation: outcome not predictable"
-        )
+    status, notes = settled_verdict(metrics, spread, tolerances["contact.final_pose_band"], tolerances, diverged)
     return TierReport(
         "contact",
-        verdict(metrics, bool(chaotic), diverged),
+        status,
         metrics,
         notes,
         divergence=diverged,

@@ -11,7 +11,7 @@ import numpy as np
 from loader.model.joints import mujoco_coordinates
 
 from .. import reference, sapien_side
-from ..report import Metric, Trace
+from ..report import Metric, Trace, verdict
 
 
 def is_floating(model: mujoco.MjModel) -> bool:
@@ -111,3 +111,31 @@ def compare_settled(
         spread=np.linalg.norm(own[bodies] - mj_final[bodies], axis=1),
         series=np.nanmax(np.linalg.norm(poses[:, bodies, :3] - mujoco_poses[:, bodies, :3], axis=2), axis=1),
     )
+
+
+def settled_verdict(
+    metrics: list[Metric], spread: np.ndarray, band: float, tolerances, divergence
+) -> tuple[str, list[str]]:
+    """The contact tiers' one rule for a settled pose, and its note. MuJoCo's own spread (its settled bodies moved
+    by a perturbation of the start, `contact.perturbation`) decides first: at `contact.spread_fraction` of the
+    final-pose band (`band`) or more, the outcome is `chaotic` whatever SAPIEN's deviation, since MuJoCo cannot
+    predict itself there. Below it, a metric past its tolerance is a `fail`, and such a deviation then exceeds
+    MuJoCo's own spread by at least 1 / spread_fraction; a divergence outranks both
+    (tests/test_tiers_contact.py::test_a_settled_verdict_is_chaotic_by_mujocos_spread_and_fails_only_beyond_it)."""
+    fraction, size = tolerances.setting("contact", "spread_fraction"), tolerances.setting("contact", "perturbation")
+    worst = float(spread.max(initial=0.0))
+    status = verdict(metrics, False, divergence)
+    deviation = next((m.max for m in metrics if m.name == "final_pose_band"), 0.0)
+    if worst >= fraction * band and status != "diverged":
+        why = (
+            f"MuJoCo's own settled pose moves {worst:.3g} m under a {size:g} perturbation of the start, at least "
+            f"{fraction:g} of the {band:g} m band: chaotic whatever SAPIEN's deviation ({deviation:.3g} m)"
+        )
+        return "chaotic", [why]
+    if status == "fail":
+        why = (
+            f"SAPIEN's settled pose is {deviation:.3g} m from MuJoCo's, where MuJoCo's own spread is {worst:.3g} m "
+            f"(below {fraction:g} of the band)"
+        )
+        return status, [why]
+    return status, []

@@ -1,0 +1,50 @@
+"""The contact tiers' verdict on a settled pose: MuJoCo's own spread first, then the tolerance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conformance import tolerances as tolerance_file
+from conformance.divergence import Divergence
+from conformance.report import metric
+from conformance.tiers.rollouts import settled_verdict
+
+TOLERANCES = tolerance_file.load()
+BAND = TOLERANCES["contact.final_pose_band"]
+SHARE = TOLERANCES.setting("contact", "spread_fraction") * BAND  # MuJoCo's spread from which nothing is predictable
+
+
+def _metrics(deviation: float) -> list:
+    return [metric("final_pose_band", [deviation], BAND, "m"), metric("rest_height", [0.0], 1.0, "m")]
+
+
+@pytest.mark.parametrize(
+    "deviation,spread,status",
+    [
+        (2.0 * BAND, SHARE, "chaotic"),  # MuJoCo's spread at the share: chaotic whatever ours
+        (0.5 * BAND, SHARE, "chaotic"),
+        (2.0 * BAND, 0.99 * SHARE, "fail"),  # just below it, a deviation past the band fails
+        (0.99 * BAND, 0.99 * SHARE, "pass"),
+        (1.01 * BAND, 0.0, "fail"),
+    ],
+)
+def test_a_settled_verdict_is_chaotic_by_mujocos_spread_and_fails_only_beyond_it(deviation, spread, status):
+    found, notes = settled_verdict(_metrics(deviation), np.array([0.0, spread]), BAND, TOLERANCES, None)
+    assert found == status
+    if status == "chaotic":
+        said = (
+            f"MuJoCo's own settled pose moves {spread:.3g} m under a 0.001 perturbation of the start, at least "
+            f"0.5 of the {BAND:g} m band: chaotic whatever SAPIEN's deviation ({deviation:.3g} m)"
+        )
+        assert notes == [said]
+    elif status == "fail":  # a failure exceeds the tolerance and, by the share's inverse, MuJoCo's own spread
+        assert deviation > BAND and deviation >= 2.0 * spread and "MuJoCo's own spread is" in notes[0]
+    else:
+        assert notes == []
+
+
+def test_a_divergence_outranks_mujocos_spread():
+    divergence = Divergence("settle", 3, 0.006, "a speed of 1e9 m/s")
+    found, _ = settled_verdict(_metrics(0.0), np.array([SHARE * 4]), BAND, TOLERANCES, divergence)
+    assert found == "diverged"
