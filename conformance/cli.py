@@ -198,11 +198,13 @@ def parser() -> argparse.ArgumentParser:
     bench.add_argument("--repeats", type=int, default=5, help="loads and compiles per model, cold and warm (median)")
     made = sub.add_parser(
         "table",
-        help="README's results table from a run (its folder or summary.json); --check FILE: exit 1 where FILE's "
-        "table is not the run's",
+        help="README's results table from runs (their folders or summary.json files; a row each, named after the "
+        "loader the run judged); --check FILE: exit 1 where FILE's table is not the runs'",
         formatter_class=defaults,
     )
-    made.add_argument("run", nargs="?", default=str(Path("reports") / "latest"), help="a run folder or summary.json")
+    made.add_argument(
+        "runs", nargs="*", default=[str(Path("reports") / "latest")], help="run folders or summary.json files"
+    )
     made.add_argument("--check", default=None, help="a document holding the table (README.md)")
     where = sub.add_parser(
         "where",
@@ -392,15 +394,15 @@ def cmd_table(args) -> int:
     """Print the run's table, or check a document's against it (exit 1 where it differs)."""
     from . import table
 
-    summary = table.load_summary(Path(args.run))
+    summaries = [table.load_summary(Path(run)) for run in args.runs]
     if args.check is None:
-        print(table.table(summary))
+        print(table.table(*summaries))
         return 0
-    problem = table.check(summary, Path(args.check))
+    problem = table.check(summaries, Path(args.check))
     if problem:
         print(problem, file=sys.stderr)
         return 1
-    print(f"{args.check}: the results table is the run's")
+    print(f"{args.check}: the results table is the runs'")
     return 0
 
 

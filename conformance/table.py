@@ -30,14 +30,23 @@ def counts(summary: dict) -> dict[str, tuple[int, int]]:
     return {tier: (passed, judged) for tier, (passed, judged) in out.items()}
 
 
-def table(summary: dict) -> str:
-    """The markdown table, between its markers."""
-    numbers = counts(summary)
-    seed = summary.get("seed", 0)
-    head = f"| {len(summary['models'])} models, seed {seed}: pass / judged | " + " | ".join(COUNTED) + " |"
+ROWS = {"ours": "this loader (`set_ctrl`)", "physx": "PhysX alone (PD modes, GPU)", "maniskill": "ManiSkill's loader"}
+
+
+def row(summary: dict) -> str:
+    """One run's row, named after the loader it judged (`run --loader`; this project's when the run names none)."""
+    label = ROWS.get(summary.get("loader", "ours"), summary.get("loader", "ours"))
+    return f"| {label} | " + " | ".join(f"{p}/{j}" for p, j in counts(summary).values()) + " |"
+
+
+def table(*summaries: dict) -> str:
+    """The markdown table, between its markers: one row per run, in the order given."""
+    first = summaries[0]
+    head = (
+        f"| {len(first['models'])} models, seed {first.get('seed', 0)}: pass / judged | " + " | ".join(COUNTED) + " |"
+    )
     rule = "|---" * (len(COUNTED) + 1) + "|"
-    row = "| this loader | " + " | ".join(f"{p}/{j}" for p, j in numbers.values()) + " |"
-    return f"{BEGIN}\n{head}\n{rule}\n{row}\n{END}"
+    return "\n".join([BEGIN, head, rule, *(row(s) for s in summaries), END])
 
 
 def embedded(text: str) -> str | None:
@@ -48,14 +57,14 @@ def embedded(text: str) -> str | None:
     return text[start : text.index(END, start) + len(END)]
 
 
-def check(summary: dict, document: Path) -> str | None:
-    """None where `document` holds the run's table, else what to do."""
-    made, held = table(summary), embedded(document.read_text())
+def check(summaries: list[dict], document: Path) -> str | None:
+    """None where `document` holds the runs' table, else what to do."""
+    made, held = table(*summaries), embedded(document.read_text())
     if held == made:
         return None
     if held is None:
         return f"{document} has no results table between {BEGIN!r} and {END!r}"
-    return f"{document}'s results table is not this run's; replace it with:\n{made}"
+    return f"{document}'s results table is not these runs'; replace it with:\n{made}"
 
 
 def load_summary(run: Path) -> dict:

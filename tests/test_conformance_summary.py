@@ -338,12 +338,19 @@ def test_the_readme_table_is_made_from_a_run_and_checked(tmp_path):
     numbers = table.counts(doc)
     assert numbers["structure"] == (3, 4) and numbers["contact"] == (0, 2) and numbers["dynamics"] == (0, 2)
     readme = tmp_path / "README.md"
-    readme.write_text(f"# r\n\n{table.table(doc)}\n\nmore\n")
-    assert table.check(doc, readme) is None
+    physx = {**doc, "loader": "physx", "models": doc["models"][:1]}  # PhysX alone: a row of its own
+    made = table.table(doc, physx)
+    assert made.splitlines()[3:5] == [
+        "| this loader (`set_ctrl`) | 3/4 | 0/1 | 0/1 | 0/1 | 0/2 | 0/1 | 0/1 | 0/2 |",
+        "| PhysX alone (PD modes, GPU) | 1/1 | 0/0 | 0/0 | 0/0 | 0/1 | 0/0 | 0/0 | 0/0 |",
+    ]
+    readme.write_text(f"# r\n\n{made}\n\nmore\n")
+    assert table.check([doc, physx], readme) is None
+    assert "is not these runs'" in table.check([doc], readme)  # a row missing
     readme.write_text(readme.read_text().replace("3/4", "4/4"))
-    assert "is not this run's; replace it with:" in table.check(doc, readme)
+    assert "is not these runs'; replace it with:" in table.check([doc, physx], readme)
     readme.write_text("# r\n")
-    assert "has no results table" in table.check(doc, readme)
+    assert "has no results table" in table.check([doc], readme)
 
 
 def test_a_reason_naming_unmapped_elements_is_checked_against_the_notes():
