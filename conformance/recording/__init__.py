@@ -94,7 +94,10 @@ def write_recording(
     shown += f", contacts {'on' if motion.contact else 'off'}"
     if trace is not None:
         shown += f"; red arrows: SAPIEN's bodies off MuJoCo's x{scale}"
-    layout = Layout(f"MuJoCo (grey), SAPIEN (orange lines): {shown}", eye=scene.eye(box))
+    span = float(motion.time[-1]) if motion.time is not None else None
+    layout = Layout(
+        f"MuJoCo (grey), SAPIEN (orange lines): {shown}", eye=scene.eye(geometry.start_box(model, motion)), span=span
+    )
     tmp = path.with_name(f".{path.name}.partial")  # the runner removes it if the worker dies
     rec.save(tmp)
     rec.send_recording_name(f"{name} (seed {meta.get('seed')}, {path.parent.name})")

@@ -17,7 +17,7 @@ import sapien
 from .. import sapien_side
 from . import meshes
 from .paths import body_path, link_path, part
-from .poses import Motion, geom_local, geom_world, rotate, xyzw
+from .poses import Motion, compose, geom_local, geom_world, rotate, xyzw
 from .timeline import times
 
 MUJOCO_COLOR = [150, 170, 200, 255]
@@ -32,11 +32,15 @@ def drawn(model: mujoco.MjModel, g: int, visual: bool) -> bool:
     return visual or bool(model.geom_contype[g] or model.geom_conaffinity[g])
 
 
-def bounding_box(model: mujoco.MjModel, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """The box the robot's geoms' bounding spheres stay in along the motion: the geoms on bodies (the world's
-    terrain and walls are scenery), else every non-plane geom, else the bodies."""
+def _robot_geoms(model: mujoco.MjModel) -> list[int]:
+    """The geoms on bodies (the world's terrain and walls are scenery), else every geom but planes."""
     solid = [g for g in range(model.ngeom) if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE]
-    geoms = [g for g in solid if model.geom_bodyid[g] != 0] or solid
+    return [g for g in solid if model.geom_bodyid[g] != 0] or solid
+
+
+def bounding_box(model: mujoco.MjModel, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """The box the robot's geoms' bounding spheres stay in along the motion (`_robot_geoms`, else the bodies)."""
+    geoms = _robot_geoms(model)
     if geoms:
         centers = np.stack([geom_world(model, motion, g)[:, :3] for g in geoms], axis=1)  # (T, G, 3)
         radius = model.geom_rbound[geoms][None, :, None]
@@ -45,6 +49,25 @@ def bounding_box(model: mujoco.MjModel, motion: Motion) -> tuple[np.ndarray, np.
         points = motion.mujoco_body_pose[:, :, :3].reshape(-1, 3)
         lo, hi = np.nanmin(points, axis=0), np.nanmax(points, axis=0)
     return lo, hi
+
+
+_SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+
+
+def start_box(model: mujoco.MjModel, motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """The box around the robot (`_robot_geoms`, else the bodies' origins) at the motion's first sample, the pose
+    the 3D view opens on: the corners of each geom's own box (MuJoCo's `geom_aabb`, in the geom's frame) in the
+    world. Tighter than `bounding_box`'s spheres, so that the camera frames the robot, not the room around it."""
+    geoms = _robot_geoms(model)
+    if not geoms:
+        points = motion.mujoco_body_pose[0, :, :3]
+    else:
+        aabb = model.geom_aabb[geoms]  # (G, 6): center, half sizes
+        local = aabb[:, None, :3] + aabb[:, None, 3:] * _SIGNS  # (G, 8, 3)
+        frames = np.concatenate([model.geom_pos[geoms], model.geom_quat[geoms]], axis=1)  # in their bodies
+        poses = compose(motion.mujoco_body_pose[0, model.geom_bodyid[geoms]], frames)  # (G, 7) in the world
+        points = (poses[:, None, :3] + rotate(poses[:, None, 3:], local)).reshape(-1, 3)
+    return np.nanmin(points, axis=0), np.nanmax(points, axis=0)
 
 
 def fitted_rectangle(world: np.ndarray, axes: tuple[int, int], limit: np.ndarray, box) -> tuple[np.ndarray, np.ndarray]:

@@ -24,6 +24,9 @@ DEVIATION_COLOR = [220, 30, 30, 255]
 DEVIATION_SHARE = 0.05  # the magnified largest deviation reaches at least this fraction of the box's diagonal
 MAX_MAGNIFICATION = 1000  # a 1 mm deviation draws 1 m long; float32 noise (~1e-7 m) stays out of sight
 EYE_DIRECTION = np.array([1.0, -1.6, 0.7])  # from the box's center: front-right and above, Z up
+FOV_Y = math.radians(55.0)  # the vertical field of view of Rerun's 3D view (its `Eye::DEFAULT_FOV_Y`)
+FILL = 0.9  # the share of the view's height (from its center out) the robot's box may span
+MIN_DISTANCE = 0.02  # metres from the center at least: a box of no size (one body, no geom) still gets an eye off it
 
 
 def _transforms(rec: rr.RecordingStream, path: str, motion: Motion, pose: np.ndarray) -> None:
@@ -79,9 +82,18 @@ def log_deviation(rec: rr.RecordingStream, motion: Motion, scale: int) -> None:
 
 
 def eye(box) -> rrb.EyeControls3D:
-    """An orbit camera on the box's center, far enough out to see all of it."""
-    lo, hi = box
+    """An orbit camera on the box's center from EYE_DIRECTION, as close as lets every corner of the box show within
+    FILL of the view's half height from its center (and as much sideways: the view is at least as wide as high),
+    at Rerun's vertical field of view. The distance follows the box, so a gripper and a humanoid alike fill most of
+    the view (`tests/test_rerun_recording.py::test_the_camera_frames_the_robot_whatever_its_size`)."""
+    lo, hi = (np.asarray(v, dtype=float) for v in box)
     center = (lo + hi) / 2
-    reach = max(float(np.linalg.norm(hi - lo)), 0.1) * 1.2
-    position = center + EYE_DIRECTION / np.linalg.norm(EYE_DIRECTION) * reach
-    return rrb.EyeControls3D(position=position, look_target=center, eye_up=[0.0, 0.0, 1.0])
+    back = EYE_DIRECTION / np.linalg.norm(EYE_DIRECTION)  # from the center towards the eye
+    right = np.cross(-back, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]) - center
+    sideways = np.maximum(np.abs(corners @ right), np.abs(corners @ up))
+    reach = math.tan(FOV_Y / 2) * FILL  # half the view's height at depth 1, the share the box may take
+    distance = max(float(np.max(corners @ back + sideways / reach)), MIN_DISTANCE)
+    return rrb.EyeControls3D(position=center + back * distance, look_target=center, eye_up=[0.0, 0.0, 1.0])

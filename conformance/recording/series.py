@@ -8,6 +8,8 @@ plotted divided by its metric's tolerance, so 1 is the tolerance whatever the un
 
 from __future__ import annotations
 
+import itertools
+
 import mujoco
 import numpy as np
 import rerun as rr
@@ -37,16 +39,17 @@ def _tree(model: mujoco.MjModel) -> tuple[dict[int, list[int]], dict[int, list[i
 def joint_groups(model: mujoco.MjModel) -> list[tuple[str, list[int]]]:
     """(group name, joints): a subtree of at most GROUP_SIZE joints is one group (a finger, a leg); a larger one
     gives its chain down to the first branching as one group (split evenly into plots of at most GROUP_SIZE) and
-    recurses into the branches. Named after the subtree's (or chain's) first body."""
+    recurses into the branches. A group is named after the bodies that carry its joints (`group_name`), so the
+    name says which part of the robot it is, not only where its subtree starts
+    (`tests/test_rerun_recording.py::test_groups_are_named_after_the_bodies_they_span`)."""
     children, joints = _tree(model)
 
     def count(b: int) -> int:
         return len(joints.get(b, [])) + sum(count(c) for c in children.get(b, []))
 
-    out: list[tuple[str, list[int]]] = []
+    out: list[list[int]] = []
 
     def visit(b: int) -> None:
-        name = name_of(model, mujoco.mjtObj.mjOBJ_BODY, b, "body")
         if count(b) <= GROUP_SIZE:
             subtree, stack = [], [b]
             while stack:
@@ -54,19 +57,45 @@ def joint_groups(model: mujoco.MjModel) -> list[tuple[str, list[int]]]:
                 subtree += joints.get(body, [])
                 stack += reversed(children.get(body, []))
             if subtree:
-                out.append((name, sorted(subtree)))
+                out.append(sorted(subtree))
             return
         chain, body = list(joints.get(b, [])), b
         while len(children.get(body, [])) == 1:
             body = children[body][0]
             chain += joints.get(body, [])
-        out.extend(_split(name, chain) if chain else [])
+        out.extend(_pieces(chain) if chain else [])
         for child in children.get(body, []):
             visit(child)
 
     for root in children.get(0, []):
         visit(root)
+    return [(group_name(model, members), members) for members in out]
+
+
+def _lineage(model: mujoco.MjModel, b: int) -> list[int]:
+    """b and its ancestors up to the world, deepest first."""
+    out = [b]
+    while out[-1] != 0:
+        out.append(int(model.body_parentid[out[-1]]))
     return out
+
+
+def group_name(model: mujoco.MjModel, joints: list[int]) -> str:
+    """The bodies carrying `joints`: one body by its name, a path down the tree as `<first> to <last>` (an arm's
+    `link1 to link7`), a branching subtree as `<its top> and its <n> branches` (a gripper's fingers)."""
+    bodies = sorted({int(model.jnt_bodyid[j]) for j in joints})  # MuJoCo numbers a parent before its children
+
+    def name(b: int) -> str:
+        return name_of(model, mujoco.mjtObj.mjOBJ_BODY, b, "body")
+
+    if len(bodies) == 1:
+        return name(bodies[0])
+    lineages = {b: _lineage(model, b) for b in bodies}
+    if all(a in lineages[b] for a, b in itertools.pairwise(bodies)):
+        return f"{name(bodies[0])} to {name(bodies[-1])}"
+    top = max(set.intersection(*(set(line) for line in lineages.values())))
+    leaves = [b for b in bodies if not any(b in lineages[other] for other in bodies if other != b)]
+    return f"{name(top)} and its {len(leaves)} branches"
 
 
 def _columns(model: mujoco.MjModel, joints: list[int], adr, count, labels=("x", "y", "z", "rx", "ry", "rz")):
@@ -119,15 +148,30 @@ def log_joints(rec: rr.RecordingStream, model: mujoco.MjModel, trace: Trace) -> 
     return [g for g, _ in groups], positioned, commanded
 
 
+def _pieces(members: list[int]) -> list[list[int]]:
+    """`members` split evenly into pieces of at most GROUP_SIZE."""
+    return [[int(i) for i in p] for p in np.array_split(members, -(-len(members) // GROUP_SIZE))]
+
+
 def _split(name: str, members: list[int]) -> list[tuple[str, list[int]]]:
     """One group, split evenly into plots of at most GROUP_SIZE, numbered when split."""
-    pieces = [[int(i) for i in p] for p in np.array_split(members, -(-len(members) // GROUP_SIZE))]
+    pieces = _pieces(members)
     return [(name if len(pieces) == 1 else f"{name} {k + 1}", p) for k, p in enumerate(pieces)]
+
+
+def _transmission(model: mujoco.MjModel, a: int) -> str:
+    """The group of an actuator on no joint, named after what drives it: `tendon actuators`, `site actuators`,
+    `body actuators`, ...; `actuators unknown to MuJoCo` for a name the model lacks."""
+    if a < 0:
+        return "actuators unknown to MuJoCo"
+    kind = mujoco.mjtTrn(int(model.actuator_trntype[a])).name.removeprefix("mjTRN_").lower()
+    return f"{kind} actuators"
 
 
 def actuator_groups(model: mujoco.MjModel, names: list[str]) -> list[tuple[str, list[int]]]:
     """(group name, rows of `names`): an actuator on a joint goes with its joint's group (`joint_groups`), others
-    (tendons, sites, bodies, or a name MuJoCo does not know) into `other`."""
+    into a group per transmission kind (`_transmission`), so no group is an unnamed `other`
+    (`tests/test_rerun_recording.py::test_groups_are_named_after_the_bodies_they_span`)."""
     of_joint = {j: g for g, joints in joint_groups(model) for j in joints}
     on_joint = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
     groups: dict[str, list[int]] = {}
@@ -136,7 +180,8 @@ def actuator_groups(model: mujoco.MjModel, names: list[str]) -> list[tuple[str, 
         if a < 0 and len(names) == model.nu:
             a = row
         joint = int(model.actuator_trnid[a, 0]) if a >= 0 and int(model.actuator_trntype[a]) in on_joint else -1
-        groups.setdefault(of_joint.get(joint, "other"), []).append(row)
+        group = of_joint[joint] if joint in of_joint else _transmission(model, a)
+        groups.setdefault(group, []).append(row)
     return [piece for name, rows in groups.items() for piece in _split(name, rows)]
 
 
