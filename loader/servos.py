@@ -125,8 +125,8 @@ def derive(result) -> list[Servo]:
     for a, act in enumerate(result.actuators):
         b0, b1, b2 = act.bias
         kind = "position" if b1 < 0 else "velocity" if b1 == 0 and b2 < 0 else None
-        if not act.mapped or act.dynamics != "none" or kind is None or act.gain <= 0:
-            continue
+        if not act.mapped or act.moment or act.dynamics != "none" or kind is None or act.gain <= 0:
+            continue  # a site's or slider-crank's moment changes with the pose: no drive holds it
         gain_of = -b1 if kind == "position" else -b2  # what turns the target into force
         trn = int(model.actuator_trnid[a, 0])
         if act.joint is None and kind == "velocity":

@@ -60,6 +60,16 @@ def _range(model_limited, model_range) -> tuple[float, float] | None:
     return (float(model_range[0]), float(model_range[1])) if model_limited else None
 
 
+def _not_a_drive(entry, name: str) -> tuple[bool, str]:
+    """(a mismatch?, what to say) of an actuator MuJoCo does not make a hinge/slide drive: one whose moment changes
+    with the pose is the dynamic tiers' to judge; another must be unmapped."""
+    if entry.moment:
+        return False, "actuators: a site, slider-crank or free-joint transmission (judged by the rollouts)"
+    if entry.mapped:
+        return True, f"actuator {name!r}: mapped although MuJoCo's actuator is not a joint drive"
+    return False, f"actuators: not a hinge/slide drive ({entry.reason.split(':')[0]})"
+
+
 def actuator_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], list[str], int]:
     """(mismatches, skipped, checked) of `result.actuators` against the compiled actuators."""
     actuators = result.actuators
@@ -71,10 +81,8 @@ def actuator_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], list[
     for a, entry in enumerate(actuators):
         name = model.actuator(a).name or f"actuator{a}"
         if not _mappable(model, a):
-            if entry.mapped:
-                out.append(f"actuator {name!r}: mapped although MuJoCo's actuator is not a joint drive")
-            else:
-                skipped.append(f"actuators: not a hinge/slide drive ({entry.reason.split(':')[0]})")
+            wrong, why = _not_a_drive(entry, name)
+            (out if wrong else skipped).append(why)
             continue
         if not entry.mapped:
             out.append(f"actuator {name!r}: not mapped ({entry.reason}) although it is a hinge/slide drive")

@@ -3,7 +3,8 @@ with no armature and tiny damping on every joint), joints started past their end
 rows act together), ranges left open at one end or both (`inf`), tiny and zero inertias (dummy links, welded sensor
 frames), gripper fingers coupled by a joint equality under position servos, a floating base and a tossed free object
 whose free joints carry damping and armature (the base's frictionloss too), and MuJoCo Playground's solver setting of
-one iteration."""
+one iteration; actuators on a site at the arm's tip (a wrench, or a servo on the tip's offset from a reference site)
+and on the floating base's free joint."""
 
 from __future__ import annotations
 
@@ -62,6 +63,26 @@ def _free_joint(draw, frictional: bool = False) -> str:
 
 
 @st.composite
+def _transmissions(draw, floating: bool) -> list[str]:
+    """Actuators whose moment MuJoCo computes, each present a third of the time: a motor's wrench at the tip, a
+    servo on the tip's offset along one axis of the reference site, and on a floating base a force and torque on
+    its free joint."""
+    out = []
+    if draw(st.integers(0, 2)) == 0:
+        gear = [draw(st.floats(-1, 1)) for _ in range(3)] + [draw(st.floats(-0.05, 0.05)) for _ in range(3)]
+        out.append(f'<motor site="tip" gear="{" ".join(_f(g) for g in gear)}" ctrlrange="-1 1"/>')
+    if draw(st.integers(0, 2)) == 0:
+        kp, axis = draw(st.floats(1.0, 50.0)), draw(st.sampled_from(["1 0 0", "0 1 0", "0 0 1"]))
+        out.append(
+            f'<position site="tip" refsite="reference" gear="{axis} 0 0 0" kp="{_f(kp)}" '
+            f'kv="{_f(draw(st.floats(0, 0.1)) * kp)}" ctrlrange="-.2 .2"/>'
+        )
+    if floating and draw(st.integers(0, 2)) == 0:
+        out.append(f'<motor joint="base" gear="0 0 {_f(draw(st.floats(1, 20)))} 0 0 .1" ctrlrange="-1 1"/>')
+    return out
+
+
+@st.composite
 def robot_classes(draw) -> RawDocument:
     """An arm of 2-5 links (hinges, some slides) with the classes above, a keyframe that starts 1-3 joints past
     their ends, position servos and motors, and optionally a two-finger gripper coupled by a joint equality."""
@@ -79,7 +100,7 @@ def robot_classes(draw) -> RawDocument:
             '<body name="right"><joint name="right" type="slide" axis="0 -1 0" range="0 .04" damping=".1"/>'
             '<geom type="box" size=".01 .01 .03" pos="0 -.02 0" mass=".02"/></body></body>'
         )
-    body += "</body>" * count
+    body += '<site name="tip" pos=".1 0 0"/>' + "</body>" * count
     floating = draw(st.booleans())  # the arm on a floating base, its free joint damped
     if floating:
         body = (
@@ -112,6 +133,7 @@ def robot_classes(draw) -> RawDocument:
             )
         elif draw(st.booleans()):
             actuators.append(f'<motor joint="{name}" gear="{_f(draw(st.floats(1, 50)))}" ctrlrange="-1 1"/>')
+    actuators += draw(_transmissions(floating))
     equality = ""
     if gripper:
         qpos += [0.02, 0.02]
@@ -131,6 +153,7 @@ def robot_classes(draw) -> RawDocument:
     solver = ' iterations="1" ls_iterations="5"' if draw(st.integers(0, 3)) == 0 else ""  # Playground's setting
     xml = (
         f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"{solver}/>'
-        f"<worldbody>{body}</worldbody><actuator>{''.join(actuators)}</actuator>{equality}{key}</mujoco>"
+        f'<worldbody><site name="reference" pos="0 .1 .8"/>{body}</worldbody>'
+        f"<actuator>{''.join(actuators)}</actuator>{equality}{key}</mujoco>"
     )
     return RawDocument(xml, label="robot class")

@@ -30,6 +30,7 @@ import numpy as np
 
 from loader.model.mj import fixed_tendon_terms
 from loader.runtime.tendons import TendonPaths
+from loader.runtime.transmissions import MomentPaths
 
 from .. import chaos, commands, reference, sapien_side
 from ..divergence import Divergence, SpeedBound, first_divergence, first_of
@@ -116,9 +117,13 @@ class ForceLaw:
         self.length = np.zeros((model.nu, model.nq))  # actuator length = length @ qpos
         self.speed = np.zeros((model.nu, model.nv))
         self.spatial: list[tuple[int, int, float]] = []  # (actuator, tendon, gear): lengths from MuJoCo's path
+        moments = []  # actuators whose length and moment MuJoCo's transmission gives
         for a, actuator in enumerate(result.actuators):
             if not actuator.mapped:  # SAPIEN applies nothing for it
                 self.gain[a], self.bias[a] = 0.0, 0.0
+                continue
+            if actuator.moment:
+                moments.append(a)
                 continue
             if actuator.joint is not None:
                 joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, actuator.joint)
@@ -135,6 +140,7 @@ class ForceLaw:
                 self.speed[a, model.jnt_dofadr[joint]] += actuator.gear * coefficient
 
         self.paths = TendonPaths(model, result.mapping, [t for _, t, _ in self.spatial]) if self.spatial else None
+        self.moments = MomentPaths(model, result.mapping, moments) if moments else None
 
     def __call__(self, ctrl, qpos, qvel) -> np.ndarray:
         length, speed = self.length @ qpos, self.speed @ qvel
@@ -143,6 +149,10 @@ class ForceLaw:
             for row, (a, _, gear) in enumerate(self.spatial):
                 length[a] = gear * lengths[row]
                 speed[a] = gear * (jacobian[row] @ qvel[self.paths.dofs])
+        if self.moments is not None:  # site, slider-crank and free-joint transmissions: MuJoCo's at this pose
+            lengths, moment = self.moments.measure(qpos)
+            length[self.moments.tendons] = lengths
+            speed[self.moments.tendons] = moment @ qvel[self.moments.dofs]
         force = self.gain * ctrl + self.bias[:, 0] + self.bias[:, 1] * length + self.bias[:, 2] * speed
         return np.clip(force, self.lo, self.hi)
 

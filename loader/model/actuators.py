@@ -14,6 +14,7 @@ MAPPED_DYNAMICS = {
     int(DYN.mjDYN_INTEGRATOR): "integrator",
 }
 SPATIAL: list = []  # the terms `map_actuator` gives an actuator on a spatial tendon (whose terms change with the pose)
+MOMENT: list = []  # ... and one whose length and moment MuJoCo's transmission computes each step (`ActuatorMap.moment`)
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,9 @@ class ActuatorMap:
     mapped: bool = True
     reason: str = ""
     dynamics: str = "none"  # "filter", "filterexact", "integrator": the gain multiplies the activation
+    # a site, slider-crank or free-joint transmission: its length and moment (gear inside, so `gear` is 1) are
+    # MuJoCo's at SAPIEN's state every step (`runtime/transmissions.py`)
+    moment: bool = False
 
     def unclamped(self, ctrl: float, length: float, velocity: float) -> float:
         """MuJoCo's actuator force law (before gear and before the forcerange clamp)."""

@@ -150,6 +150,17 @@ def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
     return dofs
 
 
+def transmission_dofs(model: mujoco.MjModel, actuator: int) -> set[int]:
+    """The DoFs an actuator's site, slider-crank or joint transmission can move: those moving its site (and its
+    reference or slider site: `body_dofs`), or its joint's own."""
+    trn, (first, second) = int(model.actuator_trntype[actuator]), (int(i) for i in model.actuator_trnid[actuator])
+    if trn in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
+        start = int(model.jnt_dofadr[first])
+        return set(range(start, start + {0: 6, 1: 3}.get(int(model.jnt_type[first]), 1)))
+    sites = [first] + ([second] if second >= 0 else [])
+    return set().union(*(body_dofs(model, int(model.site_bodyid[s])) for s in sites))
+
+
 def fixed_tendon_terms(model: mujoco.MjModel, tendon: int) -> list[tuple[int, float]]:
     """(MuJoCo joint id, coefficient) pairs of a fixed tendon, or [] for a spatial one."""
     start, count = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])

@@ -1,7 +1,8 @@
 """MuJoCo actuators as the loader maps them: one `ActuatorMap` per actuator, from the compiled model.
 
-A fixed-gain, affine-bias actuator (motor, position, velocity, general PD) on a hinge or slide joint or a tendon
-is mapped exactly; other dynamics, gains, biases and transmissions are listed as unsupported. The per-step
+A fixed-gain, affine-bias actuator (motor, position, velocity, general PD) on a hinge or slide joint, a tendon, a
+site, a slider-crank or a free joint is mapped exactly; other dynamics, gains, biases and transmissions (a body's,
+one across a ball joint) are listed as unsupported. The per-step
 force law is `runtime/actuators.py`. Derivation: docs/mapping.md#actuators.
 """
 
@@ -11,9 +12,9 @@ import mujoco
 import numpy as np
 
 from ..model import mj
-from ..model.actuators import MAPPED_DYNAMICS, SPATIAL, ActuatorMap
+from ..model.actuators import MAPPED_DYNAMICS, MOMENT, SPATIAL, ActuatorMap
 from ..model.joints import DRIVEN
-from ..model.mapping import Mapping
+from ..model.mapping import CARRIED, Mapping
 
 TRN, DYN, GAIN, BIAS = mujoco.mjtTrn, mujoco.mjtDyn, mujoco.mjtGain, mujoco.mjtBias
 
@@ -63,7 +64,10 @@ def map_actuator(
     base["gain"] = float(model.actuator_gainprm[a][0])
     base["dynamics"] = MAPPED_DYNAMICS.get(dyntype, "none")
     base["bias"] = (float(bias[0]), float(bias[1]), float(bias[2]))
-    if trn == int(TRN.mjTRN_JOINT):
+    jointed = trn in (int(TRN.mjTRN_JOINT), int(TRN.mjTRN_JOINTINPARENT))
+    if trn in MOMENT_TRANSMISSIONS or (jointed and mapping.joints[target].kind == "free"):
+        return _moment_actuator(model, mapping, a, base, bias)
+    if jointed:  # on a hinge or slide, jointinparent is joint
         joint = mapping.joints[target]
         if joint.kind not in DRIVEN:
             return ActuatorMap(**base, mapped=False, reason=f"drives a {joint.kind} joint"), None
@@ -97,6 +101,28 @@ def map_actuator(
         return ActuatorMap(**base, stiffness=float(-bias[1] * gear**2), damping=float(-bias[2] * gear**2)), mapped_terms
     kind = TRN(trn).name.removeprefix("mjTRN_").lower()
     return ActuatorMap(**base, mapped=False, reason=f"{kind} transmission is not mapped"), None
+
+
+MOMENT_TRANSMISSIONS = (int(TRN.mjTRN_SITE), int(TRN.mjTRN_SLIDERCRANK))
+
+
+def _moment_actuator(model: mujoco.MjModel, mapping: Mapping, a: int, base: dict, bias) -> tuple[ActuatorMap, list]:
+    """An actuator whose length and moment MuJoCo's transmission computes (a site, with or without a reference
+    site; a slider-crank; a joint or jointinparent transmission on a free joint): mapped where SAPIEN carries a
+    force on every DoF it can move (hinges, slides, a free joint's root), with gear 1, as MuJoCo's moment holds
+    the gear."""
+    dofs = sorted(mj.transmission_dofs(model, a))
+    joints = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
+    if any(j.kind not in CARRIED for j in joints):
+        return ActuatorMap(**base, mapped=False, reason="its transmission moves a ball joint"), None
+    hinges = [j for j in joints if j.kind in DRIVEN]
+    base.update(
+        gear=1.0,
+        dofs=tuple(j.dofs[0] for j in hinges),
+        articulation=joints[0].articulation if joints else None,
+        moment=True,
+    )
+    return ActuatorMap(**base, stiffness=float(-bias[1]), damping=float(-bias[2])), MOMENT
 
 
 def map_actuators(model: mujoco.MjModel, mapping: Mapping, notes) -> list[tuple[ActuatorMap, list | None]]:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import Notes
 from ..model import mj
-from ..model.actuators import SPATIAL, ActuatorMap
+from ..model.actuators import MOMENT, SPATIAL, ActuatorMap
 from ..model.drive import DofDrive
 from ..model.mapping import Mapping
 from .dof_step import DofKey, DofLayout, Step
@@ -225,12 +225,15 @@ class ActuatorTerm(Term):
     spatial_tendons: dict[int, int] = field(default_factory=dict)  # actuator -> its spatial tendon
     paths: TendonPaths | None = None  # those tendons' paths (`tendons.TendonPaths`)
     spatial: SpatialActuators | None = field(default=None, init=False, repr=False)  # `compile`'s
+    moment_actuators: list[int] = field(default_factory=list)  # actuators whose moment MuJoCo computes
+    moments: TendonPaths | None = None  # their paths (`transmissions.MomentPaths`)
+    moment: SpatialActuators | None = field(default=None, init=False, repr=False)  # `compile`'s
 
     name = "actuators"
 
     @property
     def applied(self) -> list | tuple:
-        return self.spatial.applied if self.spatial is not None else ()
+        return [wrench for along in (self.spatial, self.moment) if along is not None for wrench in along.applied]
 
     def compile(self, compilation: Compilation) -> None:
         """The arrays every step reads: the drive laws (rows stiffness, damping, constant, force limit), the joint
@@ -255,9 +258,16 @@ class ActuatorTerm(Term):
             if spatial and self.paths is not None
             else None
         )
-        if self.spatial is not None:
-            self.spatial.compile(layout)
-        self.idle = not len(self.joint) and self.tendons is None and self.spatial is None  # nothing mapped
+        moment = [a for a in self.moment_actuators if self.actuators[a].mapped]
+        self.moment = (
+            SpatialActuators(self.actuators, {a: a for a in moment}, self.moments, self.implicit_tendon_kv)
+            if moment and self.moments is not None
+            else None
+        )  # MuJoCo's actuator rows in place of tendon rows
+        for along in (self.spatial, self.moment):
+            if along is not None:
+                along.compile(layout)
+        self.idle = not len(self.joint) and self.tendons is None and self.spatial is None and self.moment is None
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
         self.kv_dofs = np.flatnonzero(self.kv)
 
@@ -281,6 +291,8 @@ class ActuatorTerm(Term):
             self.tendons.contribute(step)
         if self.spatial is not None:
             self.spatial.contribute(step)
+        if self.moment is not None:
+            self.moment.contribute(step)
         if step.explicit_kv:
             self.explicit_kv(free, step)
 
@@ -336,6 +348,10 @@ def plan_actuators(
         if terms is SPATIAL:
             term.spatial_tendons[a] = tendon = int(model.actuator_trnid[a][0])
             if entry.damping and len(mj.tendon_dofs(model, tendon)) > 1 and implicit:
+                notes.approximate("actuator", entry.name, COUPLED_DAMPING)
+        elif terms is MOMENT:
+            term.moment_actuators.append(a)
+            if entry.damping and len(mj.transmission_dofs(model, a)) > 1 and implicit:
                 notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         elif terms is not None:
             term.tendon_terms[a] = terms

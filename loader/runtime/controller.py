@@ -37,6 +37,7 @@ from .slides import SlideTerm, map_slides
 from .stiffness import StiffnessTerm
 from .tendons import TendonTerm, map_tendons, plan_paths, plan_spatial
 from .term import Compilation, Handover, Term
+from .transmissions import plan_moments
 
 STAGES = (
     "momentum",
@@ -350,6 +351,7 @@ def plan(
     activation = Activation(model, timestep=timestep) if dynamics else None
     tendons = map_tendons(model, mapping, notes)
     actuators.paths = paths = plan_paths(model, mapping, list(actuators.spatial_tendons.values()))
+    actuators.moments = plan_moments(model, mapping, actuators.moment_actuators)
     spatial = plan_spatial(model, mapping, notes, options.implicit, paths)
     fluid = plan_fluid(model, mapping, notes)
     gravcomp = map_gravcomp(model, mapping, articulations, notes)
