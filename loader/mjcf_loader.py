@@ -23,7 +23,7 @@ from .plan.actuators import map_actuators
 from .plan.builders import MJCFActorBuilder, MJCFArticulationBuilder
 from .plan.camera import CameraConfig, cameras, sites
 from .plan.compile import CompiledModel, compile_mjcf
-from .plan.contact import plan_collision_filter
+from .plan.contact import plan_collision_filter, plan_pairs
 from .plan.equalities import map_equalities
 from .plan.features import find_unmapped
 from .plan.geom import collides, plan_shape
@@ -184,6 +184,7 @@ def _shapes(model: mujoco.MjModel, tree: TreePlan, kept: list[int], static: set[
     shapes = {g: s for g, s in shapes.items() if s is not None}
     hulls.plan_sharing(shapes.values())
     contact_filter = plan_collision_filter(model, tree, {int(model.geom_bodyid[g]) for g in shapes}, static, notes)
+    plan_pairs(model, tree, contact_filter, set(shapes), static, notes)
     contact_off = mj.disabled(model, "contact", "constraint")
     for g, shape in shapes.items():
         shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)

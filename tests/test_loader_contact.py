@@ -164,3 +164,50 @@ def test_arms_started_inside_each_other_come_apart_as_slowly_as_in_mujoco(iterat
     paired = paired_rollout(result, model, mujoco.MjData(model), 100)
     within = paired.sapien_speed.max() <= JAMMED_SPEED[iterations] * paired.mujoco_speed.max()
     assert within == (cap == MAX_DEPENETRATION_VELOCITY), (paired.sapien_speed.max(), paired.mujoco_speed.max())
+
+
+PAIRS = """<mujoco><option timestep="0.002"/><worldbody>
+  <geom name="floor" type="plane" size="2 2 .1" contype="0" conaffinity="0"/>
+  <geom name="wall" type="box" size=".05 2 1" pos="-1 0 1" contype="0" conaffinity="0"/>
+  <body name="a" pos="0 0 .3"><freejoint/><geom name="ball" size=".1" contype="0" conaffinity="0"/></body>
+  <body name="b" pos=".5 0 .3"><freejoint/><geom name="box" type="box" size=".1 .1 .1" contype="0" conaffinity="0"/>
+    <body name="lid" pos="0 0 .2"><joint type="hinge" axis="1 0 0"/>
+      <geom name="lid" type="box" size=".1 .1 .02" contype="0" conaffinity="0"/></body></body>
+  <body name="c" pos="-.5 0 .3"><freejoint/><geom name="cube" type="box" size=".1 .1 .1" contype="0" conaffinity="0"/>
+  </body></worldbody>
+  <contact><pair name="ball_floor" geom1="floor" geom2="ball"/>
+    <pair name="box_floor" geom1="floor" geom2="box" friction="0.3 0.3 0.005 0.0001 0.0001"/>
+    <pair name="cube_floor" geom1="cube" geom2="floor"/><pair name="cube_wall" geom1="wall" geom2="cube"/>
+    <pair name="lid_box" geom1="lid" geom2="box"/></contact></mujoco>"""
+REST = 1e-3  # m: MuJoCo's soft contacts rest the bodies 0.4 mm into the floor, PhysX's on it (mujoco 3.17.0)
+
+
+def test_explicit_pairs_make_mujocos_contacts_and_note_what_physx_loses(tmp_path, monkeypatch):
+    """Every geom here has contype = conaffinity = 0: only the pairs make contacts. The floor, the wall and the
+    bodies meet exactly where MuJoCo's pairs say (one bit serves the floor's pairs, another the wall's, which
+    sharing would let the ball touch the wall); bodies resting on the floor stay there. A lid on its parent box is
+    a pair PhysX's parent rule blocks, and the box's pair has its own friction: both noted. Mutation: the pairs
+    left unplanned, so that every body falls through the floor."""
+    from loader import mjcf_loader
+
+    path = tmp_path / "pairs.xml"
+    path.write_text(PAIRS)
+    result = MJCFLoader().load(str(path))
+    assert collision_filter_mismatches(result) == [("box", "lid", False)]  # the one the parent rule blocks
+    assert sorted((n.name, n.reason) for n in result.unsupported + result.approximations if "pair" in n.kind) == [
+        ("box_floor", "sliding friction 0.3 (the pair's); PhysX averages its geoms' to 1"),
+        ("lid_box", "its contact is lost: PhysX never lets a link touch its direct parent"),
+    ]
+    model, data = result.model, mujoco.MjData(result.model)
+    for _ in range(500):
+        result.set_ctrl(None)
+        result.scene.step()
+        mujoco.mj_step(model, data)
+    heights = result.get_state()[0][[2, 9, 17]], data.qpos[[2, 9, 17]]
+    assert np.abs(heights[0] - heights[1]).max() < REST, heights
+    monkeypatch.setattr(mjcf_loader, "plan_pairs", lambda *args: None)
+    fallen = MJCFLoader().load(str(path))
+    for _ in range(500):
+        fallen.set_ctrl(None)
+        fallen.scene.step()
+    assert fallen.get_state()[0][[2, 9, 17]].max() < -0.5

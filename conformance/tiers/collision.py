@@ -75,7 +75,20 @@ def geom_world_aabb(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> tuple
 
 
 def needs_shape(model: mujoco.MjModel, g: int) -> bool:
-    return bool(model.geom_contype[g] or model.geom_conaffinity[g])
+    """A geom MuJoCo may make a contact with: its bits, or an explicit pair naming it."""
+    return bool(model.geom_contype[g] or model.geom_conaffinity[g]) or g in paired(model)
+
+
+def paired(model: mujoco.MjModel) -> set[int]:
+    return {int(g) for g in (*model.pair_geom1, *model.pair_geom2)}
+
+
+def spare_bits(model: mujoco.MjModel) -> int:
+    """The group bits no geom's contype or conaffinity uses: where the loader may put an explicit pair's bit."""
+    used = 0
+    for g in range(model.ngeom):
+        used |= int(model.geom_contype[g]) | int(model.geom_conaffinity[g])
+    return ~used & 0xFFFFFFFF
 
 
 @dataclass
@@ -131,6 +144,8 @@ def _check_geom(
     kind = _G(int(model.geom_type[g]))
     groups = [int(x) for x in shape.get_collision_groups()[:2]]
     expected = [0, 0] if contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
+    if g in paired(model) and not contact_off:  # a pair's bit, one no geom's bits use, may join its geoms' words
+        groups = [x & ~spare_bits(model) for x in groups]
     if groups != expected:
         found.groups_wrong.append(
             f"{name}: groups {groups}, expected contype/conaffinity {expected}"

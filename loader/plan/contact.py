@@ -20,13 +20,16 @@ GROUP_BITS = 32
 
 @dataclass
 class CollisionFilter:
-    """Per MuJoCo body: the (g2, g3) words its shapes carry."""
+    """Per MuJoCo body: the (g2, g3) words its shapes carry; per geom, the bits explicit `<pair>`s add to its g0
+    and g1 (`plan_pairs`)."""
 
     body_words: dict[int, tuple[int, int]] = field(default_factory=dict)
+    pair_bits: dict[int, list[int]] = field(default_factory=dict)  # geom -> [bits for g0, bits for g1]
 
     def groups(self, model: mujoco.MjModel, geom: int) -> list[int]:
         g2, g3 = self.body_words.get(int(model.geom_bodyid[geom]), (0, 0))
-        return [int(model.geom_contype[geom]), int(model.geom_conaffinity[geom]), g2, g3]
+        extra0, extra1 = self.pair_bits.get(geom, (0, 0))
+        return [int(model.geom_contype[geom]) | extra0, int(model.geom_conaffinity[geom]) | extra1, g2, g3]
 
 
 def mujoco_filters(
@@ -86,6 +89,10 @@ def plan_collision_filter(
             )
         else:
             must_collide.add((b1, b2))
+    for g1, g2 in zip(model.pair_geom1, model.pair_geom2):  # an explicit pair's bodies must meet (`plan_pairs`)
+        b1, b2 = sorted((int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])))
+        if b1 != b2 and not mujoco_filters(model, b1, b2, excluded, filter_parent):
+            must_collide.add((b1, b2))
     _assign_bits(model, must_exclude, must_collide, result, notes)
     return result
 
@@ -144,3 +151,92 @@ def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, not
             for m in members:
                 g2[m] = g2.get(m, 0) | (1 << bit)
     result.body_words = {b: (g2.get(b, 0), g3.get(b, 0)) for b in set(g2) | set(g3)}
+
+
+PAIR_FRICTION = 1e-9  # relative: a pair's sliding friction PhysX's average of its geoms' already gives
+
+
+def plan_pairs(
+    model: mujoco.MjModel, tree: TreePlan, result: CollisionFilter, shaped: set[int], static: set[int], notes: Notes
+) -> None:
+    """MuJoCo's explicit `<pair>`s: a contact between two geoms whatever their bits and their bodies' filters, with
+    the pair's own parameters in place of the geoms'. Where the geoms' bits do not meet, a bit that no geom's
+    contype or conaffinity uses joins one geom's g0 and the other's g1; one bit serves several pairs while every
+    combination it enables is one MuJoCo makes (a floor and many feet share one). Noted per pair: a contact PhysX
+    blocks (the bodies' filter, a pair bypasses it; PhysX's parent rule), no bit left, and a sliding friction other
+    than PhysX's average of its two geoms'
+    (tests/test_loader_contact.py::test_explicit_pairs_make_mujocos_contacts_and_note_what_physx_loses)."""
+    used = 0
+    for g in range(model.ngeom):
+        used |= int(model.geom_contype[g]) | int(model.geom_conaffinity[g])
+    spare = [k for k in range(GROUP_BITS) if not used >> k & 1]
+    explicit = {frozenset((int(a), int(b))) for a, b in zip(model.pair_geom1, model.pair_geom2)}
+
+    def wanted(x: int, y: int) -> bool:
+        meet = (model.geom_contype[x] & model.geom_conaffinity[y]) or (
+            model.geom_contype[y] & model.geom_conaffinity[x]
+        )
+        return x == y or bool(meet) or frozenset((x, y)) in explicit
+
+    bits: list[tuple[int, set[int], set[int]]] = []  # (bit, geoms whose g0 has it, geoms whose g1 has it)
+    for p in range(model.npair):
+        a, b = int(model.pair_geom1[p]), int(model.pair_geom2[p])
+        name = mj.name(model, "pair", p)
+        lost = _pair_blocked(model, tree, result, a, b, shaped, static)
+        if lost is None:
+            continue  # two geoms that cannot move: nothing to simulate
+        if lost:
+            notes.drop("contact pair", name, f"its contact is lost: {lost}")
+            continue
+        ga, gb = result.groups(model, a), result.groups(model, b)
+        if not ((ga[0] & gb[1]) or (ga[1] & gb[0])) and not _pair_bit(a, b, bits, spare, wanted):
+            notes.drop("contact pair", name, "its contact is lost: no collision bit is left to enable it in PhysX")
+            continue
+        _pair_friction(model, p, a, b, name, notes)
+    for bit, first, second in bits:
+        for g in first:
+            result.pair_bits.setdefault(g, [0, 0])[0] |= 1 << bit
+        for g in second:
+            result.pair_bits.setdefault(g, [0, 0])[1] |= 1 << bit
+
+
+def _pair_blocked(model, tree: TreePlan, result: CollisionFilter, a: int, b: int, shaped, static) -> str | None:
+    """Why PhysX cannot make the pair's contact ('' where it can; None for two geoms that cannot move)."""
+    ba, bb = int(model.geom_bodyid[a]), int(model.geom_bodyid[b])
+    if a not in shaped or b not in shaped:
+        return f"geom {mj.name(model, 'geom', a if a not in shaped else b)!r} has no collision shape in SAPIEN"
+    if ba in static and bb in static:
+        return None
+    if model.body_weldid[ba] == model.body_weldid[bb]:
+        return "both geoms are on one rigid body in SAPIEN"
+    if _physx_parent_body(tree, bb) == ba or _physx_parent_body(tree, ba) == bb:
+        return "PhysX never lets a link touch its direct parent"
+    ga, gb = result.groups(model, a), result.groups(model, b)
+    if (ga[2] & gb[2]) and (ga[3] & 0xFFFF) == (gb[3] & 0xFFFF):
+        return "PhysX filters these bodies (MuJoCo's weld, parent or exclude filter, which a pair bypasses)"
+    return ""
+
+
+def _pair_bit(a: int, b: int, bits: list, spare: list[int], wanted) -> bool:
+    """Put a on an enabling bit's g0 side and b on its g1 side (or the other way round): a bit in use where every
+    combination across its sides stays `wanted`, else a spare one; False when none is left."""
+    for bit, first, second in bits:
+        for x, y in ((a, b), (b, a)):
+            if all(wanted(f, s) for f in first | {x} for s in second | {y}):
+                first.add(x)
+                second.add(y)
+                return True
+    if not spare:
+        return False
+    bits.append((spare.pop(0), {a}, {b}))
+    return True
+
+
+def _pair_friction(model: mujoco.MjModel, p: int, a: int, b: int, name: str, notes: Notes) -> None:
+    """Note a pair whose sliding friction (none with condim 1) is not PhysX's average of its geoms' materials."""
+    own = float(model.pair_friction[p][0]) if int(model.pair_dim[p]) > 1 else 0.0
+    physx = 0.5 * float(model.geom_friction[a][0] + model.geom_friction[b][0])
+    if abs(own - physx) > PAIR_FRICTION * max(abs(own), abs(physx), 1.0):
+        notes.approximate(
+            "contact pair", name, f"sliding friction {own:g} (the pair's); PhysX averages its geoms' to {physx:g}"
+        )

@@ -35,17 +35,11 @@ def find_unmapped(model: mujoco.MjModel, notes: Notes) -> None:
 
 
 def _elements(model: mujoco.MjModel, notes: Notes) -> None:
-    """Flexes, plugins, explicit contact pairs, mocap bodies, nonlinear joint terms and actuator passive terms."""
+    """Flexes, plugins, mocap bodies, nonlinear joint terms and actuator passive terms."""
     for i in range(model.nflex):
         notes.drop("flex", f"flex{i}", "deformable (flex) objects have no PhysX articulation equivalent")
     for i in range(model.nplugin):
         notes.drop("plugin", f"plugin{i}", "engine plugins (sdf, elasticity, ...) cannot run inside PhysX")
-    for i in range(model.npair):
-        notes.drop(
-            "contact pair",
-            mj.name(model, "pair", i),
-            "explicit <pair> contacts (which bypass the contype/conaffinity filter) are not mapped",
-        )
     for b in range(model.nbody):
         if model.body_mocapid[b] >= 0:
             notes.approximate(

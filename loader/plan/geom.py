@@ -56,7 +56,10 @@ class ShapePlan:
 
 
 def collides(model: mujoco.MjModel, g: int) -> bool:
-    return bool(model.geom_contype[g] or model.geom_conaffinity[g])
+    """Whether MuJoCo may make a contact with the geom: its bits, or an explicit `<pair>` naming it."""
+    return bool(model.geom_contype[g] or model.geom_conaffinity[g]) or bool(
+        model.npair and (np.any(model.pair_geom1 == g) or np.any(model.pair_geom2 == g))
+    )
 
 
 @lru_cache(maxsize=4)
