@@ -64,7 +64,10 @@ def _not_a_drive(entry, name: str) -> tuple[bool, str]:
     """(a mismatch?, what to say) of an actuator MuJoCo does not make a hinge/slide drive: one whose moment changes
     with the pose is the dynamic tiers' to judge; another must be unmapped."""
     if entry.moment:
-        return False, "actuators: a site, slider-crank or free-joint transmission (judged by the rollouts)"
+        return (
+            False,
+            "actuators: a moment MuJoCo computes (site, slider-crank, free joint, muscle): judged by the rollouts",
+        )
     if entry.mapped:
         return True, f"actuator {name!r}: mapped although MuJoCo's actuator is not a joint drive"
     return False, f"actuators: not a hinge/slide drive ({entry.reason.split(':')[0]})"

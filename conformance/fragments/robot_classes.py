@@ -4,7 +4,7 @@ rows act together), ranges left open at one end or both (`inf`), tiny and zero i
 frames), gripper fingers coupled by a joint equality under position servos, a floating base and a tossed free object
 whose free joints carry damping and armature (the base's frictionloss too), and MuJoCo Playground's solver setting of
 one iteration; actuators on a site at the arm's tip (a wrench, or a servo on the tip's offset from a reference site)
-and on the floating base's free joint."""
+and on the floating base's free joint; a muscle on the first hinge."""
 
 from __future__ import annotations
 
@@ -82,6 +82,16 @@ def _transmissions(draw, floating: bool) -> list[str]:
     return out
 
 
+def _muscle(first: tuple, actuated: set[str]) -> list[str]:
+    """A muscle on the first link's hinge where nothing else drives it and its range is closed, its length range
+    that range widened by 1 rad each side (a start past an end stays on the muscle's curves). It takes no draw of its
+    own, so that the documents drawn stay those drawn before muscles were."""
+    _, joint, low, high, slide = first
+    if slide or joint in actuated or not (np.isfinite(low) and np.isfinite(high)):
+        return []
+    return [f'<muscle joint="{joint}" force="1" lengthrange="{_f(low - 1.0)} {_f(high + 1.0)}"/>']
+
+
 @st.composite
 def robot_classes(draw) -> RawDocument:
     """An arm of 2-5 links (hinges, some slides) with the classes above, a keyframe that starts 1-3 joints past
@@ -122,8 +132,9 @@ def robot_classes(draw) -> RawDocument:
         high = draw(st.booleans())
         closed = np.isfinite(hi if high else lo)  # past a closed end only
         qpos.append((hi + beyond if high else lo - beyond) if i in past and closed else 0.0)
-    actuators = []
+    actuators, driven = [], set()  # the servos' and motors' joints
     for i, (_, name, lo, hi, _) in enumerate(links):
+        driven.add(name)
         if draw(st.booleans()):
             kp = draw(st.floats(5.0, 200.0))
             span = (lo if np.isfinite(lo) else -3.0, hi if np.isfinite(hi) else 3.0)  # servo targets: a closed span
@@ -133,6 +144,8 @@ def robot_classes(draw) -> RawDocument:
             )
         elif draw(st.booleans()):
             actuators.append(f'<motor joint="{name}" gear="{_f(draw(st.floats(1, 50)))}" ctrlrange="-1 1"/>')
+        else:
+            driven.discard(name)
     actuators += draw(_transmissions(floating))
     equality = ""
     if gripper:
@@ -145,12 +158,13 @@ def robot_classes(draw) -> RawDocument:
     if tossed:
         qpos += [1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0]
         qvel += [draw(st.floats(-1, 1)) for _ in range(3)] + [draw(st.floats(-5, 5)) for _ in range(3)]
+    solver = ' iterations="1" ls_iterations="5"' if draw(st.integers(0, 3)) == 0 else ""  # Playground's setting
+    actuators += _muscle(links[0], driven)
     ctrl = f' ctrl="{" ".join("0" for _ in actuators)}"' if actuators else ""
     key = (
         f'<keyframe><key qpos="{" ".join(_f(q) for q in qpos)}" qvel="{" ".join(_f(float(v)) for v in qvel)}"{ctrl}/>'
         "</keyframe>"
     )
-    solver = ' iterations="1" ls_iterations="5"' if draw(st.integers(0, 3)) == 0 else ""  # Playground's setting
     xml = (
         f'<mujoco model="robot_class"><compiler angle="radian"/><option timestep="0.002"{solver}/>'
         f'<worldbody><site name="reference" pos="0 .1 .8"/>{body}</worldbody>'

@@ -12,6 +12,7 @@ MAPPED_DYNAMICS = {
     int(DYN.mjDYN_FILTER): "filter",
     int(DYN.mjDYN_FILTEREXACT): "filterexact",
     int(DYN.mjDYN_INTEGRATOR): "integrator",
+    int(DYN.mjDYN_MUSCLE): "muscle",
 }
 SPATIAL: list = []  # the terms `map_actuator` gives an actuator on a spatial tendon (whose terms change with the pose)
 MOMENT: list = []  # ... and one whose length and moment MuJoCo's transmission computes each step (`ActuatorMap.moment`)
@@ -43,6 +44,9 @@ class ActuatorMap:
     # a site, slider-crank or free-joint transmission: its length and moment (gear inside, so `gear` is 1) are
     # MuJoCo's at SAPIEN's state every step (`runtime/transmissions.py`)
     moment: bool = False
+    # MuJoCo's muscle: gain and bias are its force-length-velocity curves of the length and rate, the gain times
+    # the activation (`runtime/transmissions.py`); a muscle is always a moment actuator
+    muscle: bool = False
 
     def unclamped(self, ctrl: float, length: float, velocity: float) -> float:
         """MuJoCo's actuator force law (before gear and before the forcerange clamp)."""

@@ -151,9 +151,11 @@ def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
 
 
 def transmission_dofs(model: mujoco.MjModel, actuator: int) -> set[int]:
-    """The DoFs an actuator's site, slider-crank or joint transmission can move: those moving its site (and its
-    reference or slider site: `body_dofs`), or its joint's own."""
+    """The DoFs an actuator's transmission can move: those moving its site (and its reference or slider site:
+    `body_dofs`), its joint's own, or its tendon's (`tendon_dofs`)."""
     trn, (first, second) = int(model.actuator_trntype[actuator]), (int(i) for i in model.actuator_trnid[actuator])
+    if trn == int(mujoco.mjtTrn.mjTRN_TENDON):
+        return tendon_dofs(model, first)
     if trn in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
         start = int(model.jnt_dofadr[first])
         return set(range(start, start + {0: 6, 1: 3}.get(int(model.jnt_type[first]), 1)))

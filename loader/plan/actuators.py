@@ -52,14 +52,12 @@ def map_actuator(
     if disabled:
         return ActuatorMap(**base, mapped=False, reason="actuation disabled by the model's <flag actuation>"), None
     dyntype = int(model.actuator_dyntype[a])
-    if dyntype != int(DYN.mjDYN_NONE) and dyntype not in MAPPED_DYNAMICS:
-        dyn = DYN(dyntype).name.removeprefix("mjDYN_").lower()
-        return ActuatorMap(**base, mapped=False, reason=f"activation dynamics ({dyn}) are not mapped"), None
-    if int(model.actuator_gaintype[a]) != int(GAIN.mjGAIN_FIXED) or int(model.actuator_biastype[a]) not in (
-        int(BIAS.mjBIAS_NONE),
-        int(BIAS.mjBIAS_AFFINE),
-    ):
-        return ActuatorMap(**base, mapped=False, reason="gain or bias is not affine (muscle or user)"), None
+    unmapped = _unmapped_law(model, a, dyntype)
+    if unmapped:
+        return ActuatorMap(**base, mapped=False, reason=unmapped), None
+    if _is_muscle(model, a):
+        base.update(dynamics=MAPPED_DYNAMICS.get(dyntype, "none"), muscle=True)
+        return _moment_actuator(model, mapping, a, base, np.zeros(3))
     bias = model.actuator_biasprm[a] if int(model.actuator_biastype[a]) == int(BIAS.mjBIAS_AFFINE) else np.zeros(3)
     base["gain"] = float(model.actuator_gainprm[a][0])
     base["dynamics"] = MAPPED_DYNAMICS.get(dyntype, "none")
@@ -106,11 +104,30 @@ def map_actuator(
 MOMENT_TRANSMISSIONS = (int(TRN.mjTRN_SITE), int(TRN.mjTRN_SLIDERCRANK))
 
 
+def _unmapped_law(model: mujoco.MjModel, a: int, dyntype: int) -> str:
+    """Why the actuator's force law is not mapped ('' where it is): user dynamics, gains or biases."""
+    if dyntype != int(DYN.mjDYN_NONE) and dyntype not in MAPPED_DYNAMICS:
+        return f"activation dynamics ({DYN(dyntype).name.removeprefix('mjDYN_').lower()}) are not mapped"
+    affine = int(model.actuator_gaintype[a]) == int(GAIN.mjGAIN_FIXED) and int(model.actuator_biastype[a]) in (
+        int(BIAS.mjBIAS_NONE),
+        int(BIAS.mjBIAS_AFFINE),
+    )
+    return "" if affine or _is_muscle(model, a) else "gain or bias is not affine or a muscle's (user)"
+
+
+def _is_muscle(model: mujoco.MjModel, a: int) -> bool:
+    """MuJoCo's muscle: its gain and bias are the muscle curves (`<muscle>` sets both; a bias may be absent)."""
+    return int(model.actuator_gaintype[a]) == int(GAIN.mjGAIN_MUSCLE) and int(model.actuator_biastype[a]) in (
+        int(BIAS.mjBIAS_MUSCLE),
+        int(BIAS.mjBIAS_NONE),
+    )
+
+
 def _moment_actuator(model: mujoco.MjModel, mapping: Mapping, a: int, base: dict, bias) -> tuple[ActuatorMap, list]:
     """An actuator whose length and moment MuJoCo's transmission computes (a site, with or without a reference
-    site; a slider-crank; a joint or jointinparent transmission on a free joint): mapped where SAPIEN carries a
-    force on every DoF it can move (hinges, slides, a free joint's root), with gear 1, as MuJoCo's moment holds
-    the gear."""
+    site; a slider-crank; a joint or jointinparent transmission on a free joint; a muscle on any transmission):
+    mapped where SAPIEN carries a force on every DoF it can move (hinges, slides, a free joint's root), with gear 1,
+    as MuJoCo's moment holds the gear."""
     dofs = sorted(mj.transmission_dofs(model, a))
     joints = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
     if any(j.kind not in CARRIED for j in joints):

@@ -1,7 +1,8 @@
 """The ctrl stage of every step: MuJoCo's `ctrl` clamped to `ctrlrange` (unless `<flag clampctrl="disable"/>`),
-and what each actuator's gain multiplies: ctrl, or the activation of MuJoCo's `filter`, `filterexact` and
-`integrator` actuators, stepped as MuJoCo steps them (the ODE depends on ctrl alone, so the activation is MuJoCo's
-exactly). Muscles and user dynamics are not mapped. Derivation: docs/mapping.md#activation.
+and what each actuator's gain multiplies: ctrl, or the activation of MuJoCo's `filter`, `filterexact`,
+`integrator` and `muscle` actuators, stepped as MuJoCo steps them (the ODE depends on ctrl and the activation
+alone, so the activation is MuJoCo's exactly; a muscle's rate is MuJoCo's own `mju_muscleDynamics`). User dynamics
+are not mapped. Derivation: docs/mapping.md#activation.
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ class Activation:
         a = self.actuators
         self.adr = m.actuator_actadr[a].astype(int)
         self.integrator = m.actuator_dyntype[a] == int(DYN.mjDYN_INTEGRATOR)
+        self.muscles = np.flatnonzero(m.actuator_dyntype[a] == int(DYN.mjDYN_MUSCLE))  # positions among `actuators`
+        self.muscle_prm = [np.array(m.actuator_dynprm[a[i], :3], dtype=np.float64) for i in self.muscles]
         tau = m.actuator_dynprm[a, 0].astype(float)
         self.tau = np.maximum(tau, MJMINVAL)
         self.exact = (m.actuator_dyntype[a] == int(DYN.mjDYN_FILTEREXACT)) & (tau >= MJMINVAL)
@@ -50,6 +53,8 @@ class Activation:
         act = self.act[self.adr]
         u = np.asarray(ctrl, dtype=np.float64)[self.actuators]
         rate = np.where(self.integrator, u, (u - act) / self.tau)
+        for i, prm in zip(self.muscles.tolist(), self.muscle_prm):
+            rate[i] = mujoco.mju_muscleDynamics(float(u[i]), float(act[i]), prm)
         timestep = self.timestep
         step = np.where(self.exact, rate * self.tau * (1.0 - np.exp(-timestep / self.tau)), timestep * rate)
         return np.clip(act + step, self.low, self.high)

@@ -28,6 +28,7 @@ from ..model.mapping import Mapping
 from .dof_step import DofKey, DofLayout, Step
 from .tendons import COUPLED_DAMPING, AlongPaths, TendonPaths
 from .term import Compilation, Term
+from .transmissions import MuscleActuators
 
 
 class ActuatorLaws:
@@ -228,12 +229,14 @@ class ActuatorTerm(Term):
     moment_actuators: list[int] = field(default_factory=list)  # actuators whose moment MuJoCo computes
     moments: TendonPaths | None = None  # their paths (`transmissions.MomentPaths`)
     moment: SpatialActuators | None = field(default=None, init=False, repr=False)  # `compile`'s
+    muscles: MuscleActuators | None = field(default=None, init=False, repr=False)  # `compile`'s
 
     name = "actuators"
 
     @property
     def applied(self) -> list | tuple:
-        return [wrench for along in (self.spatial, self.moment) if along is not None for wrench in along.applied]
+        alongs = (self.spatial, self.moment, self.muscles)
+        return [wrench for along in alongs if along is not None for wrench in along.applied]
 
     def compile(self, compilation: Compilation) -> None:
         """The arrays every step reads: the drive laws (rows stiffness, damping, constant, force limit), the joint
@@ -258,16 +261,22 @@ class ActuatorTerm(Term):
             if spatial and self.paths is not None
             else None
         )
-        moment = [a for a in self.moment_actuators if self.actuators[a].mapped]
+        mapped = [a for a in self.moment_actuators if self.actuators[a].mapped]
+        moment = [a for a in mapped if not self.actuators[a].muscle]
+        muscles = [a for a in mapped if self.actuators[a].muscle]
         self.moment = (
             SpatialActuators(self.actuators, {a: a for a in moment}, self.moments, self.implicit_tendon_kv)
             if moment and self.moments is not None
             else None
         )  # MuJoCo's actuator rows in place of tendon rows
-        for along in (self.spatial, self.moment):
+        self.muscles = (
+            MuscleActuators(self.moments.model, muscles, self.moments, self.implicit_tendon_kv) if muscles else None
+        )
+        alongs = (self.spatial, self.moment, self.muscles)
+        for along in alongs:
             if along is not None:
                 along.compile(layout)
-        self.idle = not len(self.joint) and self.tendons is None and self.spatial is None and self.moment is None
+        self.idle = not len(self.joint) and self.tendons is None and all(along is None for along in alongs)
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
         self.kv_dofs = np.flatnonzero(self.kv)
 
@@ -291,8 +300,9 @@ class ActuatorTerm(Term):
             self.tendons.contribute(step)
         if self.spatial is not None:
             self.spatial.contribute(step)
-        if self.moment is not None:
-            self.moment.contribute(step)
+        for along in (self.moment, self.muscles):
+            if along is not None:
+                along.contribute(step)
         if step.explicit_kv:
             self.explicit_kv(free, step)
 
@@ -351,7 +361,7 @@ def plan_actuators(
                 notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         elif terms is MOMENT:
             term.moment_actuators.append(a)
-            if entry.damping and len(mj.transmission_dofs(model, a)) > 1 and implicit:
+            if (entry.damping or entry.muscle) and len(mj.transmission_dofs(model, a)) > 1 and implicit:
                 notes.approximate("actuator", entry.name, COUPLED_DAMPING)
         elif terms is not None:
             term.tendon_terms[a] = terms

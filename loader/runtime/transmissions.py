@@ -15,7 +15,11 @@ import numpy as np
 from ..model import mj
 from ..model.joints import DRIVEN
 from ..model.mapping import Mapping
-from .tendons import TendonPaths
+from ..model.mj import MJMINVAL
+from .dof_step import Step
+from .tendons import AlongPaths, TendonPaths
+
+RATE_STEP = 1e-4  # of a muscle's velocity scale (optimal length x vmax): the step of its gain's central difference
 
 
 class MomentPaths(TendonPaths):
@@ -58,6 +62,69 @@ class MomentPaths(TendonPaths):
         moment = np.zeros((self.tendons.size, self.dofs.size))
         moment[rows[kept], columns[kept]] = data.actuator_moment[entry[kept]]
         return moment
+
+
+class MuscleLaws:
+    """MuJoCo's muscles among the actuators `indices`: force = gain(L, V) x activation + bias(L), the curves of
+    `mju_muscleGain` and `mju_muscleBias` at the actuator's length L and rate V (MuJoCo's own functions, with the
+    compiled `lengthrange` and `acc0`), clamped to forcerange. MuJoCo's implicit integrators hold the force's rate
+    derivative, activation x dgain/dV, implicitly (none once a forcerange clamps it); `damping` gives it as a
+    damping, its derivative a central difference of MuJoCo's own curve, which is quadratic in V piece by piece."""
+
+    def __init__(self, model: mujoco.MjModel, indices: list[int]):
+        self.indices = np.array(indices, dtype=int)
+        self.lengthrange = [np.array(model.actuator_lengthrange[a], dtype=np.float64) for a in indices]
+        self.acc0 = [float(model.actuator_acc0[a]) for a in indices]
+        self.gainprm = [np.array(model.actuator_gainprm[a, :9], dtype=np.float64) for a in indices]
+        self.biasprm = [np.array(model.actuator_biasprm[a, :9], dtype=np.float64) for a in indices]
+        self.biased = [int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_MUSCLE) for a in indices]
+        span = [max(float(p[1] - p[0]), MJMINVAL) for p in self.gainprm]  # the normalized length range
+        optimum = [float(r[1] - r[0]) / s for r, s in zip(self.lengthrange, span)]  # L0, the optimal length
+        self.step = [RATE_STEP * max(o * float(p[6]), MJMINVAL) for o, p in zip(optimum, self.gainprm)]
+        limited = model.actuator_forcelimited[indices].astype(bool)
+        self.low = np.where(limited, model.actuator_forcerange[indices, 0], -np.inf)
+        self.high = np.where(limited, model.actuator_forcerange[indices, 1], np.inf)
+
+    def force(self, inputs: np.ndarray, length: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """Each muscle's force from its activation (`inputs`, the muscles' own), length and rate."""
+        out = np.empty(len(self.indices))
+        for i, (act, length_i, velocity_i) in enumerate(zip(inputs.tolist(), length.tolist(), velocity.tolist())):
+            lengthrange, acc0 = self.lengthrange[i], self.acc0[i]
+            gain = mujoco.mju_muscleGain(length_i, velocity_i, lengthrange, acc0, self.gainprm[i])
+            bias = mujoco.mju_muscleBias(length_i, lengthrange, acc0, self.biasprm[i]) if self.biased[i] else 0.0
+            out[i] = gain * act + bias
+        return np.minimum(np.maximum(out, self.low), self.high)
+
+    def damping(self, inputs: np.ndarray, length: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """-activation x dgain/dV of each muscle: the damping MuJoCo's implicit integrators hold."""
+        out = np.empty(len(self.indices))
+        for i, (act, length_i, velocity_i) in enumerate(zip(inputs.tolist(), length.tolist(), velocity.tolist())):
+            lengthrange, acc0, prm, h = self.lengthrange[i], self.acc0[i], self.gainprm[i], self.step[i]
+            up = mujoco.mju_muscleGain(length_i, velocity_i + h, lengthrange, acc0, prm)
+            down = mujoco.mju_muscleGain(length_i, velocity_i - h, lengthrange, acc0, prm)
+            out[i] = -act * (up - down) / (2.0 * h)
+        return out
+
+
+class MuscleActuators(AlongPaths):
+    """The mapped muscles along `paths` (a `MomentPaths` that holds their rows)."""
+
+    def __init__(self, model: mujoco.MjModel, muscles: list[int], paths: MomentPaths, implicit_kv):
+        super().__init__(paths, muscles)
+        self.laws = MuscleLaws(model, muscles)
+        self.implicit_kv = implicit_kv  # (damping, saturated) -> the damping MuJoCo's implicit step keeps
+
+    def contribute(self, step: Step) -> None:
+        length, moment, v = self.paths.state(step)
+        moment, inputs, length = moment[self.rows], step.inputs[self.laws.indices], length[self.rows]
+        rate = moment @ v
+        force = self.laws.force(inputs, length, rate)
+        implicit = None
+        if not step.explicit_kv:
+            unclamped = (force > self.laws.low) & (force < self.laws.high)
+            implicit = self.implicit_kv(self.laws.damping(inputs, length, rate), ~unclamped)
+            step.regular = False  # the damping changes with the state
+        self.paths.apply(step, moment.T @ force, self.push, moment, v, implicit)
 
 
 def plan_moments(model: mujoco.MjModel, mapping: Mapping, actuators: list[int]) -> MomentPaths | None:
