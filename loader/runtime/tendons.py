@@ -145,13 +145,18 @@ class TendonPaths:
         self.last = (step, found)
         return found
 
-    def measure(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The tendons' lengths and Jacobian (tendon x `dofs`) at MuJoCo's `qpos`."""
+    def pose(self, qpos: np.ndarray) -> mujoco.MjData:
+        """The paths' data at MuJoCo's `qpos`: body poses and the tendons' lengths and Jacobian."""
         model, data = self.model, self.data
         data.qpos[:] = qpos
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_tendon(model, data)
+        return data
+
+    def measure(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tendons' lengths and Jacobian (tendon x `dofs`) at MuJoCo's `qpos`."""
+        data = self.pose(qpos)
         return data.ten_length[self.tendons], self.dense(data)
 
     def dense(self, data: mujoco.MjData) -> np.ndarray:

@@ -44,12 +44,8 @@ class MomentPaths(TendonPaths):
 
     def measure(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The actuators' lengths and moments (actuator x `dofs`) at MuJoCo's `qpos`."""
-        model, data = self.model, self.data
-        data.qpos[:] = qpos
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        mujoco.mj_tendon(model, data)
-        mujoco.mj_transmission(model, data)
+        data = self.pose(qpos)
+        mujoco.mj_transmission(self.model, data)
         return data.actuator_length[self.tendons], self.dense(data)
 
     def dense(self, data: mujoco.MjData) -> np.ndarray:
