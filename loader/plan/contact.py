@@ -240,3 +240,32 @@ def _pair_friction(model: mujoco.MjModel, p: int, a: int, b: int, name: str, not
         notes.approximate(
             "contact pair", name, f"sliding friction {own:g} (the pair's); PhysX averages its geoms' to {physx:g}"
         )
+
+
+def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
+    """MuJoCo gives a contact the larger of its two geoms' sliding frictions; PhysX averages its two materials', and
+    SAPIEN 3.0.3 exposes no combine mode. Where geoms whose bits meet differ in sliding friction, the contact between
+    them slides on another coefficient: one note says how many such pairs and the largest difference (explicit
+    pairs carry their own note, `plan_pairs`)
+    (tests/test_contact_classes.py::test_unequal_frictions_combine_by_average_in_physx_and_by_max_in_mujoco)."""
+    geoms = np.array(sorted(shaped), dtype=int)
+    friction = model.geom_friction[geoms, 0]
+    if geoms.size < 2 or np.all(friction == friction[0]):
+        return
+    contype, conaffinity = model.geom_contype[geoms], model.geom_conaffinity[geoms]
+    meet = ((contype[:, None] & conaffinity[None, :]) | (contype[None, :] & conaffinity[:, None])) != 0
+    bodies = model.body_weldid[model.geom_bodyid[geoms]]
+    fixed = np.isin(model.geom_bodyid[geoms], list(static))
+    meet &= (bodies[:, None] != bodies[None, :]) & ~(fixed[:, None] & fixed[None, :])
+    gap = np.abs(friction[:, None] - friction[None, :]) / 2  # max(a, b) - (a + b) / 2
+    differs = np.triu(meet & (gap > 0), 1)
+    if not differs.any():
+        return
+    i, j = np.unravel_index(np.argmax(np.where(differs, gap, -1.0)), gap.shape)
+    names = f"{mj.name(model, 'geom', int(geoms[i]))}/{mj.name(model, 'geom', int(geoms[j]))}"
+    notes.approximate(
+        "contact friction",
+        f"{int(differs.sum())} geom pairs",
+        f"MuJoCo takes the larger of two geoms' sliding frictions, PhysX their average; largest gap "
+        f"{gap[i, j]:g} ({names}: {friction[i]:g} and {friction[j]:g})",
+    )
