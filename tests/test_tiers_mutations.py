@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import sapien
 
-from conformance import tolerances
+from conformance import sapien_side, tolerances
 from conformance.corpus import dm_control_suite_dir
 from conformance.session import open_session
 from conformance.tiers import TIERS
@@ -213,3 +213,32 @@ def test_a_run_after_another_starts_with_no_link_force_left(monkeypatch):
         sapien_side, "clear_command", lambda result, nv: result.set_ctrl(None, qfrc_applied=np.zeros(nv))
     )
     assert _tier(_session("swimmer"), "dynamics").status == "fail"
+
+
+PAIRED = """<mujoco><worldbody><geom name="floor" type="plane" size="2 2 .1"/>
+  <body name="ball" pos="0 0 .3"><freejoint/><geom name="ball" size=".1" contype="0" conaffinity="0"/></body>
+  <body name="box" pos=".5 0 .3"><freejoint/><geom name="box" type="box" size=".1 .1 .1"/></body></worldbody>
+  <contact><pair geom1="floor" geom2="ball"/></contact></mujoco>"""
+
+
+def _paired_session(path: Path, geom: str | None = None, bit: int = 0):
+    """The fixture's session, `bit` added to the g0 word of `geom`'s shape."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = open_session(str(path))
+    if geom is not None:
+        _, shape = sapien_side.geom_component(session.result, session.model.geom(geom).id)
+        g = list(shape.get_collision_groups())
+        shape.set_collision_groups([g[0] | bit, g[1], g[2], g[3]])
+    return session
+
+
+@pytest.mark.parametrize("geom,bit", [("ball", 1), ("box", 1 << 20)], ids=["used-bit-on-paired", "spare-on-unpaired"])
+def test_the_collision_tier_allows_a_paired_geom_spare_bits_only(tmp_path, geom, bit):
+    """The ball collides only through its pair, on a bit no contype or conaffinity uses: the tier passes. A used
+    bit (contype's bit 0) added to the paired ball, or a spare bit added to the unpaired box, fails it."""
+    path = tmp_path / "paired.xml"
+    path.write_text(PAIRED)
+    assert _tier(_paired_session(path), "collision").status == "pass"
+    report = _tier(_paired_session(path, geom, bit), "collision")
+    assert report.status == "fail" and "groups" in {m.name for m in report.metrics if not m.passed}

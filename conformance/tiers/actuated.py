@@ -142,7 +142,7 @@ class ForceLaw:
         self.paths = TendonPaths(model, result.mapping, [t for _, t, _ in self.spatial]) if self.spatial else None
         self.moments = MomentPaths(model, result.mapping, moments) if moments else None
         muscles = [a for a in moments if result.actuators[a].muscle]
-        self.muscles = (np.array([moments.index(a) for a in muscles], dtype=int), MuscleLaws(model, muscles))
+        self.muscles = MuscleLaws(model, muscles) if muscles else None
 
     def __call__(self, ctrl, qpos, qvel) -> np.ndarray:
         length, speed = self.length @ qpos, self.speed @ qvel
@@ -156,10 +156,9 @@ class ForceLaw:
             length[self.moments.tendons] = lengths
             speed[self.moments.tendons] = moment @ qvel[self.moments.dofs]
         force = self.gain * ctrl + self.bias[:, 0] + self.bias[:, 1] * length + self.bias[:, 2] * speed
-        rows, muscles = self.muscles
-        if rows.size:  # MuJoCo's muscle curves of the activation, length and rate
-            a = muscles.indices
-            force[a] = muscles.force(np.asarray(ctrl)[a], length[a], speed[a])
+        if self.muscles is not None:  # MuJoCo's muscle curves of the activation, length and rate
+            a = self.muscles.indices
+            force[a] = self.muscles.force(np.asarray(ctrl)[a], length[a], speed[a])
         return np.clip(force, self.lo, self.hi)
 
 

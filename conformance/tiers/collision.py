@@ -74,21 +74,37 @@ def geom_world_aabb(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> tuple
     return data.geom_xpos[g] - half, data.geom_xpos[g] + half
 
 
-def needs_shape(model: mujoco.MjModel, g: int) -> bool:
-    """A geom MuJoCo may make a contact with: its bits, or an explicit pair naming it."""
-    return bool(model.geom_contype[g] or model.geom_conaffinity[g]) or g in paired(model)
+@dataclass(frozen=True)
+class _Groups:
+    """What a shape's first two group words must hold: the geom's contype and conaffinity (0 with contacts off). A
+    geom an explicit pair names (`paired`) may carry beside them bits no geom's contype or conaffinity uses
+    (`spare`): the loader's pair bits. Read from the model once per tier run."""
 
+    contact_off: bool
+    paired: frozenset[int]
+    spare: int
 
-def paired(model: mujoco.MjModel) -> set[int]:
-    return {int(g) for g in (*model.pair_geom1, *model.pair_geom2)}
+    @classmethod
+    def of(cls, model: mujoco.MjModel, contact_off: bool) -> _Groups:
+        used = 0
+        for g in range(model.ngeom):
+            used |= int(model.geom_contype[g]) | int(model.geom_conaffinity[g])
+        paired = frozenset(int(g) for g in (*model.pair_geom1, *model.pair_geom2))
+        return cls(contact_off, paired, ~used & 0xFFFFFFFF)
 
+    def needs_shape(self, model: mujoco.MjModel, g: int) -> bool:
+        """A geom MuJoCo may make a contact with: its bits, or an explicit pair naming it."""
+        return bool(model.geom_contype[g] or model.geom_conaffinity[g]) or g in self.paired
 
-def spare_bits(model: mujoco.MjModel) -> int:
-    """The group bits no geom's contype or conaffinity uses: where the loader may put an explicit pair's bit."""
-    used = 0
-    for g in range(model.ngeom):
-        used |= int(model.geom_contype[g]) | int(model.geom_conaffinity[g])
-    return ~used & 0xFFFFFFFF
+    def wrong(self, model: mujoco.MjModel, g: int, name: str, held: list[int]) -> str | None:
+        """What is wrong with the words `held` the shape of geom `g` carries, or None."""
+        expected = [0, 0] if self.contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
+        groups = [x & ~self.spare for x in held] if g in self.paired and not self.contact_off else held
+        if groups == expected:
+            return None
+        return f"{name}: groups {groups}, expected contype/conaffinity {expected}" + (
+            " (contact disabled)" if self.contact_off else ""
+        )
 
 
 @dataclass
@@ -112,9 +128,9 @@ def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     mujoco.mj_kinematics(model, data)
     sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
     found = _Findings()
-    contact_off = contacts_disabled(model)
+    groups = _Groups.of(model, contacts_disabled(model))
     for g in range(model.ngeom):
-        _check_geom(result, model, data, g, contact_off, found)
+        _check_geom(result, model, data, g, groups, found)
     problems = found.mismatches + found.groups_wrong
     notes = problems[:_MAX_NOTES] + found.notes[:_MAX_NOTES]
     mismatches, groups_wrong, checked = len(found.mismatches), len(found.groups_wrong), found.checked
@@ -130,27 +146,19 @@ def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     return judged("collision", metrics, notes, settings={"geoms": model.ngeom, "shapes_checked": checked})
 
 
-def _check_geom(
-    result, model: mujoco.MjModel, data: mujoco.MjData, g: int, contact_off: bool, found: _Findings
-) -> None:
+def _check_geom(result, model: mujoco.MjModel, data: mujoco.MjData, g: int, groups: _Groups, found: _Findings) -> None:
     """One geom against the shape PhysX holds for it: its presence, collision groups, shape class and geometry."""
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom#{g}"
     component, shape = sapien_side.geom_component(result, g)
     if shape is None:
-        if needs_shape(model, g):
+        if groups.needs_shape(model, g):
             found.mismatches.append(f"{name}: colliding geom has no collision shape")
         return
     found.checked += 1
     kind = _G(int(model.geom_type[g]))
-    groups = [int(x) for x in shape.get_collision_groups()[:2]]
-    expected = [0, 0] if contact_off else [int(model.geom_contype[g]), int(model.geom_conaffinity[g])]
-    if g in paired(model) and not contact_off:  # a pair's bit, one no geom's bits use, may join its geoms' words
-        groups = [x & ~spare_bits(model) for x in groups]
-    if groups != expected:
-        found.groups_wrong.append(
-            f"{name}: groups {groups}, expected contype/conaffinity {expected}"
-            + (" (contact disabled)" if contact_off else "")
-        )
+    wrong = groups.wrong(model, g, name, [int(x) for x in shape.get_collision_groups()[:2]])
+    if wrong is not None:
+        found.groups_wrong.append(wrong)
     pose = sapien_side.shape_world_pose(component, shape)
     if _wrong_shape_class(kind, shape):
         found.mismatches.append(f"{name}: {kind.name} became {type(shape).__name__}")

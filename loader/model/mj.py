@@ -150,6 +150,11 @@ def body_dofs(model: mujoco.MjModel, body: int) -> set[int]:
     return dofs
 
 
+def joint_dof_count(model: mujoco.MjModel, joint: int) -> int:
+    """A joint's DoFs: 6 for a free joint, 3 for a ball, 1 for a hinge or slide."""
+    return {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(int(model.jnt_type[joint]), 1)
+
+
 def transmission_dofs(model: mujoco.MjModel, actuator: int) -> set[int]:
     """The DoFs an actuator's transmission can move: those moving its site (and its reference or slider site:
     `body_dofs`), its joint's own, or its tendon's (`tendon_dofs`)."""
@@ -158,7 +163,7 @@ def transmission_dofs(model: mujoco.MjModel, actuator: int) -> set[int]:
         return tendon_dofs(model, first)
     if trn in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
         start = int(model.jnt_dofadr[first])
-        return set(range(start, start + {0: 6, 1: 3}.get(int(model.jnt_type[first]), 1)))
+        return set(range(start, start + joint_dof_count(model, first)))
     sites = [first] + ([second] if second >= 0 else [])
     return set().union(*(body_dofs(model, int(model.site_bodyid[s])) for s in sites))
 

@@ -46,7 +46,7 @@ def _elements(model: mujoco.MjModel, notes: Notes) -> None:
                 "body", mj.name(model, "body", b), "mocap body loaded as a fixed link at its initial pose"
             )
     for j in range(model.njnt):
-        dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + _dof_count(model, j))
+        dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + mj.joint_dof_count(model, j))
         if np.any(model.jnt_stiffnesspoly[j]) or any(np.any(model.dof_dampingpoly[d]) for d in dofs):
             notes.drop(
                 "joint",
@@ -91,7 +91,3 @@ def _options(model: mujoco.MjModel, notes: Notes) -> None:
         notes.approximate("option", "flag contact", "contacts disabled in the model: every shape's groups are 0")
     if mj.disabled(model, "limit", "constraint"):
         notes.approximate("option", "flag limit", "limits disabled in the model: every joint is unlimited")
-
-
-def _dof_count(model: mujoco.MjModel, j: int) -> int:
-    return {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(int(model.jnt_type[j]), 1)

@@ -109,11 +109,7 @@ class TendonPaths:
         self.data = mujoco.MjData(model)
         self.tendons = np.array(tendons, dtype=int)
         dofs = sorted(set().union(*(mj.tendon_dofs(model, t) for t in tendons)))
-        self.dofs = np.array(dofs, dtype=int)
-        targets = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
-        self.joint = np.array([t.kind in DRIVEN for t in targets], dtype=bool)
-        self.floating = not self.joint.all()  # a free joint among the DoFs
-        self.keys = [(t.articulation, t.dofs[0]) for t, on in zip(targets, self.joint) if on]
+        self.over(dofs)
         column = {d: i for i, d in enumerate(dofs)}  # MuJoCo keeps ten_J sparse, its pattern fixed by the model
         entries = [
             (k, column[int(model.ten_J_colind[a])], a)
@@ -122,6 +118,16 @@ class TendonPaths:
         ]
         self.row, self.column, self.entry = (np.array(x, dtype=int) for x in zip(*entries))
         self.last: tuple | None = None  # (step, its state): one pass per step for every consumer
+
+    def over(self, dofs: list[int]) -> None:
+        """The paths move MuJoCo's DoFs `dofs` (sorted): `joint` marks the hinges and slides, whose SAPIEN DoFs are
+        `keys`; `floating`, a free joint among them."""
+        model, mapping = self.model, self.mapping
+        self.dofs = np.array(dofs, dtype=int)
+        targets = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
+        self.joint = np.array([t.kind in DRIVEN for t in targets], dtype=bool)
+        self.floating = not self.joint.all()
+        self.keys = [(t.articulation, t.dofs[0]) for t, on in zip(targets, self.joint) if on]
 
     def index(self, tendon: int) -> int:
         return int(np.flatnonzero(self.tendons == tendon)[0])

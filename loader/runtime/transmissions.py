@@ -13,7 +13,6 @@ import mujoco
 import numpy as np
 
 from ..model import mj
-from ..model.joints import DRIVEN
 from ..model.mapping import Mapping
 from ..model.mj import MJMINVAL
 from .dof_step import Step
@@ -31,11 +30,7 @@ class MomentPaths(TendonPaths):
         self.model, self.mapping = model, mapping
         self.data = mujoco.MjData(model)
         self.tendons = np.array(actuators, dtype=int)  # the rows: the paths' consumers index them alike
-        self.dofs = np.array(sorted(set().union(*(mj.transmission_dofs(model, a) for a in actuators))), dtype=int)
-        targets = [mapping.joints[int(model.dof_jntid[d])] for d in self.dofs]
-        self.joint = np.array([t.kind in DRIVEN for t in targets], dtype=bool)
-        self.floating = not self.joint.all()
-        self.keys = [(t.articulation, t.dofs[0]) for t, on in zip(targets, self.joint) if on]
+        self.over(sorted(set().union(*(mj.transmission_dofs(model, a) for a in actuators))))
         self.column = np.full(model.nv, -1, dtype=int)
         self.column[self.dofs] = np.arange(self.dofs.size)
         self.row_of = np.full(model.nu, -1, dtype=int)
