@@ -25,6 +25,7 @@ from .summary import atomic_write_json
 from .versions import versions
 
 REPEATS = 5  # the median over this many loads and compiles, cold and warm
+COPIES = (1, 4, 16)  # the batch sizes whose per-copy set_ctrl cost is measured (`batch_costs`)
 TARGET = 1.2  # load over compile the loader aims at, cold and warm
 PROJECT = Path(__file__).resolve().parents[1]
 
@@ -116,6 +117,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
     sapien_s, _ = _timed(lambda: sapien_rollout(result, model, qpos0, qvel0, command))
     set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
     stages = _stage_costs(result, steps)
+    batched = batch_costs(path, steps)
     return {
         **row,
         "steps": steps,
@@ -125,6 +127,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
         "physx_step_us": 1e6 * step_s / steps,
         "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
         "set_ctrl_stages_us": stages,
+        "batch": batched,
         "nbody": model.nbody,
         "nv": model.nv,
         "ngeom": model.ngeom,
@@ -145,6 +148,37 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
         set_ctrl_s, step_s = set_ctrl_s + t1 - t0, step_s + time.perf_counter() - t1
     result.disable_actuators(True)
     return set_ctrl_s, step_s
+
+
+def batch_costs(path: str, steps: int, counts: tuple[int, ...] = COPIES) -> dict[str, dict]:
+    """Per batch size N: microseconds per copy per step in one `Batch.set_ctrl` of N copies (each in its own scene,
+    contacts off, zero ctrl) and in the N PhysX steps, their ratio, and the stages that ran once for every copy."""
+    from loader import Batch
+
+    from .session import quiet_load
+
+    results = [quiet_load(path) for _ in range(max(counts))]
+    for result in results:
+        result.set_contacts(False)
+    out = {}
+    for count in counts:
+        batch = Batch(results[:count])
+        ctrl = np.zeros((count, results[0].model.nu))
+        set_ctrl_s = step_s = 0.0
+        for _ in range(steps):
+            t0 = time.perf_counter()
+            batch.set_ctrl(ctrl)
+            t1 = time.perf_counter()
+            for result in batch.results:
+                result.scene.step()
+            set_ctrl_s, step_s = set_ctrl_s + t1 - t0, step_s + time.perf_counter() - t1
+        out[str(count)] = {
+            "set_ctrl_us_per_copy": 1e6 * set_ctrl_s / steps / count,
+            "physx_step_us_per_copy": 1e6 * step_s / steps / count,
+            "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
+            "batched_stages": list(batch.batched),
+        }
+    return out
 
 
 def _stage_costs(result, steps: int) -> dict[str, float]:
@@ -182,6 +216,12 @@ def totals(models: dict) -> dict:
     set_ctrl_s = sum(row["set_ctrl_us"] * row["steps"] for row in rows)
     step_s = sum(row["physx_step_us"] * row["steps"] for row in rows)
     out["set_ctrl_over_step"] = set_ctrl_s / step_s if step_s > 0 else None
+    batched = [row["batch"] for row in rows if "batch" in row]
+    out["batch_set_ctrl_over_step"] = {
+        count: sum(b[count]["set_ctrl_us_per_copy"] for b in batched)
+        / sum(b[count]["physx_step_us_per_copy"] for b in batched)
+        for count in (batched[0] if batched else {})
+    }
     out["over_target"] = {
         "warm": [name for name, row in models.items() if (row.get("load_over_compile") or 0) > TARGET],
         "cold": [name for name, row in models.items() if (row.get("cold_load_over_compile") or 0) > TARGET],

@@ -30,12 +30,14 @@ from .plan.camera import CameraConfig, SiteConfig
 from .plan.texture import MJCFTexture
 from .plan.visual import NoRenderDeviceWarning, has_render_device
 from .result import LoadResult
+from .runtime.batch import Batch
 
 warnings.filterwarnings("ignore", category=NoRenderDeviceWarning, append=True)  # a filter of the caller's wins
 
 __all__ = [
     "ActuatorMap",
     "Approximation",
+    "Batch",
     "BodyLink",
     "CameraConfig",
     "ControlError",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.bench import TARGET, bench, cold_seconds
+from conformance.bench import COPIES, TARGET, bench, cold_seconds
 from conformance.manifest import ModelEntry
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,6 +31,14 @@ def test_bench_writes_timings_per_model(tmp_path):
     stages = row["set_ctrl_stages_us"]  # the pendulum's limits are MuJoCo's rows; its drives always run
     assert {"rows", "drives", "controller"} <= set(stages) and all(stages[s] > 0 for s in ("rows", "drives"))
     assert list(stages)[:-1] == sorted(list(stages)[:-1], key=lambda s: -stages[s])  # costliest first
+    batch = row["batch"]  # per copy at each batch size; the pendulum's stiffness and drives run once for all
+    assert list(batch) == [str(n) for n in COPIES]
+    for size in batch.values():
+        assert size["set_ctrl_us_per_copy"] > 0 and size["physx_step_us_per_copy"] > 0
+        assert size["set_ctrl_over_step"] == pytest.approx(
+            size["set_ctrl_us_per_copy"] / size["physx_step_us_per_copy"]
+        )
+        assert {"stiffness", "drives"} <= set(size["batched_stages"])
     assert "nope.xml" in doc["models"]["missing"]["skipped"]
     assert doc["versions"]["sapien"]
     totals = doc["totals"]
@@ -39,6 +47,7 @@ def test_bench_writes_timings_per_model(tmp_path):
         assert totals[key] == pytest.approx(row[key])
     assert totals["harness_sapien_steps_per_s"] == pytest.approx(row["harness_sapien_steps_per_s"])
     assert totals["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_over_step"])
+    assert totals["batch_set_ctrl_over_step"] == pytest.approx({n: b["set_ctrl_over_step"] for n, b in batch.items()})
     for when, key in (("warm", "load_over_compile"), ("cold", "cold_load_over_compile")):
         assert totals["over_target"][when] == (["pendulum"] if row[key] > TARGET else [])
 

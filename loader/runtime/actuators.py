@@ -94,16 +94,24 @@ class ForceClamps:
         `affine`: gain x input + bias0 of every joint actuator."""
         gear, flat = self.gear, self.member_flat
         unclamped = (
-            affine[self.member] + self.length_bias * (gear * step.q[flat]) + self.velocity_bias * (gear * step.v[flat])
+            affine[..., self.member]
+            + self.length_bias * (gear * step.q[..., flat])
+            + self.velocity_bias * (gear * step.v[..., flat])
         )
         force = np.minimum(np.maximum(unclamped, self.force_low), self.force_high)
         saturated = force != unclamped
         total = gear * force
         if self.single:
             binding = saturated
-        else:
+        elif total.ndim == 1:
             total = np.bincount(self.owner, total, minlength=self.count)
             binding = np.bincount(self.owner, saturated, minlength=self.count) > 0
+        else:  # a batch's copies: only whether anything binds is read (`ActuatorTerm.batch`)
+            sums = np.zeros((*total.shape[:-1], self.count))
+            np.add.at(sums.T, self.owner, total.T)
+            binding = np.zeros(sums.shape, dtype=bool)
+            np.logical_or.at(binding.T, self.owner, saturated.T)
+            total = sums
         if self.ranged:
             binding = binding | ~((self.low <= total) & (total <= self.high))
         if not np.count_nonzero(binding):
@@ -280,6 +288,28 @@ class ActuatorTerm(Term):
         self.kv = np.bincount(self.drive, self.joint.damping, minlength=len(layout.keys))
         self.kv_dofs = np.flatnonzero(self.kv)
 
+    def batch(self, step: Step, steps: list[Step], terms: list[Term]) -> bool:
+        """Every copy at once where only joint actuators act and no clamp binds in any copy."""
+        if self.tendons is not None or any(along is not None for along in (self.spatial, self.moment, self.muscles)):
+            return False
+        joint = self.joint
+        affine = joint.gain * step.inputs[..., joint.indices] + joint.bias[0] if len(joint) else None
+        if affine is not None and self.clamped_step(step, affine) is not None:
+            return False
+        step.law[:4] = self.base[:, None]
+        if affine is not None:
+            self.add_constants(step.law[2], self.drive, joint.gear * affine)
+        if step.explicit_kv:
+            self.explicit_kv(None, step)
+        return True
+
+    def add_constants(self, constants: np.ndarray, drive: np.ndarray, constant: np.ndarray) -> None:
+        """The joint actuators' constant part (gear x (gain x input + bias0)) into their drives' constants."""
+        if self.unique:
+            constants[..., drive] += constant
+        else:
+            np.add.at(constants.T, drive, constant.T)
+
     def contribute(self, step: Step) -> None:
         law = step.law
         law[:4] = self.base
@@ -291,11 +321,7 @@ class ActuatorTerm(Term):
             if found is not None:
                 free = ~self.clamps.apply(found, step)  # joint actuators not clamped
                 drive, constant = drive[free], constant[free]
-            if self.unique:
-                constants = law[2]  # a row view: plain indexing is quicker than a 2-D one
-                constants[drive] += constant
-            else:
-                np.add.at(law[2], drive, constant)
+            self.add_constants(law[2], drive, constant)
         if self.tendons is not None:
             self.tendons.contribute(step)
         if self.spatial is not None:
@@ -322,9 +348,9 @@ class ActuatorTerm(Term):
             dofs = np.flatnonzero(kv)
         if dofs.size:
             damping = step.law[1]
-            damping[dofs] = self.passive_law[1][dofs]
+            damping[..., dofs] = self.passive_law[1][dofs]
             flat = step.layout.flat[dofs]
-            step.force[flat] += -kv[dofs] * step.v[flat]
+            step.force[..., flat] += -kv[dofs] * step.v[..., flat]
 
     @staticmethod
     def implicit_tendon_kv(damping: np.ndarray, saturated: np.ndarray):

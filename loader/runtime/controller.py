@@ -177,6 +177,13 @@ class Controller:
         None: zeros). `advance`: the first call of this physics step (activations, link forces). On a state that is
         not finite, a call that begins a step raises DivergenceError and one that does not (a setting rewritten:
         `disable_actuators`, a cleared command) only clears `qf`; nothing else changes."""
+        step = self.begin(ctrl, qfrc_applied, advance)
+        if step is not None:
+            self.run(step)
+
+    def begin(self, ctrl, qfrc_applied: np.ndarray | None, advance: bool) -> Step | None:
+        """`set_ctrl` up to its stages: the last step settled, the terms compiled, the state read and checked, the
+        command clamped and the step's record built (None: the state is not finite and `qf` was cleared)."""
         self.settle()
         if self.stale:
             self.compile()
@@ -188,7 +195,7 @@ class Controller:
             for articulation in articulations:
                 if articulation.dof:
                     articulation.set_qf(np.zeros(articulation.dof, np.float32))
-            return
+            return None
         self.steps += advance
         actuated = "actuators" not in self.off
         ctrl, inputs, act = self.command(ctrl, actuated, advance)
@@ -197,7 +204,7 @@ class Controller:
             applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         refresh_link_velocities(self.velocity_readers())
-        step = Step(
+        return Step(
             articulations,
             self.joints,
             layout,
@@ -214,6 +221,9 @@ class Controller:
             not self.options.implicit,
             advance,
         )
+
+    def run(self, step: Step) -> None:
+        """The running terms' laws on the step, in stage order."""
         if self.timings is None:
             for term in self.running:
                 term.contribute(step)

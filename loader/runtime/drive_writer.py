@@ -37,33 +37,33 @@ class DriveRegime:
         """constant / stiffness (+ offset dt) where the drive has stiffness, else 0; takes the constant out of
         `constant` there."""
         if not self.any_stiff:
-            return np.zeros(constant.size)
+            return np.zeros(constant.shape)
         if self.all_stiff:
             target = constant / self.stiffness
             if offset is not None:
                 target += offset * timestep
             constant[:] = 0.0
             return target
-        target = np.divide(constant, self.stiffness, out=np.zeros(constant.size), where=self.stiff)
+        target = np.divide(constant, self.stiffness, out=np.zeros(constant.shape), where=self.stiff)
         if offset is not None:
             np.add(target, offset * timestep, out=target, where=self.stiff)
-        constant[self.stiff] = 0.0
+        constant[..., self.stiff] = 0.0
         return target
 
     def velocity_target(self, left: np.ndarray, offset: np.ndarray | None) -> np.ndarray:
         """left / damping (+ offset) where the drive has damping, else 0; takes it out of `left` there."""
         if not self.any_damped:
-            return np.zeros(left.size)
+            return np.zeros(left.shape)
         if self.all_damped:
             target = left / self.damping
             if offset is not None:
                 target += offset
             left[:] = 0.0
             return target
-        target = np.divide(left, self.damping, out=np.zeros(left.size), where=self.damped)
+        target = np.divide(left, self.damping, out=np.zeros(left.shape), where=self.damped)
         if offset is not None:
             np.add(target, offset, out=target, where=self.damped)
-        left[self.damped] = 0.0
+        left[..., self.damped] = 0.0
         return target
 
 
@@ -97,24 +97,37 @@ class DriveWriter(Term):
         self.write(np.array([regime.stiffness, regime.damping, regime.force_limit, target, velocity_target]))
         self.write_qf(step)
 
+    def batch(self, step: Step, steps: list[Step], terms: list[DriveWriter]) -> bool:
+        """Every copy's targets at once on a regular step (every copy's regime is the same); each copy's own writer
+        writes its PhysX joints."""
+        if not step.regular:
+            return False
+        regime, target, velocity_target = self.split(step)
+        for k, (copy, writer) in enumerate(zip(steps, terms)):
+            writer.write(
+                np.array([regime.stiffness, regime.damping, regime.force_limit, target[k], velocity_target[k]])
+            )
+            writer.write_qf(copy)
+        return True
+
     def split(self, step: Step) -> tuple[DriveRegime, np.ndarray, np.ndarray]:
         """The step's drive regime, position and velocity targets; what neither target carries joins `step.force`."""
         law, force, timestep = step.law, step.force, step.timestep
         key = step.explicit_kv if step.regular else None
         regime = self.regimes.get(key)
-        if regime is None:
-            regime = DriveRegime(law, timestep, self.mass, self.layout.flat)
+        if regime is None:  # a batch's only on a regular step: every copy's is the same
+            regime = DriveRegime(law if law.ndim == 2 else law[:, 0], timestep, self.mass, self.layout.flat)
             if key is not None:
                 self.regimes[key] = regime
         constant, via_damping = law[2], law[4]
         if regime.heavy.size:
-            via_damping[regime.heavy] += force[regime.heavy_flat]
-            force[regime.heavy_flat] = 0.0
+            via_damping[..., regime.heavy] += force[..., regime.heavy_flat]
+            force[..., regime.heavy_flat] = 0.0
         offset = law[6] if self.offsets else None
         target = regime.position_target(constant, offset, timestep)
         constant += via_damping  # what is left after the position target
         velocity_target = regime.velocity_target(constant, offset)
-        force[self.layout.flat] += constant
+        force[..., self.layout.flat] += constant
         return regime, target, velocity_target
 
     @staticmethod

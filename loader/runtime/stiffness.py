@@ -26,19 +26,26 @@ class StiffnessTerm(Term):
         self.known: dict[bool, object] = {}
         self.idle = not compilation.layout.keys  # no hinge or slide
 
+    def batch(self, step: Step, steps: list, terms: list) -> bool:
+        """Every copy at once on a regular step, where every copy's law is the same."""
+        if step.regular:
+            self.contribute(step)
+        return step.regular
+
     def contribute(self, step: Step) -> None:
-        law = step.law
+        law, flat = step.law, step.layout.flat
         if self.explicit_damping:
-            step.force[step.layout.flat] -= law[1] * step.v[step.layout.flat]
+            step.force[..., flat] -= law[1] * step.v[..., flat]
             law[1] = 0.0
         explicit = self.known.get(step.explicit_kv) if step.regular else None
         if explicit is None:
-            explicit = (~(law[1] + law[5] - law[0] * step.timestep >= 0.0)).nonzero()[0]
+            first = law if law.ndim == 2 else law[:, 0]  # a batch's regular step: every copy's is the same
+            explicit = (~(first[1] + first[5] - first[0] * step.timestep >= 0.0)).nonzero()[0]
             if step.regular:
                 self.known[step.explicit_kv] = explicit
         if explicit.size:
-            flat = step.layout.flat[explicit]
+            flat = flat[explicit]
             stiffness, constant = law[0], law[2]
-            step.force[flat] += constant[explicit] - stiffness[explicit] * step.q[flat]
-            constant[explicit] = 0.0
-            stiffness[explicit] = 0.0
+            step.force[..., flat] += constant[..., explicit] - stiffness[..., explicit] * step.q[..., flat]
+            constant[..., explicit] = 0.0
+            stiffness[..., explicit] = 0.0

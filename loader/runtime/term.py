@@ -53,6 +53,13 @@ class Term:
         """Add this term's law to the step (forces, drive laws), or act on PhysX directly."""
         raise NotImplementedError(f"the {self.name} term has no per-step law")
 
+    def batch(self, step: Step, steps: list[Step], terms: list[Term]) -> bool:
+        """This stage for every copy of a `Batch` at once: `step`'s arrays carry a leading copy axis (`law`: rows,
+        copies, drive DoFs), `steps` are each copy's record (views of its rows) and `terms` each copy's own term,
+        for what acts on PhysX. False, having changed nothing: each copy's term runs `contribute` on its own
+        record instead (the default)."""
+        return False
+
     def settle(self, articulations: list, wrenches: list) -> None:
         """After a physics step, before the state is read (`wrenches`: every term's `applied`)."""
 

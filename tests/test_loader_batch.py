@@ -1,0 +1,118 @@
+"""A `Batch` drives copies of one model in their own scenes: each copy must come out of every step exactly as the
+same copy driven by its own `set_ctrl`, and the array stages must really run once for all copies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conformance.session import quiet_load
+from loader import Batch, ControlError
+from tests.support.corpus import menagerie_root, mjcf_file, suite_path
+
+COPIES = 3
+STEPS = 60
+
+# Euler (kv explicit), a filtered actuator (activation per copy), a tendon actuator (a stage that runs per copy), a
+# forcerange that binds under the larger commands (clamps per copy) and a floating root (momentum per copy).
+MIXED = """
+<mujoco>
+  <option integrator="Euler" timestep="0.004"/>
+  <worldbody>
+    <body name="root" pos="0 0 1">
+      <freejoint/>
+      <geom type="box" size=".1 .08 .05" mass="2"/>
+      <body name="a" pos=".1 0 0">
+        <joint name="h1" axis="0 1 0" range="-1 1" damping=".05"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 0" size=".03" mass=".4"/>
+        <body name="b" pos=".3 0 0">
+          <joint name="h2" axis="0 1 0" stiffness="2" springref=".2"/>
+          <geom type="capsule" fromto="0 0 0 .25 0 0" size=".025" mass=".3"/>
+        </body>
+      </body>
+      <body name="c" pos="-.1 0 0">
+        <joint name="h3" axis="1 0 0"/>
+        <geom type="capsule" fromto="0 0 0 -.25 0 0" size=".025" mass=".3"/>
+      </body>
+    </body>
+  </worldbody>
+  <tendon><fixed name="t"><joint joint="h2" coef="1"/><joint joint="h3" coef="-.5"/></fixed></tendon>
+  <actuator>
+    <position joint="h1" kp="30" kv="2" forcerange="-3 3"/>
+    <general joint="h2" dyntype="filter" dynprm=".05" gainprm="4" ctrlrange="-1 1"/>
+    <motor tendon="t" gear="2" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+# Only array stages under Euler: the servo's kv leaves the drive as an explicit force, once for every copy.
+SERVO = MIXED.replace('<motor tendon="t" gear="2" ctrlrange="-1 1"/>', "").replace('forcerange="-3 3"', "")
+
+
+def copies(path, count: int) -> list:
+    """`count` loads of `path`, each in a scene of its own."""
+    results = [quiet_load(path) for _ in range(count)]
+    assert len({id(result.scene) for result in results}) == count
+    return results
+
+
+def model_paths() -> list:
+    root = menagerie_root()
+    panda = root / "franka_emika_panda/panda.xml" if root else None
+    marks = [] if root else [pytest.mark.skip(reason="Menagerie slice not installed (extra 'menagerie')")]
+    every = {"actuators", "stiffness", "drives"}
+    return [  # with the stages that must have run once for every copy at some step
+        pytest.param(suite_path("humanoid"), every, id="suite/humanoid"),
+        pytest.param(suite_path("cheetah"), every, id="suite/cheetah"),
+        pytest.param(panda, set(), id="menagerie/panda", marks=marks),  # its forceranges bind under the walk
+        pytest.param(MIXED, set(), id="mixed"),
+        pytest.param(SERVO, every, id="euler_servo"),
+    ]
+
+
+@pytest.mark.parametrize(("path", "stages"), model_paths())
+def test_a_batch_steps_each_copy_as_its_own_set_ctrl(path, stages, tmp_path):
+    path = mjcf_file(tmp_path, path) if isinstance(path, str) else path
+    batch_results, lone = copies(path, COPIES), copies(path, COPIES)
+    batch = Batch(batch_results)
+    model = lone[0].model
+    rng = np.random.default_rng(7)
+    for a, b in zip(batch_results, lone):  # each pair from a start of its own
+        qpos, _ = a.get_state()
+        qvel = 0.1 * rng.standard_normal(model.nv)
+        a.set_state(qpos, qvel)
+        b.set_state(qpos, qvel)
+    low = np.where(model.actuator_ctrllimited, model.actuator_ctrlrange[:, 0], -1.0)
+    high = np.where(model.actuator_ctrllimited, model.actuator_ctrlrange[:, 1], 1.0)
+    batched = set()
+    for _ in range(STEPS):
+        ctrl = rng.uniform(low, high, size=(COPIES, model.nu)) * 1.5  # past ctrlrange now and then: clamped
+        batch.step(ctrl)
+        batched |= set(batch.batched)
+        for k, result in enumerate(lone):
+            result.set_ctrl(ctrl[k])
+            result.scene.step()
+    for a, b in zip(batch_results, lone):
+        qa, va = a.get_state()
+        qb, vb = b.get_state()
+        np.testing.assert_array_equal(qa, qb)
+        np.testing.assert_array_equal(va, vb)
+        for art_a, art_b in zip(a.articulations, b.articulations):
+            np.testing.assert_array_equal(art_a.get_qf(), art_b.get_qf())
+            targets_a = [j.drive_target for j in art_a.active_joints]
+            targets_b = [j.drive_target for j in art_b.active_joints]
+            np.testing.assert_array_equal(np.array(targets_a), np.array(targets_b))
+    assert stages <= batched
+
+
+def test_a_batch_refuses_a_command_per_copy_of_the_wrong_shape(tmp_path):
+    batch = Batch(copies(mjcf_file(tmp_path, MIXED), 2))
+    with pytest.raises(ControlError, match=r"shape \(3,\)"):
+        batch.set_ctrl(np.zeros(3))
+    with pytest.raises(ControlError, match=r"ctrl\[1\]\[0\] is nan"):
+        batch.set_ctrl(np.array([[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]]))
+
+
+def test_a_batch_holds_copies_of_one_model_only(tmp_path):
+    other = mjcf_file(tmp_path, MIXED.replace('<motor tendon="t" gear="2" ctrlrange="-1 1"/>', ""), "other.xml")
+    with pytest.raises(ValueError, match="not a copy"):
+        Batch([*copies(mjcf_file(tmp_path, MIXED), 1), *copies(other, 1)])
