@@ -1,5 +1,6 @@
 """Contact by class, MuJoCo as the oracle: a box resting on a plane, a box sliding to rest on it under friction
-(equal and unequal frictions), a cylinder rolling. What PhysX's rigid contact carries of MuJoCo's, measured."""
+(equal and unequal frictions), a cylinder rolling, an arm's link resting on another link of the same arm, a foot on
+a floor under a soft solref. What PhysX's rigid contact carries of MuJoCo's, measured."""
 
 from __future__ import annotations
 
@@ -17,6 +18,19 @@ BOX = """<mujoco><option timestep="0.002"/><worldbody>
 CYLINDER = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="5 5 .1"/>
   <body pos="0 0 .1" euler="90 0 0"><freejoint/><geom type="cylinder" size=".1 .05" mass="1"/></body>
   </worldbody></mujoco>"""
+# An arm of three links: a shelf welded to the world, a post turning on it and a forearm that folds under gravity
+# until it rests on the shelf, its grandparent (MuJoCo filters only parent-child contacts)
+FOLDING_ARM = """<mujoco><option timestep="0.002"/><worldbody>
+  <body name="base" pos="0 0 .5"><geom name="shelf" type="box" size=".25 .05 .02" pos=".25 0 0"/>
+    <body name="post" pos="0 0 .02"><joint name="turn" axis="0 0 1" damping=".01"/>
+      <geom type="capsule" fromto="0 0 .03 0 0 .15" size=".02" mass=".2" contype="0" conaffinity="0"/>
+      <body name="forearm" pos="0 0 .15"><joint name="fold" axis="0 1 0"/>
+        <geom name="forearm" type="capsule" fromto="0 0 0 .35 0 0" size=".025" mass=".3"/>
+      </body></body></body></worldbody></mujoco>"""
+FOOT = """<mujoco><option timestep="0.002"/><worldbody><geom name="floor" type="plane" size="5 5 .1"/>
+  <body pos="0 0 .05" euler="0 {pitch} 0"><freejoint/><geom name="foot" type="{kind}" size="{size}" mass="1" {soft}/>
+  </body></worldbody></mujoco>"""
+FEET = {"box": (".1 .1 .05", 0), "capsule": (".05 .1", 90)}  # half sizes; a capsule lying on its side
 # m: the box's rest height, MuJoCo's soft contact 0.11 mm into the floor, PhysX's on it (mujoco 3.17.0, sapien 3.0.3)
 REST = 1e-3
 # relative: a box launched at 2 m/s slides 0.2029 m in MuJoCo and 0.2023 m in SAPIEN on friction 1 (0.3 %)
@@ -24,6 +38,23 @@ SLIDE = 0.01
 # relative: a cylinder launched at 1 m/s without spin rolls 0.673 m in 1 s in MuJoCo and 0.537 m in SAPIEN, whose
 # cylinder is a convex hull that rolls on its facets
 ROLL_GAP = 0.25
+
+
+def _grown(monkeypatch, factor: float = 1.1) -> None:
+    """The mutation: every box and capsule `factor` larger in SAPIEN only."""
+    import sapien
+
+    box, capsule = sapien.physx.PhysxCollisionShapeBox, sapien.physx.PhysxCollisionShapeCapsule
+    build_box, build_capsule = box.__init__, capsule.__init__
+
+    def grown_box(self, half_size, material):
+        build_box(self, half_size=np.asarray(half_size, np.float32) * factor, material=material)
+
+    def grown_capsule(self, radius, half_length, material):
+        build_capsule(self, radius=radius * factor, half_length=half_length, material=material)
+
+    monkeypatch.setattr(box, "__init__", grown_box)
+    monkeypatch.setattr(capsule, "__init__", grown_capsule)
 
 
 def _run(tmp_path, document: str, qvel: list[float] | None = None, seconds: float = 1.0) -> tuple:
@@ -92,3 +123,64 @@ def test_a_cylinder_rolls_shorter_on_physxs_hull(tmp_path):
     sapien_qpos, mujoco_qpos, result = _run(tmp_path, CYLINDER, [1, 0, 0, 0, 0, 0])
     assert any(n.kind == "geom" and "convex" in n.reason for n in result.approximations)
     assert 0 < 1 - sapien_qpos[0] / mujoco_qpos[0] < ROLL_GAP
+
+
+def _forearm_tip_height(model: mujoco.MjModel, qpos) -> float:
+    """m: the lower end of the forearm capsule's axis at `qpos`, by MuJoCo's kinematics."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    g = model.geom("forearm").id
+    half = data.geom_xmat[g].reshape(3, 3)[2, 2] * model.geom_size[g][1]
+    return float(data.geom_xpos[g][2] - abs(half))
+
+
+def test_a_link_rests_on_a_link_of_its_own_arm_as_in_mujoco(tmp_path, monkeypatch):
+    """Self-contact within one articulation: the forearm folds onto the shelf two links up and rests there, its tip
+    as high as in MuJoCo (which sinks it 0.1 mm, as a box into a floor). Mutation: the capsules 10 % thicker in SAPIEN
+    only, so the forearm rests higher."""
+    sapien_qpos, mujoco_qpos, result = _run(tmp_path, FOLDING_ARM)
+    assert len(result.articulations) == 1 and not result.approximations
+    model = result.model
+    data = mujoco.MjData(model)
+    data.qpos[:] = mujoco_qpos
+    mujoco.mj_forward(model, data)
+    touching = {tuple(sorted((int(c.geom1), int(c.geom2)))) for c in data.contact[: data.ncon]}
+    assert touching == {tuple(sorted((model.geom("shelf").id, model.geom("forearm").id)))}  # nothing else touches
+    assert abs(_forearm_tip_height(model, sapien_qpos) - _forearm_tip_height(model, mujoco_qpos)) < REST
+    _grown(monkeypatch)
+    lifted, mujoco_qpos, _ = _run(tmp_path, FOLDING_ARM)
+    assert _forearm_tip_height(model, lifted) - _forearm_tip_height(model, mujoco_qpos) > REST
+
+
+SOFTER_IMPEDANCE = (
+    "MuJoCo's soft impedance sinks the foot 1.5 mm (box) and 2.6 mm (capsule) into the floor; PhysX's contact is "
+    "rigid and the loader maps neither solref nor solimp (mujoco 3.17.0, sapien 3.0.3)"
+)
+
+
+SOFT = 'solref="0.05 1"'
+SOFTER = 'solref="0.05 1" solimp="0.5 0.9 0.02"'
+SINKS = pytest.mark.xfail(strict=True, reason=SOFTER_IMPEDANCE)
+
+
+@pytest.mark.parametrize(
+    "kind, soft",
+    [
+        pytest.param("box", SOFT, id="box"),
+        pytest.param("capsule", SOFT, id="capsule"),
+        pytest.param("box", SOFTER, id="box_softer_solimp", marks=SINKS),
+        pytest.param("capsule", SOFTER, id="capsule_softer_solimp", marks=SINKS),
+    ],
+)
+def test_a_foot_rests_on_a_floor_under_a_soft_solref_as_in_mujoco(tmp_path, monkeypatch, kind, soft):
+    """MuJoCo's softer contact (time constant 0.05 s, 2.5 times the default) sinks a 1 kg foot further into the floor
+    than at the default; PhysX's rigid contact, which the loader leaves at PhysX's, rests on it: within REST all the
+    same. Mutation: the foot 10 % larger in SAPIEN only, so it rests higher by more than REST."""
+    size, pitch = FEET[kind]
+    document = FOOT.format(kind=kind, size=size, pitch=pitch, soft=soft)
+    sapien_qpos, mujoco_qpos, _ = _run(tmp_path, document)
+    assert 0 < sapien_qpos[2] - mujoco_qpos[2] < REST  # MuJoCo's foot in the floor, SAPIEN's on it
+    _grown(monkeypatch)
+    lifted, mujoco_qpos, _ = _run(tmp_path, document)
+    assert lifted[2] - mujoco_qpos[2] > REST

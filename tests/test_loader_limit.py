@@ -389,3 +389,80 @@ def test_after_release_physx_holds_the_closed_end_of_an_open_range(tmp_path):
             result.scene.step()
         ends.append(float(door.get_qpos()[0]))
     assert ends[0] == pytest.approx(np.radians(-10), abs=1e-3) and ends[1] > 2 * np.pi
+
+
+STARTED_PAST = """<mujoco><option timestep="0.002"/><default>
+  <geom type="capsule" size=".03" contype="0" conaffinity="0"/><joint axis="0 1 0" frictionloss=".05"/></default>
+  <worldbody><body pos="0 0 1">
+  <joint name="shoulder" range="-30 30"/><geom fromto="0 0 0 .3 0 0" mass=".5"/>
+  <body pos=".3 0 0"><joint name="elbow" range="-45 45" ref="100"/><geom fromto="0 0 0 .3 0 0" mass=".4"/>
+  <body pos=".3 0 0"><joint name="wrist" axis="0 0 1" range="-20 60"/><geom fromto="0 0 0 .25 0 0" mass=".3"/>
+  </body></body></body></worldbody></mujoco>"""
+# of MuJoCo's velocity change over the step: PhysX's float32 response to the limit row's push scales with it, as
+# LIGHT_LINK_RELATIVE's does. Measured 1.1e-6 (a qacc error of 2.5e-3 on 4.8e3 rad/s^2); rollout within TOLERANCE,
+# measured 3.2e-7 rad (mujoco 3.17.0, sapien 3.0.3)
+STARTED_PAST_RELATIVE = 1e-5
+
+
+def _started_past_its_end(frictionless_copy: bool = False) -> tuple[float, float]:
+    """From qpos0, which puts the elbow 55 degrees past its upper end (its `ref`), frictionloss on every joint,
+    under gravity: SAPIEN's first-step velocity error over MuJoCo's velocity change, and the worst joint error over
+    a 0.5 s rollout. `frictionless_copy`: the mistake, MuJoCo's copy for the rows without the joints' frictionloss."""
+
+    def load():
+        result = MJCFLoader().load(mujoco.MjSpec.from_string(STARTED_PAST))
+        if frictionless_copy:
+            nv = result.model.nv
+            result.controller.term("rows").lent.overrides.append(("dof_frictionloss", np.arange(nv), np.zeros(nv)))
+        return result
+
+    model = mujoco.MjModel.from_xml_string(STARTED_PAST)
+    assert model.qpos0[1] > model.jnt_range[1][1] + 0.9
+    data = mujoco.MjData(model)
+    error = one_step(load(), model, model.qpos0, np.zeros(model.nv), data=data)
+    relative = float(error.max() / np.abs(data.qvel).max())
+    data = mujoco.MjData(model)
+    result = load()
+    result.set_state(data.qpos, data.qvel)
+    return relative, float(paired_rollout(result, model, data, round(0.5 / model.opt.timestep)).qpos.max())
+
+
+def test_an_arm_started_past_an_end_with_frictionloss_steps_as_in_mujoco():
+    """The limit row and the three friction rows MuJoCo solves together at the first step push the elbow back as
+    MuJoCo does, and the 0.5 s that follow stay with MuJoCo. Mutation: the copy without the frictionloss (1.7e-4 of
+    the step, 6.1e-3 rad)."""
+    relative, rollout = _started_past_its_end()
+    assert relative < STARTED_PAST_RELATIVE and rollout < TOLERANCE, (relative, rollout)
+    relative, rollout = _started_past_its_end(frictionless_copy=True)
+    assert relative > 10 * STARTED_PAST_RELATIVE and rollout > 100 * TOLERANCE, (relative, rollout)
+
+
+FOLDING_INTO_ITS_ENDS = """<mujoco><option timestep="0.002"/><default>
+  <geom type="capsule" size=".03" contype="0" conaffinity="0"/><joint axis="0 1 0" armature=".01" damping=".05"/>
+  </default><worldbody><body pos="0 0 1"><joint name="shoulder" range="-15 15"/><geom fromto="0 0 0 .3 0 0" mass=".5"/>
+  <body pos=".3 0 0"><joint name="elbow" range="-10 20"/><geom fromto="0 0 0 .3 0 0" mass=".4"/>
+  <body pos=".3 0 0"><joint name="twist" axis="1 0 0" range="-5 5" damping="0"/><joint name="wrist" range="-20 10"/>
+  <geom fromto="0 0 0 .25 .05 .05" mass=".3"/></body></body></body></worldbody></mujoco>"""
+
+
+def _fold_into_its_ends(armature_in_the_copy: bool = True) -> float:
+    """Four narrow hinges started level inside their ranges: gravity folds the arm into all four ends within the 0.5
+    s (every limit row active at its end). The worst joint error over the rollout."""
+    model = mujoco.MjModel.from_xml_string(FOLDING_INTO_ITS_ENDS)
+    data = mujoco.MjData(model)
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(FOLDING_INTO_ITS_ENDS))
+    if not armature_in_the_copy:
+        result.controller.term("rows").lent.overrides.append(("dof_armature", np.arange(4), np.zeros(4)))
+    result.set_state(data.qpos, data.qvel)
+    worst = float(paired_rollout(result, model, data, round(0.5 / model.opt.timestep)).qpos.max())
+    limits = data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)
+    assert sorted(data.efc_id[: data.nefc][limits]) == [0, 1, 2, 3]
+    return worst
+
+
+def test_an_arm_folding_into_its_limits_follows_mujoco():
+    """The rollout's course is set by the limits it reaches (unlimited, the shoulder falls past 90 degrees).
+    Measured 1.0e-7 rad (mujoco 3.17.0, sapien 3.0.3). Mutation: the copy solves the rows without the joints'
+    armature, so every limit force is sized for the wrong inertia (0.27 rad; PhysX's hard limits instead: 4.7e-2)."""
+    assert _fold_into_its_ends() < TOLERANCE
+    assert _fold_into_its_ends(armature_in_the_copy=False) > 100 * TOLERANCE
