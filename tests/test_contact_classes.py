@@ -33,6 +33,7 @@ FOOT = """<mujoco><option timestep="0.002"/><worldbody><geom name="floor" type="
 FEET = {"box": (".1 .1 .05", 0), "capsule": (".05 .1", 90)}  # half sizes; a capsule lying on its side
 # m: the box's rest height, MuJoCo's soft contact 0.11 mm into the floor, PhysX's on it (mujoco 3.17.0, sapien 3.0.3)
 REST = 1e-3
+MARGIN = 0.01  # m: a foot's contact margin, ten times REST
 # relative: a box launched at 2 m/s slides 0.2029 m in MuJoCo and 0.2023 m in SAPIEN on friction 1 (0.3 %)
 SLIDE = 0.01
 # relative: a cylinder launched at 1 m/s without spin rolls 0.673 m in 1 s in MuJoCo and 0.537 m in SAPIEN, whose
@@ -184,3 +185,15 @@ def test_a_foot_rests_on_a_floor_under_a_soft_solref_as_in_mujoco(tmp_path, monk
     _grown(monkeypatch)
     lifted, mujoco_qpos, _ = _run(tmp_path, document)
     assert lifted[2] - mujoco_qpos[2] > REST
+
+
+def test_a_contact_margin_is_noted_where_mujoco_rests_off_the_surface(tmp_path):
+    """A foot with `margin` rests that far above the floor in MuJoCo (less its soft sink) and on it in SAPIEN: the
+    load notes the margin, and a foot without one is not noted. MARGIN is ten times REST, so the gap is the margin's."""
+    document = FOOT.format(kind="box", size=FEET["box"][0], pitch=0, soft=f'margin="{MARGIN}"')
+    sapien_qpos, mujoco_qpos, result = _run(tmp_path, document)
+    assert mujoco_qpos[2] - sapien_qpos[2] == pytest.approx(MARGIN, abs=REST)
+    (note,) = [n for n in result.approximations if n.kind == "contact margin"]
+    assert note.name == "1 geoms" and f"largest {MARGIN:g} m" in note.reason and "foot" in note.reason
+    _, _, plain = _run(tmp_path, FOOT.format(kind="box", size=FEET["box"][0], pitch=0, soft=""))
+    assert not [n for n in plain.approximations if n.kind == "contact margin"]

@@ -242,6 +242,15 @@ def _pair_friction(model: mujoco.MjModel, p: int, a: int, b: int, name: str, not
         )
 
 
+def _meeting(model: mujoco.MjModel, geoms: np.ndarray, static: set[int]) -> np.ndarray:
+    """Which of `geoms` (pairwise) PhysX lets touch by their bits: not on one welded body, not both static."""
+    contype, conaffinity = model.geom_contype[geoms], model.geom_conaffinity[geoms]
+    meet = ((contype[:, None] & conaffinity[None, :]) | (contype[None, :] & conaffinity[:, None])) != 0
+    bodies = model.body_weldid[model.geom_bodyid[geoms]]
+    fixed = np.isin(model.geom_bodyid[geoms], list(static))
+    return meet & (bodies[:, None] != bodies[None, :]) & ~(fixed[:, None] & fixed[None, :])
+
+
 def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
     """MuJoCo gives a contact the larger of its two geoms' sliding frictions; PhysX averages its two materials', and
     SAPIEN 3.0.3 exposes no combine mode. Where geoms whose bits meet differ in sliding friction, the contact between
@@ -252,13 +261,8 @@ def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[
     friction = model.geom_friction[geoms, 0]
     if geoms.size < 2 or np.all(friction == friction[0]):
         return
-    contype, conaffinity = model.geom_contype[geoms], model.geom_conaffinity[geoms]
-    meet = ((contype[:, None] & conaffinity[None, :]) | (contype[None, :] & conaffinity[:, None])) != 0
-    bodies = model.body_weldid[model.geom_bodyid[geoms]]
-    fixed = np.isin(model.geom_bodyid[geoms], list(static))
-    meet &= (bodies[:, None] != bodies[None, :]) & ~(fixed[:, None] & fixed[None, :])
     gap = np.abs(friction[:, None] - friction[None, :]) / 2  # max(a, b) - (a + b) / 2
-    differs = np.triu(meet & (gap > 0), 1)
+    differs = np.triu(_meeting(model, geoms, static) & (gap > 0), 1)
     if not differs.any():
         return
     i, j = np.unravel_index(np.argmax(np.where(differs, gap, -1.0)), gap.shape)
@@ -268,4 +272,25 @@ def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[
         f"{int(differs.sum())} geom pairs",
         f"MuJoCo takes the larger of two geoms' sliding frictions, PhysX their average; largest gap "
         f"{gap[i, j]:g} ({names}: {friction[i]:g} and {friction[j]:g})",
+    )
+
+
+def note_contact_margins(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
+    """MuJoCo's contact between two geoms acts from the larger of their `margin - gap` off the surfaces, so a body
+    rests that far above what it stands on; PhysX's shapes keep a rest offset of 0 and rest touching. One note says
+    how many geoms that can touch another carry such a distance, and the largest
+    (tests/test_contact_classes.py::test_a_contact_margin_is_noted_where_mujoco_rests_off_the_surface)."""
+    geoms = np.array(sorted(shaped), dtype=int)
+    if geoms.size < 2:
+        return
+    distance = model.geom_margin[geoms] - model.geom_gap[geoms]
+    carried = (distance != 0) & _meeting(model, geoms, static).any(axis=1)
+    if not carried.any():
+        return
+    i = int(np.argmax(np.where(carried, np.abs(distance), -1.0)))
+    notes.approximate(
+        "contact margin",
+        f"{int(carried.sum())} geoms",
+        f"MuJoCo's contact acts from margin - gap off the surface (largest {distance[i]:g} m, geom "
+        f"{mj.name(model, 'geom', int(geoms[i]))}); PhysX's rest offset is 0, so SAPIEN rests that much closer",
     )
