@@ -7,9 +7,10 @@ import mujoco
 import numpy as np
 import pytest
 from support.corpus import mjcf_file
-from support.lockstep import replay
+from support.lockstep import contact_free, replay
 
 from loader import MJCFLoader
+from loader.runtime.tendons import TendonPaths
 from loader.runtime.transmissions import MomentPaths
 
 ARM = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
@@ -178,3 +179,143 @@ def test_muscles_follow_mujoco(tmp_path, monkeypatch, integrator):
     monkeypatch.setattr(MuscleActuators, "contribute", lambda self, step: None)
     other = MJCFLoader().load(path)
     assert replay(other, other.model, _muscle_sine, 1.0).max() > 100 * tolerance
+
+
+# Adhesion: a pad at the end of a sprung arm (a hinge, then a slide towards the surface) 1.3 to 1.5 cm above a
+# floor plane or a free box, no gravity. The pad's box finds its contacts in its gap band (detected, no constraint
+# rows and no contact force: MuJoCo's moment from the two bodies' Jacobians) or within its margin (active contacts:
+# the moment from their constraint rows); SAPIEN makes no contact force before the geoms touch.
+ADHESION = """<mujoco><option timestep="0.002" gravity="0 0 0" integrator="implicitfast" cone="{cone}"/>
+  <worldbody>
+    <body name="arm" pos="-0.2 0 {height}"><joint name="swing" axis="0 1 0" stiffness="20" damping="0.5"/>
+      <geom type="capsule" size="0.01" fromto="0 0 0 0.2 0 0" contype="0" conaffinity="0" mass="0.1"/>
+      <body name="pad" pos="0.2 0 0"><joint name="reach" type="slide" axis="0 0 1" stiffness="100" damping="2"/>
+        <geom name="pad" type="box" size="0.03 0.02 0.01" {band} mass="0.05"/></body></body>{surface}
+  </worldbody>
+  <actuator><adhesion name="stick" body="pad" ctrlrange="0 1" gain="1"/></actuator>
+  <keyframe><key qpos="0.03 0{box}"/></keyframe>
+</mujoco>"""
+FLOOR = '<geom name="floor" type="plane" size="1 1 0.1"/>'
+FREE_BOX = '<body name="box" pos="0 0 -0.03"><freejoint/><geom type="box" size="0.05 0.05 0.03" mass="20"/></body>'
+IN_GAP, IN_MARGIN = 'margin="0" gap="0.02"', 'margin="0.02"'
+
+
+def _adhesion(band: str = IN_GAP, surface: str = FLOOR, cone: str = "pyramidal", height: float = 0.03) -> str:
+    box = " 0 0 -0.03 1 0 0 0" if surface == FREE_BOX else ""  # the free box where it is built
+    return ADHESION.format(band=band, surface=surface, cone=cone, height=height, box=box)
+
+
+# name: (the document SAPIEN loads, the one MuJoCo runs). Within the margin MuJoCo's own contact pushes the pad
+# away (a geom margin is not PhysX's: docs/mapping.md#geoms), so MuJoCo runs the same document with the margin
+# turned into gap: the same contacts at the same points and normals, without the contact force
+ADHESIONS = {
+    "gap-floor": (_adhesion(), _adhesion()),
+    "gap-free-box": (_adhesion(surface=FREE_BOX), _adhesion(surface=FREE_BOX)),
+    "margin-floor-pyramidal": (_adhesion(IN_MARGIN), _adhesion()),
+    "margin-floor-elliptic": (_adhesion(IN_MARGIN, cone="elliptic"), _adhesion(cone="elliptic")),
+}
+# m over 0.5 s of a pull of 0 to 1 N: measured 6.6e-9 on the floor, 4.4e-8 with the free box (mujoco 3.17.0, sapien
+# 3.0.3); the moment's sign flipped 1.3e-2, MuJoCo's collision skipped 1.2e-2, and without contacts (out of reach, or
+# switched off) 2.6e-9. The margin documents against their own MuJoCo run: 1.2e-2, MuJoCo's contact holding the pad
+# at its margin (the contact mapping's difference, not the transmission's)
+ADHESION_TOLERANCE = 1e-6
+
+
+def _pull(step: int, data) -> np.ndarray:
+    return np.array([0.5 + 0.5 * np.sin(20 * step * 0.002)])
+
+
+def _adhesion_error(tmp_path, name: str) -> float:
+    document, reference = ADHESIONS[name]
+    result = MJCFLoader().load(mjcf_file(tmp_path, document, "adhesion.xml"))
+    return float(replay(result, result.model, _pull, 0.5, reference=mujoco.MjModel.from_xml_string(reference)).max())
+
+
+@pytest.mark.parametrize("name", list(ADHESIONS))
+def test_an_adhesion_actuator_pulls_along_its_contacts_as_mujoco(tmp_path, monkeypatch, name):
+    """MuJoCo's body transmission at SAPIEN's pose: its collision and constraint rows, then its moment (the mean
+    normal Jacobian of the pad's contacts, on the floor or on a free box, whose share is a root wrench). Mutations:
+    the moment's sign flipped; MuJoCo's collision skipped (no contacts, no moment)."""
+    result = MJCFLoader().load(mjcf_file(tmp_path, ADHESIONS[name][0], "adhesion.xml"))
+    assert all(a.mapped and a.moment for a in result.actuators) and not result.unsupported
+    assert _adhesion_error(tmp_path, name) < ADHESION_TOLERANCE
+    dense = MomentPaths.dense
+    with monkeypatch.context() as patch:
+        patch.setattr(MomentPaths, "dense", lambda self, data: -dense(self, data))
+        assert _adhesion_error(tmp_path, name) > 1000 * ADHESION_TOLERANCE
+    monkeypatch.setattr(MomentPaths, "pose", TendonPaths.pose)
+    assert _adhesion_error(tmp_path, name) > 1000 * ADHESION_TOLERANCE
+
+
+def test_an_adhesion_actuator_without_contacts_does_nothing(tmp_path, monkeypatch):
+    """Without contacts MuJoCo's adhesion has no moment: the pad raised out of reach of the floor, or SAPIEN's
+    contacts switched off (and MuJoCo's with them) with the pad in the gap band. Mutation: the switch not passed
+    on to the moment's collision."""
+    path = mjcf_file(tmp_path, _adhesion(height=0.2), "far.xml")
+    result = MJCFLoader().load(path)
+    forces = []
+    errors = replay(
+        result, result.model, lambda step, data: forces.append(data.qfrc_actuator.copy()) or _pull(step, data), 0.5
+    )
+    assert errors.max() < ADHESION_TOLERANCE and not np.any(forces)
+    path = mjcf_file(tmp_path, _adhesion(), "gap.xml")
+    result, model = contact_free(path)
+    assert replay(result, model, _pull, 0.5).max() < ADHESION_TOLERANCE
+    monkeypatch.setattr(MomentPaths, "contacts", lambda self, enabled: None)
+    result, model = contact_free(path)
+    assert replay(result, model, _pull, 0.5).max() > 1000 * ADHESION_TOLERANCE
+
+
+def _poses(model: mujoco.MjModel, count: int, spread: np.ndarray, seed: int = 0):
+    """`count` poses about the first keyframe (or qpos0): each position coordinate moved by up to `spread`."""
+    rng, data = np.random.default_rng(seed), mujoco.MjData(model)
+    if model.nkey:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+    for _ in range(count):
+        yield data.qpos + rng.uniform(-1, 1, model.nq) * spread
+
+
+def _fly_on_a_floor():
+    from support.corpus import _package_dir
+
+    package = _package_dir("dm_control")
+    path = package / "locomotion/walkers/assets/fruitfly_v2/fruitfly.xml" if package else None
+    if path is None or not path.is_file():
+        pytest.skip("dm_control's fruit fly is not installed")
+    spec = mujoco.MjSpec.from_file(str(path))
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.1])
+    return spec
+
+
+@pytest.mark.parametrize(
+    "name", ["gap-floor", "gap-free-box", "margin-floor-pyramidal", "margin-floor-elliptic", "fly"]
+)
+def test_a_body_moment_is_mujocos_forward_pass_at_every_pose(tmp_path, name):
+    """The passes the moment runs (kinematics, collision, constraint rows, transmission) give `mj_forward`'s
+    moment bit for bit, at poses with contacts in the gap band, within the margin and none; and the DoFs the plan
+    takes for a body transmission hold every entry MuJoCo's moment has (the fruit fly on a floor: its legs' claws
+    and its labrum against the floor and its own body, elliptic cones)."""
+    source = _fly_on_a_floor() if name == "fly" else mjcf_file(tmp_path, ADHESIONS[name][0], "adhesion.xml")
+    result = MJCFLoader().load(source)
+    model, paths = result.model, result.controller.term("actuators").moments
+    body = np.flatnonzero(model.actuator_trntype == int(mujoco.mjtTrn.mjTRN_BODY))
+    assert body.size and all(result.actuators[a].mapped for a in body)
+    if name == "fly":  # the root up to 3 mm up or down (the fly is in cm), the joints moved up to 0.3 rad
+        spread = np.r_[0, 0, 0.3, np.zeros(4), np.full(model.nq - 7, 0.3)]
+    else:
+        spread = np.r_[0.2, 0.01, np.full(model.nq - 2, 0.01)]
+    data, kinds = mujoco.MjData(model), set()
+    for qpos in _poses(model, 20, spread):
+        lengths, moment = paths.measure(qpos)
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        full = np.zeros((model.nu, model.nv))
+        mujoco.mju_sparse2dense(full, data.actuator_moment, data.moment_rownnz, data.moment_rowadr, data.moment_colind)
+        rows = [paths.index(a) for a in body]
+        assert np.array_equal(moment[rows], full[body][:, paths.dofs]), qpos
+        assert not np.delete(full[body], paths.dofs, axis=1).any()  # nothing outside the plan's DoFs
+        assert not lengths[rows].any()
+        pads = np.isin(model.geom_bodyid[data.contact.geom[: data.ncon]], model.actuator_trnid[body, 0]).any(axis=1)
+        kinds.update(data.contact.exclude[: data.ncon][pads].tolist() or ["none"])
+    expected = {"fly": {0, 1}, "gap": {0, 1, "none"}, "margin": {0, "none"}}[name.split("-")[0]]
+    assert kinds >= expected, kinds  # 0: a contact within the margin, 1: one in the gap band

@@ -157,13 +157,13 @@ def test_the_scene_is_left_as_the_other_tiers_expect(arm):
 def test_unmapped_actuators_skip_the_tier_by_name(tmp_path):
     text = ARM.replace(
         '<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
-        '<adhesion name="sticky" body="lower" ctrlrange="0 1" gain="1"/>',  # a body transmission: unmapped
+        '<general name="custom" joint="elbow" dyntype="user" ctrlrange="0 1"/>',  # user dynamics: unmapped
     )
     session = _session(_write(tmp_path, text))
     for tier in ("actuated", "actuated_contact"):
         report = _tier(session, tier)
         assert report.status == "skipped"
-        assert "sticky" in report.notes[0] and "servo" not in report.notes[0]
+        assert "custom" in report.notes[0] and "servo" not in report.notes[0]
 
 
 def test_a_saturating_servo_is_judged_unscaled_and_passes(tmp_path):
@@ -242,13 +242,13 @@ def test_spot_standing_on_its_servos(mutation, tier, metric):
 def test_the_manifest_can_take_unmapped_actuators_out_of_both_sides(tmp_path):
     text = ARM.replace(
         '<motor name="torque" joint="elbow" gear="2" ctrlrange="-1 1"/>',
-        '<adhesion name="sticky" body="lower" ctrlrange="0 1" gain="1"/>',  # a body transmission: unmapped
+        '<general name="custom" joint="elbow" dyntype="user" ctrlrange="0 1"/>',  # user dynamics: unmapped
     )
     session = _session(_write(tmp_path, text))
     removed = TOL.with_overrides(settings={"actuated": {"unmapped": "remove"}})
     report = TIERS["actuated"](session.result, session.model, 0, removed)
     assert report.status == "pass", report.to_dict()
-    assert report.settings["actuators_removed"] == ["sticky"] and "sticky" in report.notes[0]
+    assert report.settings["actuators_removed"] == ["custom"] and "custom" in report.notes[0]
     assert np.all(report.actuators.mujoco_force[:, 1] == 0) and np.all(report.actuators.sapien_force[:, 1] == 0)
     assert TIERS["actuated"](session.result, session.model, 0, TOL).status == "skipped"  # the default
 

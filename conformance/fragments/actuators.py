@@ -66,7 +66,7 @@ def _not_a_drive(entry, name: str) -> tuple[bool, str]:
     if entry.moment:
         return (
             False,
-            "actuators: a moment MuJoCo computes (site, slider-crank, free joint, muscle): judged by the rollouts",
+            "actuators: a moment MuJoCo computes (site, slider-crank, body, free joint, muscle): judged by rollouts",
         )
     if entry.mapped:
         return True, f"actuator {name!r}: mapped although MuJoCo's actuator is not a joint drive"

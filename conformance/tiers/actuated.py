@@ -141,6 +141,8 @@ class ForceLaw:
 
         self.paths = TendonPaths(model, result.mapping, [t for _, t, _ in self.spatial]) if self.spatial else None
         self.moments = MomentPaths(model, result.mapping, moments) if moments else None
+        if self.moments is not None:  # a body transmission reads MuJoCo's contacts only while SAPIEN has them
+            self.moments.contacts(sapien_side.contacts_enabled(result))
         muscles = [a for a in moments if result.actuators[a].muscle]
         self.muscles = MuscleLaws(model, muscles) if muscles else None
 
@@ -151,7 +153,7 @@ class ForceLaw:
             for row, (a, _, gear) in enumerate(self.spatial):
                 length[a] = gear * lengths[row]
                 speed[a] = gear * (jacobian[row] @ qvel[self.paths.dofs])
-        if self.moments is not None:  # site, slider-crank and free-joint transmissions: MuJoCo's at this pose
+        if self.moments is not None:  # site, slider-crank, body and free-joint transmissions: MuJoCo's at this pose
             lengths, moment = self.moments.measure(qpos)
             length[self.moments.tendons] = lengths
             speed[self.moments.tendons] = moment @ qvel[self.moments.dofs]

@@ -41,7 +41,7 @@ class ActuatorMap:
     mapped: bool = True
     reason: str = ""
     dynamics: str = "none"  # "filter", "filterexact", "integrator": the gain multiplies the activation
-    # a site, slider-crank or free-joint transmission: its length and moment (gear inside, so `gear` is 1) are
+    # a site, slider-crank, body or free-joint transmission: its length and moment (gear inside, so `gear` is 1) are
     # MuJoCo's at SAPIEN's state every step (`runtime/transmissions.py`)
     moment: bool = False
     # MuJoCo's muscle: gain and bias are its force-length-velocity curves of the length and rate, the gain times

@@ -155,12 +155,60 @@ def joint_dof_count(model: mujoco.MjModel, joint: int) -> int:
     return {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(int(model.jnt_type[joint]), 1)
 
 
+def excluded_body_pairs(model: mujoco.MjModel) -> set[tuple[int, int]]:
+    """The body pairs `<exclude>` takes out of MuJoCo's collision, each as (lower id, higher id)."""
+    return {(s >> 16, s & 0xFFFF) for s in (int(x) for x in model.exclude_signature)}
+
+
+def mujoco_filters(
+    model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]], filter_parent: bool
+) -> bool:
+    """True when MuJoCo never generates a contact between bodies b1 and b2 (`filter_parent`: the model does not
+    disable its parent filter; `excluded`: `excluded_body_pairs`)."""
+    weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
+    if weld1 == weld2:
+        return True
+    parent1 = int(model.body_weldid[model.body_parentid[weld1]])
+    parent2 = int(model.body_weldid[model.body_parentid[weld2]])
+    if filter_parent and weld1 != 0 and weld2 != 0 and (weld1 == parent2 or weld2 == parent1):
+        return True
+    return (min(b1, b2), max(b1, b2)) in excluded
+
+
+def contact_partners(model: mujoco.MjModel, body: int) -> set[int]:
+    """The bodies MuJoCo's collision can pair with `body`'s geoms: those with a geom whose contype/conaffinity bits
+    meet one of the body's geoms' and which its filters let through (`mujoco_filters`: one weld, parent and child,
+    `<exclude>`), and those holding the other geom of an explicit `<pair>` with one of the body's geoms; none where
+    the model disables contacts."""
+    if disabled(model, "contact"):
+        return set()
+    contype, conaffinity, owner = model.geom_contype, model.geom_conaffinity, model.geom_bodyid
+    excluded, filter_parent = excluded_body_pairs(model), not disabled(model, "filterparent")
+    partners = set()
+    for g in np.flatnonzero(owner == body).tolist():
+        meets = ((contype[g] & conaffinity) != 0) | ((contype & conaffinity[g]) != 0)
+        for other in np.unique(owner[meets]).tolist():
+            if not mujoco_filters(model, body, other, excluded, filter_parent):
+                partners.add(other)
+    for g1, g2 in zip(model.pair_geom1.tolist(), model.pair_geom2.tolist()):
+        b1, b2 = int(owner[g1]), int(owner[g2])
+        if body in (b1, b2):
+            partners.add(b2 if b1 == body else b1)
+    return partners
+
+
 def transmission_dofs(model: mujoco.MjModel, actuator: int) -> set[int]:
     """The DoFs an actuator's transmission can move: those moving its site (and its reference or slider site:
-    `body_dofs`), its joint's own, or its tendon's (`tendon_dofs`)."""
+    `body_dofs`), its joint's own, its tendon's (`tendon_dofs`), or for a body transmission those moving the body
+    and any body it can touch. MuJoCo's body moment is the contacts' normal Jacobians, each over the DoFs moving
+    either body of its contact; which geoms touch is known only at a pose, so the plan takes every body MuJoCo's
+    collision can pair with the body's geoms (`contact_partners`), a superset of the DoFs any pose's moment has
+    (tests/test_loader_transmissions.py::test_a_body_moment_is_mujocos_forward_pass_at_every_pose)."""
     trn, (first, second) = int(model.actuator_trntype[actuator]), (int(i) for i in model.actuator_trnid[actuator])
     if trn == int(mujoco.mjtTrn.mjTRN_TENDON):
         return tendon_dofs(model, first)
+    if trn == int(mujoco.mjtTrn.mjTRN_BODY):
+        return body_dofs(model, first).union(*(body_dofs(model, b) for b in contact_partners(model, first)))
     if trn in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
         start = int(model.jnt_dofadr[first])
         return set(range(start, start + joint_dof_count(model, first)))

@@ -1,8 +1,8 @@
 """MuJoCo actuators as the loader maps them: one `ActuatorMap` per actuator, from the compiled model.
 
 A fixed-gain, affine-bias actuator (motor, position, velocity, general PD) on a hinge or slide joint, a tendon, a
-site, a slider-crank or a free joint is mapped exactly; other dynamics, gains, biases and transmissions (a body's,
-one across a ball joint) are listed as unsupported. The per-step
+site, a slider-crank, a body (adhesion) or a free joint is mapped exactly; other dynamics, gains, biases and
+transmissions (one across a ball joint) are listed as unsupported. The per-step
 force law is `runtime/actuators.py`. Derivation: docs/mapping.md#actuators.
 """
 
@@ -101,7 +101,7 @@ def map_actuator(
     return ActuatorMap(**base, mapped=False, reason=f"{kind} transmission is not mapped"), None
 
 
-MOMENT_TRANSMISSIONS = (int(TRN.mjTRN_SITE), int(TRN.mjTRN_SLIDERCRANK))
+MOMENT_TRANSMISSIONS = (int(TRN.mjTRN_SITE), int(TRN.mjTRN_SLIDERCRANK), int(TRN.mjTRN_BODY))
 
 
 def _unmapped_law(model: mujoco.MjModel, a: int, dyntype: int) -> str:
@@ -125,9 +125,10 @@ def _is_muscle(model: mujoco.MjModel, a: int) -> bool:
 
 def _moment_actuator(model: mujoco.MjModel, mapping: Mapping, a: int, base: dict, bias) -> tuple[ActuatorMap, list]:
     """An actuator whose length and moment MuJoCo's transmission computes (a site, with or without a reference
-    site; a slider-crank; a joint or jointinparent transmission on a free joint; a muscle on any transmission):
+    site; a slider-crank; a body, from its contacts; a joint or jointinparent transmission on a free joint; a
+    muscle on any transmission):
     mapped where SAPIEN carries a force on every DoF it can move (hinges, slides, a free joint's root), with gear 1,
-    as MuJoCo's moment holds the gear."""
+    as MuJoCo's moment holds the gear (a body's takes none)."""
     dofs = sorted(mj.transmission_dofs(model, a))
     joints = [mapping.joints[int(model.dof_jntid[d])] for d in dofs]
     if any(j.kind not in CARRIED for j in joints):

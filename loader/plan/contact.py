@@ -32,21 +32,6 @@ class CollisionFilter:
         return [int(model.geom_contype[geom]) | extra0, int(model.geom_conaffinity[geom]) | extra1, g2, g3]
 
 
-def mujoco_filters(
-    model: mujoco.MjModel, b1: int, b2: int, excluded: set[tuple[int, int]], filter_parent: bool
-) -> bool:
-    """True when MuJoCo never generates a contact between bodies b1 and b2 (`filter_parent`: the model does not
-    disable its parent filter)."""
-    weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
-    if weld1 == weld2:
-        return True
-    parent1 = int(model.body_weldid[model.body_parentid[weld1]])
-    parent2 = int(model.body_weldid[model.body_parentid[weld2]])
-    if filter_parent and weld1 != 0 and weld2 != 0 and (weld1 == parent2 or weld2 == parent1):
-        return True
-    return (min(b1, b2), max(b1, b2)) in excluded
-
-
 def _physx_parent_body(tree: TreePlan, b: int) -> int | None:
     """The body carried by the direct PhysX parent of body b's link (PhysX never lets those two collide)."""
     if b not in tree.body_link:
@@ -68,7 +53,7 @@ def plan_collision_filter(
         if b in shape_bodies:
             contype[b] |= int(model.geom_contype[g])
             conaffinity[b] |= int(model.geom_conaffinity[g])
-    excluded = {(s >> 16, s & 0xFFFF) for s in (int(x) for x in model.exclude_signature)}
+    excluded = mj.excluded_body_pairs(model)
     must_exclude: list[tuple[int, int]] = []
     must_collide: set[tuple[int, int]] = set()
     filter_parent = not mj.disabled(model, "filterparent")
@@ -78,7 +63,7 @@ def plan_collision_filter(
         if b1 in static_bodies and b2 in static_bodies:
             continue  # PhysX never makes contacts between two bodies that cannot move
         physx_skips = _physx_parent_body(tree, b2) == b1 or _physx_parent_body(tree, b1) == b2
-        if mujoco_filters(model, b1, b2, excluded, filter_parent):
+        if mj.mujoco_filters(model, b1, b2, excluded, filter_parent):
             if not physx_skips:
                 must_exclude.append((b1, b2))
         elif physx_skips:
@@ -91,7 +76,7 @@ def plan_collision_filter(
             must_collide.add((b1, b2))
     for g1, g2 in zip(model.pair_geom1, model.pair_geom2):  # an explicit pair's bodies must meet (`plan_pairs`)
         b1, b2 = sorted((int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])))
-        if b1 != b2 and not mujoco_filters(model, b1, b2, excluded, filter_parent):
+        if b1 != b2 and not mj.mujoco_filters(model, b1, b2, excluded, filter_parent):
             must_collide.add((b1, b2))
     _assign_bits(model, must_exclude, must_collide, result, notes)
     return result

@@ -332,6 +332,11 @@ class ActuatorTerm(Term):
         if step.explicit_kv:
             self.explicit_kv(free, step)
 
+    def contacts(self, enabled: bool) -> None:
+        """A body transmission's moment reads MuJoCo's contacts, which its copy makes only while SAPIEN has them."""
+        if self.moments is not None:
+            self.moments.contacts(enabled)
+
     def clamped_step(self, step: Step, affine: np.ndarray):
         """MuJoCo's clamps at this state (`clamps.py`), or None when none binds. `affine`: gain x input + bias0 of
         every joint actuator."""

@@ -269,7 +269,8 @@ class Controller:
             term.forget()
 
     def contacts(self, enabled: bool) -> None:
-        """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts only while they are on."""
+        """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts, and a body transmission
+        reads them, only while they are on."""
         for term in self.planned():
             term.contacts(enabled)
 

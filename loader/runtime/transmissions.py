@@ -5,6 +5,13 @@ they are MuJoCo's own, the force law takes the length and the rate moment . qvel
 as moment^T f: joint forces on hinges and slides, a wrench on a free joint's root link. This is a spatial tendon's
 path with MuJoCo's actuator rows in place of its tendon rows, so it is carried the same way (`tendons.py`,
 `actuators.SpatialActuators`) (tests/test_loader_transmissions.py).
+
+A body transmission (`<adhesion>`) has length 0 and as moment minus the mean of the normal Jacobians of the
+body's contacts (an active contact's from its constraint rows, one in its geoms' gap from the two bodies'
+Jacobians), so MuJoCo's copy runs its collision and makes its constraint rows at SAPIEN's pose before
+`mj_transmission`: the passes of `mj_forward` that moment reads, the same numbers as the whole forward pass
+(tests/test_loader_transmissions.py::test_a_body_moment_is_mujocos_forward_pass_at_every_pose). While SAPIEN's
+contacts are off, MuJoCo's copy has none either, and the moment is zero, as under `<flag contact="disable">`.
 """
 
 from __future__ import annotations
@@ -36,6 +43,29 @@ class MomentPaths(TendonPaths):
         self.row_of = np.full(model.nu, -1, dtype=int)
         self.row_of[self.tendons] = np.arange(self.tendons.size)
         self.last = None
+        body = int(mujoco.mjtTrn.mjTRN_BODY)
+        self.adhesive = any(int(model.actuator_trntype[a]) == body for a in actuators)  # reads the contacts
+        self.touching = True  # SAPIEN has contacts (`contacts`)
+
+    def contacts(self, enabled: bool) -> None:
+        """SAPIEN's contacts switched on or off: MuJoCo's copy collides only while they are on."""
+        self.touching = enabled
+        self.last = None
+
+    def pose(self, qpos: np.ndarray) -> mujoco.MjData:
+        """`TendonPaths.pose`, and where a body transmission reads contacts, MuJoCo's collision at that pose and the
+        constraint rows its active contacts make (none while SAPIEN's contacts are off)."""
+        data = super().pose(qpos)
+        if self.adhesive:
+            if self.touching:
+                model = self.model
+                if model.nflex:
+                    mujoco.mj_flex(model, data)
+                mujoco.mj_collision(model, data)
+                mujoco.mj_makeConstraint(model, data)
+            else:
+                data.ncon = 0
+        return data
 
     def measure(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The actuators' lengths and moments (actuator x `dofs`) at MuJoCo's `qpos`."""
