@@ -16,6 +16,9 @@ from ..model.drive import DofDrive
 from .dof_step import DofKey, Step
 from .term import Compilation, Handover, Term
 
+REGIME_ROWS = [0, 1, 3, 5]  # the law's rows a regime is made of: stiffness, damping, force limit, implicit extra
+REGIMES = 64  # regimes kept: every regular one, and the clamped steps' (a clamp that binds step after step)
+
 
 class DriveRegime:
     """What the drive writer derives from a step's stiffness, damping, force limit and implicit extra: PhysX's
@@ -87,7 +90,7 @@ class DriveWriter(Term):
         self.layout, self.offsets = layout, "slides" in compilation.planned
         self.mass = np.array([self.inertia.get(key, np.inf) for key in layout.keys], dtype=np.float64)
         self.written = np.full((5, len(layout.keys)), np.nan)
-        self.regimes: dict[bool, DriveRegime] = {}  # a regular step's, by Step.explicit_kv
+        self.regimes: dict[object, DriveRegime] = {}  # a regular step's by Step.explicit_kv, others by their law
         self.idle = layout.size == 0  # no joint to drive, no qf to write
 
     def contribute(self, step: Step) -> None:
@@ -113,12 +116,13 @@ class DriveWriter(Term):
     def split(self, step: Step) -> tuple[DriveRegime, np.ndarray, np.ndarray]:
         """The step's drive regime, position and velocity targets; what neither target carries joins `step.force`."""
         law, force, timestep = step.law, step.force, step.timestep
-        key = step.explicit_kv if step.regular else None
+        first = law if law.ndim == 2 else law[:, 0]  # a batch's only on a regular step: every copy's is the same
+        key = step.explicit_kv if step.regular else first[REGIME_ROWS].tobytes()
         regime = self.regimes.get(key)
-        if regime is None:  # a batch's only on a regular step: every copy's is the same
-            regime = DriveRegime(law if law.ndim == 2 else law[:, 0], timestep, self.mass, self.layout.flat)
-            if key is not None:
-                self.regimes[key] = regime
+        if regime is None:
+            if len(self.regimes) >= REGIMES:
+                self.regimes.clear()
+            regime = self.regimes[key] = DriveRegime(first, timestep, self.mass, self.layout.flat)
         constant, via_damping = law[2], law[4]
         if regime.heavy.size:
             via_damping[..., regime.heavy] += force[..., regime.heavy_flat]
