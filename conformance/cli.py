@@ -196,6 +196,13 @@ def parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", default=str(Path("reports") / "bench.json"), help="JSON report")
     bench.add_argument("--steps", type=int, default=200, help="simulated steps per model")
     bench.add_argument("--repeats", type=int, default=5, help="loads and compiles per model, cold and warm (median)")
+    throughput = sub.add_parser(
+        "maniskill-bench",
+        help="ManiSkill Empty-v1 physics steps per second: mujoco_ctrl against pd_joint_pos (the maniskill extra)",
+        formatter_class=defaults,
+    )
+    throughput.add_argument("--out", default=str(Path("reports") / "maniskill_bench.json"), help="JSON report")
+    throughput.add_argument("--steps", type=int, default=100, help="control steps per robot and mode")
     made = sub.add_parser(
         "table",
         help="README's results table from runs (their folders or summary.json files; a row each, named after the "
@@ -352,6 +359,22 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_maniskill_bench(args) -> int:
+    from .maniskill_bench import maniskill_bench
+
+    doc = maniskill_bench(Path(args.out), control_steps=args.steps)
+    for name, row in doc["robots"].items():
+        if "skipped" in row:
+            print(f"{name}: skipped, {row['skipped']}")
+        else:
+            print(
+                f"{name}: mujoco_ctrl {row['mujoco_ctrl']:.0f}, pd_joint_pos {row['pd_joint_pos']:.0f} physics "
+                f"steps/s at {row['sim_freq']} Hz (ratio {row['ratio']:.2f})"
+            )
+    print(f"maniskill-bench: {args.out}")
+    return 0
+
+
 def cmd_robustness(args) -> int:
     import json
     import os
@@ -426,6 +449,7 @@ def main(argv: list[str] | None = None) -> int:
         commands = {
             "run": cmd_run,
             "bench": cmd_bench,
+            "maniskill-bench": cmd_maniskill_bench,
             "robustness": cmd_robustness,
             "where": cmd_where,
             "table": cmd_table,

@@ -6,6 +6,7 @@ MuJoCo stepped with the same ctrl at the scene's timestep. MuJoCo is the oracle.
 from __future__ import annotations
 
 import inspect
+import json
 import traceback
 import warnings
 from pathlib import Path
@@ -595,3 +596,20 @@ def test_a_comparison_puts_both_loaders_side_by_side(tmp_path):
     assert (folder / "ours" / "summary.md").is_file() and (folder / "maniskill" / "summary.md").is_file()
     row = next(line for line in (folder / "compare.md").read_text().splitlines() if line.startswith("| pendulum"))
     assert row.count(" / ") == 3  # one per tier: both loaders in every cell
+
+
+def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch):
+    """`nox -s maniskill -- bench`: each robot's physics steps per second under `mujoco_ctrl` and `pd_joint_pos`,
+    their ratio, the versions; a robot the Menagerie slice lacks is skipped with its path."""
+    from conformance import maniskill_bench
+
+    if menagerie_root() is None:
+        pytest.skip("Menagerie slice not installed")
+    monkeypatch.setitem(maniskill_bench.ROBOTS, "absent", "no_such_robot/robot.xml")
+    out = tmp_path / "maniskill_bench.json"
+    doc = maniskill_bench.maniskill_bench(out, control_steps=3)
+    assert json.loads(out.read_text()) == doc and doc["versions"]["mani-skill"] == mani_skill.__version__
+    panda = doc["robots"]["panda"]
+    assert panda["sim_freq"] == 500 and all(panda[mode] > 0 for mode in maniskill_bench.MODES)
+    assert panda["ratio"] == pytest.approx(panda["mujoco_ctrl"] / panda["pd_joint_pos"])
+    assert "no_such_robot/robot.xml not found" in doc["robots"]["absent"]["skipped"]
