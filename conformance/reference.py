@@ -155,6 +155,7 @@ class Rollout:
     actuator_force: np.ndarray | None = None  # (T, nu) actuator-space force of each step
     act: np.ndarray | None = None  # (T+1, na) activations before each step (they start at zero)
     unstable_step: int | None = None  # the first step after which MuJoCo reported a blow-up (bad qacc)
+    contacts: np.ndarray | None = None  # (T,) MuJoCo's contacts at each step's start (`data.ncon`)
 
     def unstable(self, model: mujoco.MjModel) -> str | None:
         """Why this run is no reference (None when it is one): MuJoCo blew up (and reset its state) on it."""
@@ -211,6 +212,7 @@ def rollout(
     applied = np.zeros((steps, model.nv))
     force = np.zeros((steps, model.nu)) if ctrl is not None else None
     act = np.zeros((steps + 1, model.na))
+    contacts = np.zeros(steps, dtype=int)
     unstable_step = None
     bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
     for t in range(steps + 1):
@@ -230,8 +232,10 @@ def rollout(
         if ctrl is not None:
             data.ctrl[:] = ctrl[t]
         mujoco.mj_step(model, data)
+        contacts[t] = data.ncon  # found by mj_step at the state before the step
         if force is not None:  # computed by mj_step from the state before the step
             force[t] = data.actuator_force
         if unstable_step is None and (data.warning[bad].number or not np.all(np.isfinite(data.qacc))):
             unstable_step = t
-    return Rollout(qpos, qvel, applied, poses, None if ctrl is None else np.asarray(ctrl), force, act, unstable_step)
+    ctrl = None if ctrl is None else np.asarray(ctrl)
+    return Rollout(qpos, qvel, applied, poses, ctrl, force, act, unstable_step, contacts)

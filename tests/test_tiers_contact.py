@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
 from conformance import tolerances as tolerance_file
 from conformance.divergence import Divergence
 from conformance.report import metric
-from conformance.tiers.rollouts import settled_verdict
+from conformance.tiers.rollouts import UNTOUCHED, settled_verdict
 
 TOLERANCES = tolerance_file.load()
 BAND = TOLERANCES["contact.final_pose_band"]
@@ -48,3 +49,21 @@ def test_a_divergence_outranks_mujocos_spread():
     divergence = Divergence("settle", 3, 0.006, "a speed of 1e9 m/s")
     found, _ = settled_verdict(_metrics(0.0), np.array([SHARE * 4]), BAND, TOLERANCES, divergence)
     assert found == "diverged"
+
+
+FALLING = """<mujoco><worldbody>{floor}<body pos="0 0 .5"><freejoint/><geom type="box" size=".1 .1 .1"/></body>
+  </worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("floor", ['<geom type="plane" size="5 5 .1"/>', ""])
+def test_a_contact_tier_says_when_nothing_touched(floor):
+    """A box dropped on a floor touches it in MuJoCo's run; without the floor nothing touches, and the contact tier's
+    verdict says so beside its pass."""
+    from conformance.session import quiet_load
+    from conformance.tiers.contact import contact
+
+    spec = mujoco.MjSpec.from_string(FALLING.format(floor=floor))
+    result = quiet_load(spec, fix_root_link=False)
+    report = contact(result, result.model, 0, TOLERANCES)
+    assert report.status == "pass"
+    assert (UNTOUCHED in report.notes) == (not floor)

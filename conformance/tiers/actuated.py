@@ -45,6 +45,7 @@ from .rollouts import (
     settings_mismatches,
     settle_trace,
     settled_verdict,
+    untouched,
 )
 
 
@@ -421,7 +422,7 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     ]
     band = tolerances["actuated_contact.final_pose_band"]
     status, why = settled_verdict(metrics, spread, band, tolerances, diverged)
-    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why
+    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why + untouched(run)
     time = np.arange(steps + 1) * dt
     return TierReport(
         "actuated_contact",

@@ -14,7 +14,7 @@ from .. import chaos, reference, sapien_side
 from ..divergence import SpeedBound, first_divergence
 from ..report import TierReport, metric, skipped
 from ..tolerances import Tolerances
-from .rollouts import carried, compare_settled, sapien_rollout, settle_trace, settled_verdict
+from .rollouts import carried, compare_settled, sapien_rollout, settle_trace, settled_verdict, untouched
 
 
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -48,6 +48,7 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     ]
     spread = poses.spread
     status, notes = settled_verdict(metrics, spread, tolerances["contact.final_pose_band"], tolerances, diverged)
+    notes += untouched(run)
     return TierReport(
         "contact",
         status,

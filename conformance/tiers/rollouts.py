@@ -113,6 +113,15 @@ def compare_settled(
     )
 
 
+UNTOUCHED = "nothing touches in MuJoCo's run (no contact at any step): the settle was judged without a contact"
+
+
+def untouched(run) -> list[str]:
+    """The note of a contact tier whose MuJoCo run makes no contact: its pass says only that SAPIEN, too, settled
+    without one (tests/test_tiers_contact.py::test_a_contact_tier_says_when_nothing_touched)."""
+    return [UNTOUCHED] if run.contacts is not None and not run.contacts.any() else []
+
+
 def settled_verdict(
     metrics: list[Metric], spread: np.ndarray, band: float, tolerances, divergence
 ) -> tuple[str, list[str]]:
