@@ -268,8 +268,8 @@ def _ctrl_notes(scale: float, left: dict[str, int], steps: int, smooth: bool = T
         )
     if left["at_limit"] and smooth:
         notes.append(
-            f"a joint is at its limit in MuJoCo on {left['at_limit']} of {steps} steps even at the held "
-            "ctrl (its limit rows are MuJoCo's own on both sides)"
+            f"a joint is at its limit in MuJoCo in {left['at_limit']} of the run's {steps + 1} states (its start "
+            "and each step's end) even at the held ctrl (its limit rows are MuJoCo's own on both sides)"
         )
     return notes
 
