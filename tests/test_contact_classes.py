@@ -4,12 +4,15 @@ a floor under a soft solref. What PhysX's rigid contact carries of MuJoCo's, mea
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 import pytest
-from support.corpus import mjcf_file
+from support.corpus import menagerie_root, mjcf_file
 
-from loader import MJCFLoader
+from loader import DivergenceError, MJCFLoader
+from loader.plan import physx_settings
 
 BOX = """<mujoco><option timestep="0.002"/><worldbody>
   <geom name="floor" type="plane" size="5 5 .1" friction="{floor} 0.005 0.0001"/>
@@ -197,3 +200,59 @@ def test_a_contact_margin_is_noted_where_mujoco_rests_off_the_surface(tmp_path):
     assert note.name == "1 geoms" and f"largest {MARGIN:g} m" in note.reason and "foot" in note.reason
     _, _, plain = _run(tmp_path, FOOT.format(kind="box", size=FEET["box"][0], pitch=0, soft=""))
     assert not [n for n in plain.approximations if n.kind == "contact margin"]
+
+
+def _hand_walk(path, tgs: bool, timestep: float = 0.01, seconds: float = 0.5) -> tuple[float, float]:
+    """The largest |qvel| of SAPIEN's and of MuJoCo's Menagerie LEAP hand over a seeded ctrl walk (1 % of each
+    ctrlrange per step from its middle) at `timestep` (100 Hz: ManiSkill's default), SAPIEN under PGS or TGS; inf
+    where SAPIEN's state stops being finite."""
+    import sapien
+
+    previous = sapien.physx.get_scene_config()
+    sapien.physx.set_scene_config(enable_tgs=tgs, gravity=[0.0, 0.0, -9.81])
+    try:
+        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    finally:
+        sapien.physx.set_scene_config(previous)
+    scene.timestep = timestep
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = MJCFLoader().set_scene(scene).load(str(path))
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.timestep = timestep
+    data = mujoco.MjData(model)
+    low, high = model.actuator_ctrlrange.T
+    rng, ctrl = np.random.default_rng(0), (low + high) / 2
+    fastest = [0.0, 0.0]
+    for _ in range(round(seconds / timestep)):
+        ctrl = np.clip(ctrl + 0.01 * rng.standard_normal(model.nu) * (high - low), low, high)
+        try:
+            result.set_ctrl(ctrl)
+        except DivergenceError:
+            return np.inf, fastest[1]
+        scene.step()
+        data.ctrl[:] = ctrl
+        mujoco.mj_step(model, data)
+        fastest = [
+            max(fastest[0], float(np.abs(result.get_state()[1]).max())),
+            max(fastest[1], np.abs(data.qvel).max()),
+        ]
+    return fastest[0], fastest[1]
+
+
+@pytest.mark.parametrize("tgs", [False, True], ids=["pgs", "tgs"])
+def test_a_hand_under_a_ctrl_walk_at_100_hz_holds_its_fingers_apart(tgs, monkeypatch):
+    """The LEAP hand's fingers are 1.5 cm apart: PhysX makes a contact between two shapes within the sum of their
+    contact offsets, and with SAPIEN's default offset every pair of fingers is one. At ManiSkill's default 100 Hz
+    they then blow the hand up within a few steps while MuJoCo's stays calm. With the loader's offset
+    (`CONTACT_OFFSET`) SAPIEN's fastest joint stays within the harness's divergence factor (10x) of MuJoCo's.
+    Mutation: SAPIEN's default offset."""
+    root = menagerie_root()
+    if root is None or not (root / "leap_hand/right_hand.xml").is_file():
+        pytest.skip("Menagerie slice not installed")
+    path = root / "leap_hand/right_hand.xml"
+    ours, theirs = _hand_walk(path, tgs)
+    assert ours < 10 * theirs, (ours, theirs)
+    monkeypatch.setattr(physx_settings, "CONTACT_OFFSET", 0.01)
+    ours, theirs = _hand_walk(path, tgs)
+    assert ours > 10 * theirs, (ours, theirs)

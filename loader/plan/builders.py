@@ -54,6 +54,8 @@ def make_shape(plan: ShapePlan, dynamic: bool) -> sapien.physx.PhysxCollisionSha
         raise ValueError(f"unknown shape kind {plan.kind!r}")
     shape.local_pose = plan.pose
     shape.set_collision_groups([int(x) & 0xFFFFFFFF for x in plan.groups])
+    if dynamic:  # a static shape (a floor, a table) keeps SAPIEN's offset: only a moving part's pairs are shrunk
+        shape.contact_offset = physx.CONTACT_OFFSET
     return shape
 
 

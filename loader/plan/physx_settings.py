@@ -21,6 +21,15 @@ MAX_LINK_LINEAR_VELOCITY = 1e4  # m/s
 MAX_LINK_ANGULAR_VELOCITY = 1e4  # rad/s
 MAX_JOINT_VELOCITY = 1e4
 
+# m, the PhysX contact offset of every shape on a moving body: PhysX makes a contact between two shapes within the
+# sum of theirs, MuJoCo only where they touch (within their margin). At SAPIEN's default of 0.01 every pair of a
+# hand's fingers, 1.5 cm apart, is a contact, and the Menagerie LEAP hand under a ctrl walk at 100 Hz blows up on
+# them within a control step (at 0.005 too); at 0.002 it holds, under PGS and TGS
+# (tests/test_contact_classes.py::test_a_hand_under_a_ctrl_walk_at_100_hz_holds_its_fingers_apart). Static shapes
+# (floors, tables) keep SAPIEN's: shrinking theirs too moved the corpus's settled poses on floors away from MuJoCo's
+# (a humanoid's by 3 cm under ctrl), keeping them moved as many closer as away (mujoco 3.17.0, sapien 3.0.3)
+CONTACT_OFFSET = 0.002
+
 
 def matched_config(model: mujoco.MjModel) -> sapien.physx.PhysxSceneConfig:
     """The PhysX scene configuration matched to `model`: MuJoCo's gravity (zero where disabled) and PGS, not TGS
