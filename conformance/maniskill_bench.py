@@ -26,20 +26,11 @@ WARMUP = 5  # control steps before the clock starts
 
 def steps_per_second(uid: str, mode: str, sim_freq: int, control_steps: int, seed: int = 0) -> float:
     """Physics steps per second of `Empty-v1` with the agent `uid` under `mode` over `control_steps` env steps."""
-    import gymnasium as gym
-    import mani_skill.envs  # noqa: F401  registers Empty-v1
+    from .tiers.maniskill import empty_env
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        env = gym.make(
-            "Empty-v1",
-            robot_uids=uid,
-            sim_backend="physx_cpu",
-            render_backend="none",
-            obs_mode="state",
-            control_mode=mode,
-            sim_config={"sim_freq": sim_freq, "control_freq": sim_freq // SUBSTEPS},
-        )
+        warnings.simplefilter("ignore")  # the loader's notes were warned at the agent's registration
+        env = empty_env(uid, mode, sim_freq, sim_freq // SUBSTEPS)
     try:
         env.reset(seed=seed)
         space = env.action_space

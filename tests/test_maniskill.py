@@ -30,6 +30,7 @@ from mani_skill.utils.structs.types import SimConfig
 
 import loader as loader_package
 from conformance import maniskill_loader
+from conformance.tiers.maniskill import empty_env
 from loader import SceneMismatchWarning, servos
 from loader.maniskill import MJCFLoader, register_agent
 from loader.plan import physx_settings
@@ -89,16 +90,7 @@ def agents():
 
 def _env(uid: str, mode: str, sim_freq: int, control_freq: int, tgs: bool = False):
     """`Empty-v1` with the robot; PGS, or with `tgs` ManiSkill's default scene configuration."""
-    scene = {} if tgs else {"scene_config": {"enable_tgs": False}}
-    return gym.make(
-        "Empty-v1",
-        robot_uids=uid,
-        sim_backend="physx_cpu",
-        render_backend="none",
-        obs_mode="state",
-        control_mode=mode,
-        sim_config={"sim_freq": sim_freq, "control_freq": control_freq, **scene},
-    )
+    return empty_env(uid, mode, sim_freq, control_freq, None if tgs else {"enable_tgs": False})
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

@@ -61,9 +61,28 @@ class ThroughEnv:
         return getattr(self.result, name)
 
 
+def empty_env(uid: str, mode: str, sim_freq: int, control_freq: int, scene_config: dict | None = None):
+    """ManiSkill's `Empty-v1` with the registered agent `uid` under `mode`, on the CPU backend without rendering
+    (`scene_config`: PhysX settings over ManiSkill's default, TGS)."""
+    import gymnasium as gym
+    import mani_skill.envs  # noqa: F401  registers Empty-v1
+
+    sim_config = {"sim_freq": sim_freq, "control_freq": control_freq}
+    if scene_config is not None:
+        sim_config["scene_config"] = scene_config
+    return gym.make(
+        "Empty-v1",
+        robot_uids=uid,
+        sim_backend="physx_cpu",
+        render_backend="none",
+        obs_mode="state",
+        control_mode=mode,
+        sim_config=sim_config,
+    )
+
+
 def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     try:
-        import gymnasium as gym
         import mani_skill.envs  # noqa: F401  registers Empty-v1
 
         from loader.maniskill import register_agent
@@ -82,15 +101,7 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the loader's notes were counted by the session's load
         register_agent(result.path, uid, override=True)
-        env = gym.make(
-            "Empty-v1",
-            robot_uids=uid,
-            sim_backend="physx_cpu",
-            render_backend="none",
-            obs_mode="state",
-            control_mode="mujoco_ctrl",
-            sim_config={"sim_freq": sim_freq, "control_freq": sim_freq, "scene_config": scene_config},
-        )
+        env = empty_env(uid, "mujoco_ctrl", sim_freq, sim_freq, scene_config)
     try:
         env.reset(seed=seed)
         (agent_result,) = env.unwrapped.agent.results
