@@ -244,7 +244,9 @@ def record(folder: Path, finding: Finding, source: Source, data: bytes, seed: in
 
 
 def registered(folder: Path) -> dict[str, dict]:
-    """The saved mutants of `folder`: file name -> {source, kind, found, description}."""
+    """The saved mutants of `folder`: file name -> {source, kind, found, description}, and where a session added
+    them, `seed` (the seed it replays under; default 0) and `known` (a known bug's reason: its replay is expected to
+    stay bad)."""
     registry = folder / REGISTRY
     if not registry.is_file():
         return {}
