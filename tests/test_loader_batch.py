@@ -116,3 +116,23 @@ def test_a_batch_holds_copies_of_one_model_only(tmp_path):
     other = mjcf_file(tmp_path, MIXED.replace('<motor tendon="t" gear="2" ctrlrange="-1 1"/>', ""), "other.xml")
     with pytest.raises(ValueError, match="not a copy"):
         Batch([*copies(mjcf_file(tmp_path, MIXED), 1), *copies(other, 1)])
+
+
+def test_a_copy_edited_apart_is_stepped_by_its_own_laws(tmp_path):
+    """A copy whose laws were edited after the batch was made no longer shares the first copy's: every stage runs
+    per copy, and the edited copy steps as a lone copy with the same edit. Mutation: the stages batched anyway."""
+    path = mjcf_file(tmp_path, SERVO)
+    batch_results, lone = copies(path, 2), copies(path, 2)
+    batch = Batch(batch_results)
+    for results in (batch_results, lone):
+        law = next(iter(results[1].controller.edit_laws().values()))
+        law.stiffness += 5.0
+    ctrl = np.full((2, lone[0].model.nu), 0.3)
+    for _ in range(20):
+        batch.step(ctrl)
+        for k, result in enumerate(lone):
+            result.set_ctrl(ctrl[k])
+            result.scene.step()
+    assert batch.batched == []
+    for a, b in zip(batch_results, lone):
+        np.testing.assert_array_equal(a.get_state()[0], b.get_state()[0])

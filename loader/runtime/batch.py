@@ -33,6 +33,8 @@ class Batch:
         self.results = list(results)
         self.controllers = [result.controller for result in results]
         self.batched: list[str] = []  # the stages the last `set_ctrl` ran once for every copy
+        self.seen: list[int] | None = None  # each copy's `Controller.compilations` when `alike` was decided
+        self.alike = False  # every copy runs the same stages with the same laws (`plans_alike`)
 
     def __len__(self) -> int:
         return len(self.results)
@@ -60,10 +62,12 @@ class Batch:
         ctrls = self.commands("ctrl", ctrl, model.nu, "actuators (nu)")
         applied = self.commands("qfrc_applied", qfrc_applied, model.nv, "DoFs (nv)")
         steps = [c.begin(u, f, advance) for c, u, f in zip(self.controllers, ctrls, applied)]
+        compilations = [c.compilations for c in self.controllers]
+        if compilations != self.seen:  # a copy compiled again (an edit, a term switched): compare the plans
+            self.seen, self.alike = compilations, self.plans_alike()
         running = [c.running for c in self.controllers]
         kept = [k for k, step in enumerate(steps) if step is not None]
-        same = all([t.name for t in running[k]] == [t.name for t in running[kept[0]]] for k in kept) if kept else False
-        if len(kept) < len(self) or not same:  # a copy not finite, or edited apart from the others
+        if len(kept) < len(self) or not self.alike:  # a copy not finite, or edited apart from the others
             self.batched = []
             for k in kept:
                 self.controllers[k].run(steps[k])
@@ -78,6 +82,20 @@ class Batch:
                     step.regular = stacked.regular
                     copy.contribute(step)
                 stacked.regular = all(step.regular for step in steps)
+
+    def plans_alike(self) -> bool:
+        """Whether every copy runs the stages of the first with its drive laws, actuators and timestep: what the
+        stages run once for all copies read from the first copy's terms."""
+        first = self.controllers[0]
+        names, laws, actuators = [t.name for t in first.running], first.drive_laws(), first.term("actuators")
+        return all(
+            [t.name for t in c.running] == names
+            and c.drive_laws() == laws
+            and c.timestep == first.timestep
+            and (c.term("actuators") is None) == (actuators is None)
+            and (actuators is None or c.term("actuators").actuators == actuators.actuators)
+            for c in self.controllers[1:]
+        )
 
     def step(self, ctrl=None, qfrc_applied=None) -> None:
         """`set_ctrl`, then one physics step of every copy's scene."""

@@ -88,6 +88,7 @@ class Controller:
         self.running: list[Term] = []  # the terms with work (`compile`)
         self.readers: list | None = None  # the articulations whose link velocities the terms read
         self.steps = 0  # physics steps begun by `set_ctrl` (its advancing calls)
+        self.compilations = 0  # `compile` calls: a `Batch` compares its copies' plans again after one
         self.timings: dict[str, float] | None = None  # seconds per stage while timed (`timed`)
 
     @property
@@ -171,6 +172,7 @@ class Controller:
         self.base = np.concatenate([laws, np.zeros((3, laws.shape[1]))])
         self.running = [term for term in self.terms if not term.idle]
         self.stale = False
+        self.compilations += 1
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
