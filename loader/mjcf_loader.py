@@ -33,8 +33,11 @@ from .plan.texture import textures
 from .plan.tree import TreePlan, plan_tree
 from .plan.visual import add_visual, visuals_available
 from .result import LoadResult
+from .runtime.contacts import shapes_of
 from .runtime.controller import Controller
 from .runtime.controller import plan as runtime_plan
+
+CONTACTS = ("mujoco", "physx")  # whose the contacts between the model's own shapes are (`MJCFLoader.contacts`)
 
 
 @dataclass
@@ -62,6 +65,9 @@ class MJCFLoader:
     `maniskill_dialect`: load as ManiSkill's own MJCF loader does: links named as it names them (`dummy_root_<i>`,
     `<body>_dummy_<k>`; `plan/tree.py`), and its spellings that MuJoCo rejects read with a note (`plan/dialect.py`);
     the ManiSkill drop-in sets it. Without it the loader loads what MuJoCo compiles and names links after bodies.
+    `contacts`: "mujoco" (default): while `set_ctrl` runs, the contacts between the model's own shapes are MuJoCo's,
+    solved by MuJoCo at SAPIEN's state and applied as forces, PhysX's between them off (shapes of other loads and
+    objects still touch the model through PhysX); "physx": PhysX's rigid contacts (docs/mapping.md#contacts-as-rows).
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -73,6 +79,7 @@ class MJCFLoader:
         self.warn_each_note = False
         self.warn_approximations = False
         self.maniskill_dialect = False
+        self.contacts = "mujoco"
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -102,6 +109,7 @@ class MJCFLoader:
             self.solver_iterations,
             self.warn_each_note,
             warn_approximations=self.warn_approximations,
+            contacts=self.contacts,
         )
 
     def new_articulation_builder(self) -> MJCFArticulationBuilder:
@@ -220,16 +228,20 @@ def finish(
     warn_each_note: bool = False,
     stacklevel: int = 4,
     warn_approximations: bool = False,
+    contacts: str = "mujoco",
 ) -> LoadResult:
     """The mapping and the per-step terms of built articulations (one per tree, in order) in `scene`: the
     `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller): what was
-    dropped, and the approximations where `warn_approximations`."""
+    dropped, and the approximations where `warn_approximations`; `contacts`: whose the model's own contacts are
+    (`MJCFLoader`)."""
+    if contacts not in CONTACTS:
+        raise ControlError(f"contacts={contacts!r}: one of {', '.join(map(repr, CONTACTS))}")
     model = parsed.compiled.model
     mapping = _mapping(model, parsed, articulations)
     with mj.sharing_qpos0(model, parsed.compiled.at_qpos0):
         maps = map_actuators(model, mapping, parsed.notes)
         equalities = map_equalities(model, scene, articulations, mapping, parsed.notes)
-        controller = _runtime(model, scene, articulations, mapping, maps, equalities, parsed.notes)
+        controller = _runtime(model, scene, articulations, actors, mapping, maps, equalities, parsed.notes, contacts)
         if solver_iterations == "auto":
             connects = [link.joint for link in equalities if link.kind == "D6 joint"]
             tune_iterations(articulations, model, controller.drive_weights(), connects, mapping, parsed.notes)
@@ -249,6 +261,7 @@ def finish(
         equalities=equalities,
         controller=controller,
         replanner=replan,
+        contacts=contacts,
     )
     approximations = result.approximations if warn_approximations else []
     warn_notes(result.path, result.unsupported, approximations, each=warn_each_note, stacklevel=stacklevel)
@@ -260,14 +273,27 @@ def _runtime(
     model: mujoco.MjModel,
     scene: sapien.Scene,
     articulations: list,
+    actors: list,
     mapping: Mapping,
     maps: list,
     equalities: list,
     notes: Notes,
+    contacts: str,
 ) -> Controller:
-    """The per-step terms of `model` (the runtime's own: nobody else edits it), at the scene's timestep."""
+    """The per-step terms of `model` (the runtime's own: nobody else edits it), at the scene's timestep; the model's
+    own contacts MuJoCo's where `contacts` is "mujoco" (over the shapes of `articulations` and `actors`)."""
     options = Options.of(model, physx_settings.scene_timestep(scene, model), physx_settings.uses_tgs(scene))
-    return runtime_plan(model, options, mapping, scene, articulations, maps, equalities, notes)
+    own = shapes_of(articulations, actors) if contacts == "mujoco" else None
+    shapeless = [g for g, target in enumerate(mapping.geoms) if not _built(target, actors)]
+    return runtime_plan(model, options, mapping, scene, articulations, maps, equalities, notes, own, shapeless)
+
+
+def _built(target: GeomShape | None, actors: list) -> bool:
+    """Whether a geom has a shape in SAPIEN: on a link, or on an actor that was built (the ManiSkill drop-in leaves
+    the world's geoms to ManiSkill)."""
+    if target is None:
+        return False
+    return target.articulation is not None or (target.actor is not None and target.actor < len(actors))
 
 
 def replan(result: LoadResult, model: mujoco.MjModel) -> tuple[list, Controller]:
@@ -279,7 +305,17 @@ def replan(result: LoadResult, model: mujoco.MjModel) -> tuple[list, Controller]
         raise ControlError(f"{result.path}: the edited model has other elements than the loaded one; load it again")
     notes = Notes()
     maps = map_actuators(model, result.mapping, notes)
-    controller = _runtime(model, result.scene, result.articulations, result.mapping, maps, result.equalities, notes)
+    controller = _runtime(
+        model,
+        result.scene,
+        result.articulations,
+        result.actors,
+        result.mapping,
+        maps,
+        result.equalities,
+        notes,
+        result.contacts,
+    )
     return [entry for entry, _ in maps], controller
 
 

@@ -46,6 +46,7 @@ class LoadResult:
     actuators: list[ActuatorMap] = field(default_factory=list)
     equalities: list[EqualityLink] = field(default_factory=list)
     replanner: Callable[[LoadResult, mujoco.MjModel], tuple] | None = field(default=None, repr=False)  # `replan`
+    contacts: str = "mujoco"  # whose the contacts between the model's own shapes are (`MJCFLoader.contacts`)
     held_ctrl: np.ndarray | None = field(default=None, init=False, repr=False)  # the ctrl `step` holds
     _saved_collision_groups: list | None = field(default=None, init=False, repr=False)  # while contacts are off
     _model: mujoco.MjModel | None = field(default=None, init=False, repr=False)  # the caller's copy, made on demand
@@ -159,6 +160,14 @@ class LoadResult:
         elif enabled and self._saved_collision_groups is not None:
             contacts.restore_contacts(self, self._saved_collision_groups)
             self._saved_collision_groups = None
+
+    def collision_groups(self, shape) -> list[int]:
+        """A shape's collision words as the model's filter sets them (the words PhysX's contacts use), also while
+        `set_ctrl` holds the model's own contacts as MuJoCo's and gives the shapes other words
+        (docs/mapping.md#contacts-as-rows)."""
+        rows = self.controller.term("rows")
+        own = None if rows is None else rows.own
+        return own.groups(shape) if own is not None else list(shape.get_collision_groups())
 
     def disable_actuators(self, disabled: bool = True) -> None:
         """Take every actuator out (MuJoCo's `<flag actuation="disable"/>`): joints keep only their passive

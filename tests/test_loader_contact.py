@@ -12,6 +12,13 @@ from loader import MJCFLoader
 from loader.model.options import MAX_DEPENETRATION_VELOCITY
 
 
+def _physx_loader() -> MJCFLoader:
+    """A loader whose models' own contacts are PhysX's (`MJCFLoader.contacts`), for the tests of that mapping."""
+    loader = MJCFLoader()
+    loader.contacts = "physx"
+    return loader
+
+
 def _separation_after(result, steps: int) -> tuple[float, float]:
     """Distances within the excluded pair (left, right) and the plain pair (third, fourth), both overlapping
     by 5 cm at the start, after PhysX has stepped them."""
@@ -49,7 +56,7 @@ def test_a_chain_of_40_bodies_collides_like_mujoco(load):
     assert not [e for e in result.unsupported if e.kind == "contact"]
     assert not collision_filter_mismatches(result)
     words = {
-        tuple(component_of(result, result.mapping.geoms[g]).collision_shapes[0].get_collision_groups()[2:])
+        tuple(result.collision_groups(component_of(result, result.mapping.geoms[g]).collision_shapes[0])[2:])
         for g in range(model.ngeom)
     }
     assert len(words) > 1  # bits are really spent on the chain's weld-parent pairs
@@ -148,14 +155,15 @@ def test_arms_started_inside_each_other_come_apart_as_slowly_as_in_mujoco(iterat
     """Menagerie's aloha at qpos0: its two arms overlap by up to 3.5 cm over 91 contacts. MuJoCo's soft contacts
     ease them apart; PhysX's rigid ones, solved with a depenetration speed cap, fling the jammed links, and the
     harder the more position iterations it runs (an articulation runs with another's count when the scene holds
-    one that needs more, `plan/solver_iterations.py`). The loader's cap keeps the arms near MuJoCo's speeds."""
+    one that needs more, `plan/solver_iterations.py`). The loader's cap keeps the arms near MuJoCo's speeds where
+    PhysX makes the contacts (`contacts="physx"`)."""
     from support.corpus import menagerie_root
     from support.lockstep import paired_rollout
 
     root = menagerie_root()
     if root is None or not (root / "aloha" / "scene.xml").is_file():
         pytest.skip("the Menagerie slice is not installed (the `menagerie` extra)")
-    result = MJCFLoader().load(root / "aloha" / "scene.xml")
+    result = _physx_loader().load(root / "aloha" / "scene.xml")
     for articulation in result.articulations:
         articulation.solver_position_iterations = iterations
         for link in articulation.links:
@@ -186,13 +194,14 @@ def test_explicit_pairs_make_mujocos_contacts_and_note_what_physx_loses(tmp_path
     """Every geom here has contype = conaffinity = 0: only the pairs make contacts. The floor, the wall and the
     bodies meet exactly where MuJoCo's pairs say (one bit serves the floor's pairs, another the wall's, which
     sharing would let the ball touch the wall); bodies resting on the floor stay there. A lid on its parent box is
-    a pair PhysX's parent rule blocks, and the box's pair has its own friction: both noted. Mutation: the pairs
-    left unplanned, so that every body falls through the floor."""
+    a pair PhysX's parent rule blocks, and the box's pair has its own friction: both noted. The words serve where
+    PhysX makes the model's contacts (`contacts="physx"`, after `release()`). Mutation: the pairs left unplanned, so
+    that every body falls through the floor."""
     from loader import mjcf_loader
 
     path = tmp_path / "pairs.xml"
     path.write_text(PAIRS)
-    result = MJCFLoader().load(str(path))
+    result = _physx_loader().load(str(path))
     assert collision_filter_mismatches(result) == [("box", "lid", False)]  # the one the parent rule blocks
     assert sorted((n.name, n.reason) for n in result.unsupported + result.approximations if "pair" in n.kind) == [
         ("box_floor", "sliding friction 0.3 (the pair's); PhysX averages its geoms' to 1"),
@@ -206,8 +215,98 @@ def test_explicit_pairs_make_mujocos_contacts_and_note_what_physx_loses(tmp_path
     heights = result.get_state()[0][[2, 9, 17]], data.qpos[[2, 9, 17]]
     assert np.abs(heights[0] - heights[1]).max() < REST, heights
     monkeypatch.setattr(mjcf_loader, "plan_pairs", lambda *args: None)
-    fallen = MJCFLoader().load(str(path))
+    fallen = _physx_loader().load(str(path))
     for _ in range(500):
         fallen.set_ctrl(None)
         fallen.scene.step()
     assert fallen.get_state()[0][[2, 9, 17]].max() < -0.5
+
+
+CREEP = """<mujoco><option timestep="0.002" gravity="4 0 -9.81"/><worldbody><geom type="plane" size="2 2 .1"/>
+  <body pos="0 0 .05"><freejoint/><geom type="box" size=".05 .05 .05" mass="1"/></body></worldbody></mujoco>"""
+CREEP_TOLERANCE = 1e-5  # m: the box's path against MuJoCo's over 1 s. Measured 2.5e-8; with PhysX's contacts (it
+# sticks) 2.5e-3 (mujoco 3.17.0, sapien 3.0.3)
+
+
+def _creep(contacts: str) -> float:
+    """The largest distance of the box from MuJoCo's over 1 s, pulled sideways at 4 m/s^2 (below its sliding
+    friction), through `set_ctrl`."""
+    model = mujoco.MjModel.from_xml_string(CREEP)
+    data = mujoco.MjData(model)
+    loader = MJCFLoader()
+    loader.contacts = contacts
+    result = loader.load(mujoco.MjSpec.from_string(CREEP))
+    worst = 0.0
+    for _ in range(round(1.0 / model.opt.timestep)):
+        result.set_ctrl(None)
+        result.scene.step()
+        mujoco.mj_step(model, data)
+        worst = max(worst, float(np.linalg.norm(result.get_state()[0][:3] - data.qpos[:3])))
+    return worst
+
+
+def test_a_box_under_a_push_creeps_over_the_floor_as_in_mujoco():
+    """MuJoCo's friction is soft: under a pull below its limit the box creeps, at the rate its impedance gives. The
+    model's own contacts are MuJoCo's (`runtime/rows.py`, `runtime/contacts.py`: OwnContacts), so SAPIEN's box
+    follows. Mutation: PhysX's contacts, whose friction holds the box still."""
+    assert _creep("mujoco") < CREEP_TOLERANCE
+    assert _creep("physx") > 100 * CREEP_TOLERANCE
+
+
+BESIDE = """<mujoco><option timestep="0.002"/><worldbody><geom name="floor" type="plane" size="2 2 .1"/>
+  <body pos="0 0 .2"><freejoint/><geom type="box" size=".05 .05 .05" mass="1"/></body></worldbody></mujoco>"""
+OTHER = """<mujoco><option timestep="0.002"/><worldbody>
+  <body pos=".3 0 .2"><freejoint/><geom type="sphere" size=".05" mass="1"/></body></worldbody></mujoco>"""
+
+
+def _heights_beside() -> tuple[float, float, float]:
+    """A model with a floor and a box, a second model (a ball, no floor) loaded into the same scene, and a box the
+    caller builds there: their heights after 0.5 s, each load stepped through `set_ctrl`."""
+    import sapien
+
+    first = MJCFLoader().load(mujoco.MjSpec.from_string(BESIDE))
+    second = MJCFLoader().set_scene(first.scene).load(mujoco.MjSpec.from_string(OTHER))
+    builder = first.scene.create_actor_builder()
+    builder.add_box_collision(half_size=[0.05, 0.05, 0.05])
+    box = builder.build(name="caller's box")
+    box.set_pose(sapien.Pose([-0.3, 0.0, 0.2]))
+    for _ in range(250):
+        first.set_ctrl(None)
+        second.set_ctrl(None)
+        first.scene.step()
+    return float(first.get_state()[0][2]), float(second.get_state()[0][2]), float(box.pose.p[2])
+
+
+def test_objects_outside_the_model_still_touch_it_through_physx(monkeypatch):
+    """The model's own contacts are MuJoCo's, PhysX's between its shapes off; a box the caller builds and a second
+    load in the same scene still land on the first load's floor through PhysX (each load takes its own g1 bit).
+    Mutation: both loads with one bit, so the second falls through the first's floor."""
+    from loader.runtime import contacts
+
+    own, other, callers = _heights_beside()
+    assert abs(own - 0.05) < 1e-3 and abs(other - 0.05) < 1e-2 and abs(callers - 0.05) < 1e-2, (own, other, callers)
+    monkeypatch.setattr(contacts, "load_bit", lambda scene, shapes: 1 << contacts.LOAD_BITS[0])
+    own, other, callers = _heights_beside()
+    assert other < 0.0, other
+
+
+def _after_release() -> float:
+    """The box of `BESIDE` stepped once through `set_ctrl`, then released and stepped 0.5 s by PhysX alone: its
+    height."""
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(BESIDE))
+    result.set_ctrl(None)
+    result.scene.step()
+    result.release()
+    for _ in range(250):
+        result.scene.step()
+    return float(result.get_state()[0][2])
+
+
+def test_release_gives_the_model_its_own_contacts_back(monkeypatch):
+    """After `release()` nothing applies MuJoCo's contacts: PhysX's are back between the model's shapes, and the box
+    stepped without `set_ctrl` rests on its floor. Mutation: the groups not given back, so it falls through."""
+    from loader.runtime.contacts import OwnContacts
+
+    assert abs(_after_release() - 0.05) < 1e-2
+    monkeypatch.setattr(OwnContacts, "give_back", lambda self: None)
+    assert _after_release() < 0.0

@@ -121,17 +121,19 @@ def test_frictional_and_coupled_joints_started_past_their_ends_are_pushed_back_a
     assert run(hard=True) > 100 * PAST_ENDS_TOLERANCE
 
 
-def _humanoid_collapse_speed() -> tuple[float, float]:
+def _humanoid_collapse_speed(contacts: str = "physx") -> tuple[float, float]:
     """dm_control's humanoid collapsing onto its floor for 1 s under zero ctrl, through set_ctrl, from the
-    harness's start (qpos0, several joints past their ranges): the fastest SAPIEN joint and the fastest
-    MuJoCo joint (rad/s or m/s)."""
+    harness's start (qpos0, several joints past their ranges), its own contacts `contacts`'s: the fastest SAPIEN
+    joint and the fastest MuJoCo joint (rad/s or m/s)."""
     from support.corpus import suite_path
 
     from conformance.reference import initial_state
 
     model = mujoco.MjModel.from_xml_path(str(suite_path("humanoid")))
     data = mujoco.MjData(model)
-    result = MJCFLoader(ignore_classes=[]).load(str(suite_path("humanoid")))
+    loader = MJCFLoader(ignore_classes=[])
+    loader.contacts = contacts
+    result = loader.load(str(suite_path("humanoid")))
     result.disable_actuators()
     data.qpos[:], data.qvel[:], _ = initial_state(model)
     result.mapping.set_state(result.articulations, data.qpos.copy(), data.qvel.copy())
@@ -139,15 +141,15 @@ def _humanoid_collapse_speed() -> tuple[float, float]:
     return float(run.sapien_speed.max()), float(run.mujoco_speed.max())
 
 
-COLLAPSE_SPEED_RATIO = (
-    1.25  # measured 0.99 (13.1 against 13.3 rad/s; contacts counted twice: 1.47; mujoco 3.17.0, sapien 3.0.3)
-)
+COLLAPSE_SPEED_RATIO = 1.25  # measured 0.99 with PhysX's contacts (13.06 against 13.25 rad/s), 1.0 with MuJoCo's
+# (13.254 against 13.254); contacts counted twice: 1.47 (mujoco 3.17.0, sapien 3.0.3)
 
 
-def test_limit_rows_under_contact_stay_finite():
-    """Many limit rows while the body lands on the floor: MuJoCo's rows (solved without the contacts, which are
-    PhysX's) and PhysX's contacts in one step stay no faster than MuJoCo."""
-    sapien_speed, mujoco_speed = _humanoid_collapse_speed()
+@pytest.mark.parametrize("contacts", ["physx", "mujoco"])
+def test_limit_rows_under_contact_stay_finite(contacts):
+    """Many limit rows while the body lands on the floor: MuJoCo's rows (solved with MuJoCo's contacts, applied with
+    them or, with `contacts="physx"`, alone beside PhysX's contacts) stay no faster than MuJoCo."""
+    sapien_speed, mujoco_speed = _humanoid_collapse_speed(contacts)
     assert sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)
 
 
@@ -160,8 +162,8 @@ def _whole_constraint_force(self):
 
 
 def test_rows_solved_with_the_contacts_as_well_are_caught(monkeypatch):
-    """The deliberate mistake: MuJoCo's whole constraint force applied to the joints, its contact rows with the
-    joint rows, so the contacts push twice."""
+    """The deliberate mistake: where PhysX makes the contacts, MuJoCo's whole constraint force applied to the
+    joints, its contact rows with the joint rows, so the contacts push twice."""
     monkeypatch.setattr(RowTerm, "joint_rows", _whole_constraint_force)
     sapien_speed, mujoco_speed = _humanoid_collapse_speed()
     assert not sapien_speed < COLLAPSE_SPEED_RATIO * mujoco_speed, (sapien_speed, mujoco_speed)
@@ -253,12 +255,20 @@ def test_a_limit_force_on_a_light_damped_link_goes_through_the_drive(route):
     assert (error.max() <= LIGHT_LINK_RELATIVE * speed) == route, (error.max(), speed)
 
 
+def _physx_loader() -> MJCFLoader:
+    """A loader whose models' own contacts are PhysX's (`MJCFLoader.contacts`): the deep-contact rule is theirs."""
+    loader = MJCFLoader()
+    loader.contacts = "physx"
+    return loader
+
+
 @pytest.mark.parametrize("deep_rule", [True, False], ids=["loader", "mistake_rows_balance_deep_contacts"])
 def test_a_robot_started_deep_in_the_floor_stays_calm(deep_rule, monkeypatch):
     """dm_control's quadruped with its torso at z = 0 (a robustness-session find: the legs start inside the
     terrain at over 100 contacts). MuJoCo's contacts there push harder in a step than PhysX's depenetration cap
-    lets PhysX push, so limit rows MuJoCo solves with them would balance a force SAPIEN never applies: they are
-    solved without contacts while such a contact lasts (`runtime/rows.py`: deep_contact). SAPIEN's fastest DoF stays
+    lets PhysX push, so where PhysX makes the contacts (`contacts="physx"`) limit rows MuJoCo solves with them would
+    balance a force SAPIEN never applies: they are solved without contacts while such a contact lasts
+    (`runtime/rows.py`: deep_contact). SAPIEN's fastest DoF stays
     under MuJoCo's (measured 1.26 against 103 rad/s); balanced against the deep contacts (the mistake) it goes
     non-finite (mujoco 3.17.0, sapien 3.0.3)."""
     from support.corpus import suite_path
@@ -266,7 +276,7 @@ def test_a_robot_started_deep_in_the_floor_stays_calm(deep_rule, monkeypatch):
 
     spec = mujoco.MjSpec.from_file(str(suite_path("quadruped")))
     spec.body("torso").pos = [0.0, 0.0, 0.0]
-    result = MJCFLoader().load(spec)
+    result = _physx_loader().load(spec)
     if not deep_rule:
         monkeypatch.setattr(rows, "deep_contact", lambda data, timestep, cap: False)
     model = result.model
@@ -286,9 +296,9 @@ JAMMED_SPEED_FLOOR = 100.0  # rad/s: tolerances.toml's divergence floor. Measure
 def test_a_gripper_with_a_part_jammed_inside_another_stays_calm(jam_rule, monkeypatch):
     """Menagerie's Robotiq 2F-85 with one driver link's collision mesh moved to its body's origin (a
     robustness-session find): it sits 1.2 cm inside the next link for good. MuJoCo holds the jam softly, PhysX
-    pushes at its depenetration cap every step, so limit and coupling rows MuJoCo solves with that contact would
-    balance a force SAPIEN never applies: a contact deeper than PhysX resolves in a step leaves the rows to a
-    contact-free solve. With the rows balanced against it (the mistake) the fingers fly."""
+    pushes at its depenetration cap every step, so where PhysX makes the contacts limit and coupling rows MuJoCo
+    solves with that contact would balance a force SAPIEN never applies: a contact deeper than PhysX resolves in a
+    step leaves the rows to a contact-free solve. With the rows balanced against it (the mistake) the fingers fly."""
     from support.corpus import menagerie_root
     from support.lockstep import paired_rollout
 
@@ -298,7 +308,7 @@ def test_a_gripper_with_a_part_jammed_inside_another_stays_calm(jam_rule, monkey
     spec = mujoco.MjSpec.from_file(str(root / "robotiq_2f85_v4" / "2f85.xml"))
     driver = next(g for g in spec.geoms if g.meshname == "driver" and g.classname.name == "collision")
     driver.pos = [0.0, 0.0, 0.0]
-    result = MJCFLoader().load(spec)
+    result = _physx_loader().load(spec)
     if not jam_rule:
         monkeypatch.setattr(rows, "deep_contact", lambda data, timestep, cap: False)
     model = result.model

@@ -129,7 +129,8 @@ EDGE_TOLERANCE = 2e-3
 
 
 def _spin_after_the_edge(off: bool = False) -> np.ndarray:
-    result, _, _ = at_keyframe(EDGE)
+    """The root's spin after a contact turned it, where PhysX makes the contact (`contacts="physx"`)."""
+    result, _, _ = at_keyframe(EDGE, contacts="physx")
     if off:
         result.controller.without("momentum")
     for _ in range(3):

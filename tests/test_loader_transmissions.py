@@ -205,19 +205,17 @@ def _adhesion(band: str = IN_GAP, surface: str = FLOOR, cone: str = "pyramidal",
     return ADHESION.format(band=band, surface=surface, cone=cone, height=height, box=box)
 
 
-# name: (the document SAPIEN loads, the one MuJoCo runs). Within the margin MuJoCo's own contact pushes the pad
-# away (a geom margin is not PhysX's: docs/mapping.md#geoms), so MuJoCo runs the same document with the margin
-# turned into gap: the same contacts at the same points and normals, without the contact force
+# name: the document both sides run. Within the margin MuJoCo's own contact pushes the pad away, and so does
+# SAPIEN's, the model's own contacts being MuJoCo's (docs/mapping.md#contacts-as-rows)
 ADHESIONS = {
-    "gap-floor": (_adhesion(), _adhesion()),
-    "gap-free-box": (_adhesion(surface=FREE_BOX), _adhesion(surface=FREE_BOX)),
-    "margin-floor-pyramidal": (_adhesion(IN_MARGIN), _adhesion()),
-    "margin-floor-elliptic": (_adhesion(IN_MARGIN, cone="elliptic"), _adhesion(cone="elliptic")),
+    "gap-floor": _adhesion(),
+    "gap-free-box": _adhesion(surface=FREE_BOX),
+    "margin-floor-pyramidal": _adhesion(IN_MARGIN),
+    "margin-floor-elliptic": _adhesion(IN_MARGIN, cone="elliptic"),
 }
-# m over 0.5 s of a pull of 0 to 1 N: measured 6.6e-9 on the floor, 4.4e-8 with the free box (mujoco 3.17.0, sapien
-# 3.0.3); the moment's sign flipped 1.3e-2, MuJoCo's collision skipped 1.2e-2, and without contacts (out of reach, or
-# switched off) 2.6e-9. The margin documents against their own MuJoCo run: 1.2e-2, MuJoCo's contact holding the pad
-# at its margin (the contact mapping's difference, not the transmission's)
+# m over 0.5 s of a pull of 0 to 1 N: measured 6.6e-9 on the floor, 4.4e-8 with the free box, 2e-9 in the margins
+# (mujoco 3.17.0, sapien 3.0.3); the moment's sign flipped
+# 1.3e-2, MuJoCo's collision skipped 1.2e-2, and without contacts (out of reach, or switched off) 2.6e-9
 ADHESION_TOLERANCE = 1e-6
 
 
@@ -226,9 +224,8 @@ def _pull(step: int, data) -> np.ndarray:
 
 
 def _adhesion_error(tmp_path, name: str) -> float:
-    document, reference = ADHESIONS[name]
-    result = MJCFLoader().load(mjcf_file(tmp_path, document, "adhesion.xml"))
-    return float(replay(result, result.model, _pull, 0.5, reference=mujoco.MjModel.from_xml_string(reference)).max())
+    result = MJCFLoader().load(mjcf_file(tmp_path, ADHESIONS[name], "adhesion.xml"))
+    return float(replay(result, result.model, _pull, 0.5).max())
 
 
 @pytest.mark.parametrize("name", list(ADHESIONS))
@@ -236,7 +233,7 @@ def test_an_adhesion_actuator_pulls_along_its_contacts_as_mujoco(tmp_path, monke
     """MuJoCo's body transmission at SAPIEN's pose: its collision and constraint rows, then its moment (the mean
     normal Jacobian of the pad's contacts, on the floor or on a free box, whose share is a root wrench). Mutations:
     the moment's sign flipped; MuJoCo's collision skipped (no contacts, no moment)."""
-    result = MJCFLoader().load(mjcf_file(tmp_path, ADHESIONS[name][0], "adhesion.xml"))
+    result = MJCFLoader().load(mjcf_file(tmp_path, ADHESIONS[name], "adhesion.xml"))
     assert all(a.mapped and a.moment for a in result.actuators) and not result.unsupported
     assert _adhesion_error(tmp_path, name) < ADHESION_TOLERANCE
     dense = MomentPaths.dense
@@ -295,7 +292,7 @@ def test_a_body_moment_is_mujocos_forward_pass_at_every_pose(tmp_path, name):
     moment bit for bit, at poses with contacts in the gap band, within the margin and none; and the DoFs the plan
     takes for a body transmission hold every entry MuJoCo's moment has (the fruit fly on a floor: its legs' claws
     and its labrum against the floor and its own body, elliptic cones)."""
-    source = _fly_on_a_floor() if name == "fly" else mjcf_file(tmp_path, ADHESIONS[name][0], "adhesion.xml")
+    source = _fly_on_a_floor() if name == "fly" else mjcf_file(tmp_path, ADHESIONS[name], "adhesion.xml")
     result = MJCFLoader().load(source)
     model, paths = result.model, result.controller.term("actuators").moments
     body = np.flatnonzero(model.actuator_trntype == int(mujoco.mjtTrn.mjTRN_BODY))

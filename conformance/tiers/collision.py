@@ -156,7 +156,7 @@ def _check_geom(result, model: mujoco.MjModel, data: mujoco.MjData, g: int, grou
         return
     found.checked += 1
     kind = _G(int(model.geom_type[g]))
-    wrong = groups.wrong(model, g, name, [int(x) for x in shape.get_collision_groups()[:2]])
+    wrong = groups.wrong(model, g, name, [int(x) for x in result.collision_groups(shape)[:2]])
     if wrong is not None:
         found.groups_wrong.append(wrong)
     pose = sapien_side.shape_world_pose(component, shape)

@@ -1,4 +1,5 @@
-"""Switching a loaded scene's collisions off and back on, in a way PhysX survives."""
+"""Switching a loaded scene's collisions off and back on, in a way PhysX survives; and handing the contacts
+between a load's own shapes to MuJoCo (`OwnContacts`)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,13 @@ import sapien
 
 def collision_shapes(result) -> list:
     """Every collision shape of a load result: articulation links' and static actors'."""
-    components = [link for art in result.articulations for link in art.links]
-    for entity in result.actors:
+    return shapes_of(result.articulations, result.actors)
+
+
+def shapes_of(articulations: list, actors: list) -> list:
+    """Every collision shape of the links of `articulations` and of the actors (entities) `actors`."""
+    components = [link for art in articulations for link in art.links]
+    for entity in actors:
         components.extend(c for c in entity.components if isinstance(c, sapien.physx.PhysxRigidBaseComponent))
     return [shape for component in components for shape in component.collision_shapes]
 
@@ -46,3 +52,80 @@ def restore_contacts(result, saved: list) -> None:
     """Put back the collision groups `disable_contacts` returned."""
     for shape, groups in zip(collision_shapes(result), saved):
         shape.set_collision_groups(groups)
+
+
+EVERY_BIT = 0xFFFFFFFF
+LOAD_BITS = range(16, 31)  # the g1 bits a load's own shapes may take (`load_bit`)
+
+
+def external_only(groups: list[int], bit: int) -> list[int]:
+    """A shape's collision groups that touch no shape of its own load (all carry g0 = every bit but `bit`, g1 =
+    `bit`) and every other shape with a g1 bit other than `bit`: PhysX's rule `(g0a & g1b) or (g1a & g0b)`
+    (docs/mapping.md#collision-filter). A shape that touches nothing keeps its groups; g2 and g3 (MuJoCo's body
+    filter, ManiSkill's bits) stay."""
+    if not (groups[0] or groups[1]):
+        return list(groups)
+    return [EVERY_BIT & ~bit, bit, int(groups[2]), int(groups[3])]
+
+
+def scene_shapes(scene) -> list:
+    """Every collision shape in `scene`: its actors' and its articulations' links'."""
+    return [
+        shape
+        for entity in scene.entities
+        for component in entity.components
+        if isinstance(component, sapien.physx.PhysxRigidBaseComponent)
+        for shape in component.collision_shapes
+    ]
+
+
+def load_bit(scene, own: list) -> int:
+    """The lowest of `LOAD_BITS` no other shape of `scene` carries in its g1: the load's own shapes take it, so
+    another load whose own contacts are MuJoCo's, with another bit, still touches this one through PhysX."""
+    mine = {id(shape) for shape in own}
+    used = 0
+    for shape in scene_shapes(scene):
+        if id(shape) not in mine:
+            used |= int(shape.get_collision_groups()[1])
+    free = [1 << b for b in LOAD_BITS if not used & (1 << b)]
+    return free[0] if free else 1 << LOAD_BITS[-1]
+
+
+class OwnContacts:
+    """The contacts between a load's own shapes (its bodies, its floor) as MuJoCo makes them: PhysX's between
+    them are off while `take` holds (each shape's groups `external_only`), and MuJoCo's copy solves and applies
+    them (`rows.py`); shapes of other loads and objects still touch the load through PhysX. `give_back` puts the
+    load's own groups back, and PhysX's contacts with them (tests/test_loader_contact.py)."""
+
+    def __init__(self, scene, shapes: list):
+        self.scene, self.shapes = scene, shapes
+        self.own: list | None = None  # the groups to give back while taken
+
+    @property
+    def taken(self) -> bool:
+        return self.own is not None
+
+    def groups(self, shape) -> list[int]:
+        """`shape`'s own collision words (PhysX's filter of the model), also while taken."""
+        if self.own is not None:
+            for mine, groups in zip(self.shapes, self.own):
+                if mine is shape:
+                    return list(groups)
+        return list(shape.get_collision_groups())
+
+    def take(self) -> None:
+        if self.own is not None:
+            return
+        self.own = [shape.get_collision_groups() for shape in self.shapes]
+        bit = load_bit(self.scene, self.shapes)
+        warm_up(self.scene)
+        for shape, groups in zip(self.shapes, self.own):
+            shape.set_collision_groups(external_only(groups, bit))
+
+    def give_back(self) -> None:
+        if self.own is None:
+            return
+        warm_up(self.scene)
+        for shape, groups in zip(self.shapes, self.own):
+            shape.set_collision_groups(groups)
+        self.own = None

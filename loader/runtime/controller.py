@@ -25,6 +25,7 @@ from ..model.joints import mujoco_coordinates
 from ..model.options import Options
 from .activation import Activation, Command
 from .actuators import plan_actuators
+from .contacts import OwnContacts
 from .dof_step import DofKey, DofLayout, Step, law_arrays, passive_laws, refresh_link_velocities
 from .drive_forces import DriveForces
 from .drive_writer import DriveWriter, dof_inertia
@@ -171,6 +172,7 @@ class Controller:
             term.compile(compilation)
         self.base = np.concatenate([laws, np.zeros((3, laws.shape[1]))])
         self.running = [term for term in self.terms if not term.idle]
+        self.claimer = next((term for term in self.running if term.name == "rows" and term.own is not None), None)
         self.stale = False
         self.compilations += 1
 
@@ -199,6 +201,8 @@ class Controller:
                     articulation.set_qf(np.zeros(articulation.dof, np.float32))
             return None
         self.steps += advance
+        if advance and self.claimer is not None:
+            self.claimer.claim()
         actuated = "actuators" not in self.off
         ctrl, inputs, act = self.command(ctrl, actuated, advance)
         force = np.zeros(layout.size)
@@ -271,8 +275,9 @@ class Controller:
             term.forget()
 
     def contacts(self, enabled: bool) -> None:
-        """SAPIEN's contacts on or off: MuJoCo solves the joint rows with its own contacts, and a body transmission
-        reads them, only while they are on."""
+        """SAPIEN's contacts on or off: MuJoCo's copy makes its contacts (applied where the model's own contacts
+        are MuJoCo's, else solved with the joint rows), and a body transmission reads them, only while they are
+        on."""
         for term in self.planned():
             term.contacts(enabled)
 
@@ -350,6 +355,8 @@ def plan(
     maps: list[tuple[ActuatorMap, list | None]],
     equalities: list[EqualityLink],
     notes,
+    own: list | None = None,
+    shapeless: list[int] | None = None,
 ) -> Controller:
     """Every per-step term the compiled model needs, planned once at load (and again at `replan`) from the
     planning half's actuator maps and equality links."""
@@ -359,7 +366,9 @@ def plan(
     soft = plan_equalities(model, equalities, timestep)
     rowed = [link.index for link in equalities if link.kind == "MuJoCo row"]
     unmapped = [a for a, (entry, _) in enumerate(maps) if not entry.mapped]
-    rows = plan_rows(model, mapping, unmapped, rowed, notes, [soft[e] for e in rowed if e in soft], timestep)
+    standby = [soft[e] for e in rowed if e in soft]
+    own_contacts = OwnContacts(scene, own) if own is not None else None
+    rows = plan_rows(model, mapping, unmapped, rowed, notes, standby, timestep, own_contacts, shapeless)
     dynamics = any(int(t) in MAPPED_DYNAMICS for t in model.actuator_dyntype)
     activation = Activation(model, timestep=timestep) if dynamics else None
     tendons = map_tendons(model, mapping, notes)

@@ -3,9 +3,11 @@ joint forces.
 
 MuJoCo computes its constraint force from the state at the start of a step and applies it like any other force;
 its implicit integrators then treat only damping implicitly, which PhysX's drives already do. So the force MuJoCo's
-own solver returns for SAPIEN's state (a contact-free copy of the model, `mj_forward`) is the force MuJoCo would
-apply: every limit and friction row solved together, with the joint-space inertia, whatever else the joint carries.
-PhysX's hard limit is moved out of the rows' way while `set_ctrl` runs. Derivation: docs/mapping.md#joint-limits.
+own solver returns for SAPIEN's state (a copy of the model, `mj_forward`) is the force MuJoCo would apply: every
+limit and friction row solved together, with the joint-space inertia, whatever else the joint carries. PhysX's hard
+limit is moved out of the rows' way while `set_ctrl` runs. The contacts between the model's own shapes are MuJoCo's
+too by default (`OwnContacts`): the copy's contact rows are applied with the rest, PhysX's between those shapes off.
+Derivation: docs/mapping.md#joint-limits, docs/mapping.md#contacts-as-rows.
 """
 
 from __future__ import annotations
@@ -18,9 +20,11 @@ import mujoco
 import numpy as np
 
 from ..model import mj
+from ..model.frames import euler_xyz_rate_matrix
 from ..model.joints import closed_range, is_limited
 from ..model.mapping import Mapping
 from ..model.options import MAX_DEPENETRATION_VELOCITY
+from .contacts import OwnContacts
 from .dof_step import DofKey, Step
 from .integrated import RootPush, accelerated, integrated_force
 from .term import Compilation, Handover, Term
@@ -128,8 +132,9 @@ def overrides(model: mujoco.MjModel, edits: dict[str, dict[int, float]]) -> list
 
 
 class RowTerm(Term):
-    """Per step: SAPIEN's state, ctrl, activation and applied force into a contact-free copy of the model
-    (`LentModel`), MuJoCo's constraint force out, added to the joints' forces."""
+    """Per step: SAPIEN's state, ctrl, activation and applied force into a copy of the model (`LentModel`),
+    MuJoCo's constraint force out, added to the joints' forces: its joint-space rows', and its contact rows' where
+    the model's own contacts are MuJoCo's (`own`), else those are PhysX's."""
 
     name = "rows"
 
@@ -140,8 +145,12 @@ class RowTerm(Term):
         limits: list[HardLimit],
         couplings: list[int],
         standby: list | None = None,
+        own: OwnContacts | None = None,
+        joint_rows: bool = True,
     ):
         self.lent, model = lent, lent.model
+        self.own = own  # the model's own contacts, MuJoCo's while set_ctrl runs (None: PhysX's)
+        self.joint_rows_planned = joint_rows  # limits, frictionloss, couplings (else only the contacts)
         self.data = mujoco.MjData(model)
         self.couplings = couplings  # the equalities MuJoCo's copy solves
         self.standby = standby or []  # the D6 joints that hold those loops after release() (runtime/equalities.py)
@@ -151,12 +160,27 @@ class RowTerm(Term):
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]  # the hinge/slide DoFs the rows' force reaches
         self.mujoco_dofs = np.array([int(model.jnt_dofadr[j]) for j, _ in joints], dtype=int)
+        balls = [(int(model.jnt_dofadr[j]), t) for j, t in enumerate(mapping.joints) if t.kind == "ball"]
+        self.ball_keys = [[(t.articulation, d) for d in t.dofs] for _, t in balls]  # MuJoCo's contacts turn them
+        self.ball_dofs = [dof for dof, _ in balls]
         self.push = RootPush(model, mapping)  # a free joint's share of an unconverged solve
         self.soft = False
         self.flags = int(model.opt.disableflags)  # the model's own
-        self.with_contacts = not mj.disabled(model, "contact")  # MuJoCo's contacts solved with the rows (`contacts`)
+        self.with_contacts = not mj.disabled(model, "contact")  # the copy's contacts are on (`contacts`)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
         self.accelerated = accelerated(model)  # MuJoCo integrates the solver's qacc (`integrated.py`)
+
+    def claim(self) -> None:
+        """Before a physics step's terms add their forces (`Controller.begin`): the model's own contacts become
+        MuJoCo's, at the first step `set_ctrl` begins, so a caller that never steps through it keeps PhysX's. Taking
+        them steps PhysX for an instant (`contacts.warm_up`), which would spend link forces added before it."""
+        if self.own is not None and self.with_contacts:
+            self.own.take()
+
+    @property
+    def mujocos(self) -> bool:
+        """Whether the model's own contacts are MuJoCo's now (PhysX's between its shapes off)."""
+        return self.own is not None and self.own.taken
 
     @property
     def mirror(self) -> mujoco.MjModel:
@@ -169,13 +193,17 @@ class RowTerm(Term):
         return self.push.applied
 
     def contacts(self, enabled: bool) -> None:
-        """MuJoCo's contacts are solved with the rows while SAPIEN has contacts (and the model has them)."""
+        """MuJoCo's contacts are solved with the rows while SAPIEN has contacts (and the model has them); turned off,
+        the model's own shapes get their groups back first (the caller then zeroes them)."""
         self.with_contacts = enabled and not mj.disabled_bits(self.flags, "contact")
+        if not enabled and self.own is not None:
+            self.own.give_back()
 
     def compile(self, compilation: Compilation) -> None:
         """Joint positions (end to end) of the DoFs the rows' force reaches and of the limited ones."""
         layout = compilation.layout
         self.flat = layout.flat_of(self.keys)
+        self.ball_flat = [layout.flat_of(keys) for keys in self.ball_keys]
         self.limit_flat = layout.flat_of(self.limit_keys)
         self.scalar = scalar_state(self.lent.model, self.mapping, layout)
 
@@ -189,24 +217,33 @@ class RowTerm(Term):
         self.near: tuple | None = None  # half a margin within them (`clear_of`); None: to compute
 
     def contribute(self, step: Step) -> None:
+        if not self.joint_rows_planned and not (self.with_contacts and self.mujocos):
+            if step.advance:
+                self.push.applied.clear()  # no root wrench this step
+            return  # a model whose only rows are its contacts, with none to apply
         if not self.soft:
             self.hold(step.joints, soft=True)
         self.clear_of(step)
         with self.lent as model:
             self.mirror_state(step)
-            solve(model, self.data, self.with_contacts, step.timestep, self.depenetration)
+            solve(model, self.data, self.with_contacts, step.timestep, self.depenetration, not self.mujocos)
             force = self.joint_rows()
         step.force[self.flat] += force[self.mujoco_dofs]
+        if self.mujocos:
+            for dof, flat in zip(self.ball_dofs, self.ball_flat):  # a ball joint's angle rates take E^T tau
+                step.force[flat] += euler_xyz_rate_matrix(step.q[flat]).T @ force[dof : dof + 3]
         if step.advance:
             self.push(self.data, force, step.layout.links)
         self.data.qacc_warmstart[:] = self.data.qacc  # MuJoCo's next solve starts from this one's acceleration
 
     def joint_rows(self) -> np.ndarray:
-        """The force of the joint-space rows alone (contact rows, solved with them when contacts are on, are
-        PhysX's to apply), as MuJoCo's step integrates it (`integrated.py`)."""
-        return integrated_force(
-            self.lent.model, self.data, JOINT_ROW[self.data.efc_type[: self.data.nefc]], self.accelerated
-        )
+        """The force of the rows SAPIEN takes from MuJoCo, as MuJoCo's step integrates it (`integrated.py`): every
+        row where the model's own contacts are MuJoCo's, else the joint-space rows alone (the contact rows, solved
+        with them, are PhysX's to apply)."""
+        rows = JOINT_ROW[self.data.efc_type[: self.data.nefc]]
+        if self.mujocos:
+            rows = np.ones_like(rows)
+        return integrated_force(self.lent.model, self.data, rows, self.accelerated)
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
@@ -260,6 +297,8 @@ class RowTerm(Term):
             self.near = None
             low, high = self.physx[i] if soft else limit.held
             joints[art][dof].set_limit(np.array([[low, high]], np.float32))
+        if not soft and self.own is not None:
+            self.own.give_back()
         for loop in self.standby:
             if soft:
                 loop.stand_by()
@@ -275,11 +314,13 @@ class RowTerm(Term):
         self.hold(joints, soft=False)
 
 
-def solve(mirror: mujoco.MjModel, data: mujoco.MjData, contacts: bool, timestep: float, depenetration: float) -> None:
-    """MuJoCo's solve of the copy at `data`'s state; again without contacts while one is too deep for PhysX's push
-    (`deep_contact`)."""
+def solve(
+    mirror: mujoco.MjModel, data: mujoco.MjData, contacts: bool, timestep: float, depenetration: float, physx: bool
+) -> None:
+    """MuJoCo's solve of the copy at `data`'s state; where PhysX applies the contacts (`physx`), again without them
+    while one is too deep for PhysX's push (`deep_contact`)."""
     mujoco.mj_forward(mirror, data)
-    if contacts and deep_contact(data, timestep, depenetration):
+    if contacts and physx and deep_contact(data, timestep, depenetration):
         mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         mujoco.mj_forward(mirror, data)
         mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
@@ -329,13 +370,16 @@ def plan_rows(
     notes,
     standby: list | None = None,
     timestep: float | None = None,
+    own: OwnContacts | None = None,
+    shapeless: list[int] | None = None,
 ) -> RowTerm | None:
     """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
     (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges, slides and free
-    joints) or limited or frictional tendons (None without any). The copy MuJoCo solves keeps only those rows:
-    contacts are PhysX's (solved with the rows only while SAPIEN has them), other equalities are D6 joints, and what
-    the loader does not map (unmapped actuators, ball and free joint rows, rows of tendons that move a ball or free
-    joint) is taken out so both sides see the same forces."""
+    joints) or limited or frictional tendons, or for a model whose own contacts are MuJoCo's (`own`; None without
+    any). The copy MuJoCo solves keeps only those rows and its contacts (solved while SAPIEN has contacts, applied
+    where `own` holds them, else PhysX's); other equalities are D6 joints, and what the loader does not map
+    (unmapped actuators, ball and free joint rows, rows of tendons that move a ball or free joint, `shapeless` geoms)
+    is taken out so both sides see the same forces."""
     if mj.disabled(model, "constraint"):
         return None
     limited = [
@@ -357,7 +401,9 @@ def plan_rows(
         if (model.tendon_limited[t] and not mj.disabled(model, "limit"))
         or (model.tendon_frictionloss[t] > 0 and not mj.disabled(model, "frictionloss"))
     ]
-    if not limited and not frictional and not couplings and not tendons:
+    touching = own is not None and not mj.disabled(model, "contact")
+    joint_rows = bool(limited or frictional or couplings or tendons)
+    if not joint_rows and not touching:
         return None
     edits: dict[str, dict[int, float]] = {}  # what MuJoCo's copy changes: per array, flat index -> value
 
@@ -381,6 +427,9 @@ def plan_rows(
                 "length limit and frictionloss not mapped: the tendon "
                 "moves a ball or free joint, which takes no joint force in SAPIEN",
             )
+    for g in shapeless or []:  # a geom with no shape in SAPIEN touches nothing in the copy either
+        edit("geom_contype", g, 1, 0)
+        edit("geom_conaffinity", g, 1, 0)
     for a in unmapped_actuators:
         for field in ("actuator_gainprm", "actuator_biasprm"):
             width = getattr(model, field).shape[1]
@@ -394,4 +443,4 @@ def plan_rows(
         for j in limited
     ]
     lent = LentModel(model, overrides(model, edits), float(model.opt.timestep if timestep is None else timestep))
-    return RowTerm(lent, mapping, limits, couplings, standby)
+    return RowTerm(lent, mapping, limits, couplings, standby, own if touching else None, joint_rows)

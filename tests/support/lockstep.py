@@ -46,9 +46,12 @@ def contact_free(path: str | Path, mutate: Callable | None = None):
     return result, model
 
 
-def at_keyframe(path: str | Path, key: int = 0):
-    """Load `path` with both sides at keyframe `key` (its velocities too). Returns (result, model, data)."""
-    result = MJCFLoader().load(path)
+def at_keyframe(path: str | Path, key: int = 0, contacts: str = "mujoco"):
+    """Load `path` with both sides at keyframe `key` (its velocities too), the model's own contacts `contacts`'s
+    (`MJCFLoader.contacts`). Returns (result, model, data)."""
+    loader = MJCFLoader()
+    loader.contacts = contacts
+    result = loader.load(path)
     model = result.model
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, key)

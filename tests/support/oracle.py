@@ -69,9 +69,10 @@ def link_pose_errors(result, rng: np.random.Generator, random_configurations: in
     return worst_position, worst_angle
 
 
-def _physx_collides(shape_a, shape_b) -> bool:
-    """PhysX's group rule as SAPIEN's filter applies it (docs/mapping.md#collision-filter)."""
-    ga, gb = shape_a.get_collision_groups(), shape_b.get_collision_groups()
+def _physx_collides(result, shape_a, shape_b) -> bool:
+    """PhysX's group rule as SAPIEN's filter applies it (docs/mapping.md#collision-filter), to the model's own
+    words (`LoadResult.collision_groups`)."""
+    ga, gb = result.collision_groups(shape_a), result.collision_groups(shape_b)
     if (ga[2] & gb[2]) and (ga[3] & 0xFFFF) == (gb[3] & 0xFFFF):
         return False
     return bool((ga[0] & gb[1]) or (ga[1] & gb[0]))
@@ -109,7 +110,9 @@ def collision_filter_mismatches(result) -> list[tuple]:
                 continue
             ta, tb = result.mapping.geoms[a], result.mapping.geoms[b]
             physx = _physx_collides(
-                component_of(result, ta).collision_shapes[ta.shape], component_of(result, tb).collision_shapes[tb.shape]
+                result,
+                component_of(result, ta).collision_shapes[ta.shape],
+                component_of(result, tb).collision_shapes[tb.shape],
             )
             physx = physx and not _direct_parent_child(result, body_a, body_b)
             pair_names = {f"{name(body_a)}/{name(body_b)}", f"{name(body_b)}/{name(body_a)}"}
