@@ -67,3 +67,36 @@ def test_a_contact_tier_says_when_nothing_touched(floor):
     report = contact(result, result.model, 0, TOLERANCES)
     assert report.status == "pass"
     assert (UNTOUCHED in report.notes) == (not floor)
+
+
+SLIDING = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="5 5 .1" friction="0.3"/>
+  <body pos="0 0 .3" euler="0 20 10"><freejoint/><geom name="box" type="box" size=".1 .06 .04" mass="1"
+  friction="0.6"/></body></worldbody><keyframe><key qpos="0 0 .3 0.98 0.02 0.17 0.09" qvel="1.5 0.5 0 0 0 3"/>
+  </keyframe></mujoco>"""
+
+
+def test_a_contact_rollout_is_judged_step_by_step_where_mujoco_predicts_itself(monkeypatch):
+    """A tilted box thrown spinning onto a floor lands and slides to rest: MuJoCo's rollout is deterministic, and the
+    contact tier judges SAPIEN's joint positions against it at every step (`rollout_qpos`), not only the settled
+    pose. Mutation: the box's friction 8 % low (0.55) in SAPIEN's copy of MuJoCo's contacts only, which the settled
+    band alone passes."""
+    from conformance.session import quiet_load
+    from conformance.tiers.contact import contact
+    from loader.runtime.rows import RowTerm
+
+    spec = mujoco.MjSpec.from_string(SLIDING)
+    result = quiet_load(spec, fix_root_link=False)
+    report = contact(result, result.model, 0, TOLERANCES)
+    rollout = next(m for m in report.metrics if m.name == "rollout_qpos")
+    assert report.status == "pass" and rollout.passed, report.to_dict()
+    mirror = RowTerm.mirror_state
+
+    def halved(self, step):
+        mirror(self, step)
+        self.lent.model.geom_friction[self.lent.model.geom("box").id, 0] = 0.55
+
+    monkeypatch.setattr(RowTerm, "mirror_state", halved)
+    result = quiet_load(mujoco.MjSpec.from_string(SLIDING), fix_root_link=False)
+    report = contact(result, result.model, 0, TOLERANCES)
+    band, _, rollout = report.metrics
+    assert report.status == "fail" and band.passed and not rollout.passed, report.to_dict()

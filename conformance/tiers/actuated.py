@@ -45,6 +45,7 @@ from .rollouts import (
     settings_mismatches,
     settle_trace,
     settled_verdict,
+    trajectory,
     untouched,
 )
 
@@ -416,13 +417,15 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
     poses = compare_settled(result, model, run.body_pose, other.body_pose, sp)
     spread = poses.spread
+    rollout, gate, gated = trajectory(ref, run, sp, seed, tolerances, "actuated_contact")
     metrics = [
         metric("final_pose_band", poses.band, tolerances["actuated_contact.final_pose_band"], "m"),
         metric("rest_height", poses.rest, tolerances["actuated_contact.rest_height"], "m"),
+        rollout,
     ]
     band = tolerances["actuated_contact.final_pose_band"]
     status, why = settled_verdict(metrics, spread, band, tolerances, diverged)
-    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why + untouched(run)
+    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why + gated + untouched(run)
     time = np.arange(steps + 1) * dt
     return TierReport(
         "actuated_contact",
@@ -438,6 +441,7 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
             "saturated_steps": left["saturated"],
             "limit_steps": left["at_limit"],
             "mujoco_self_spread": float(spread.max(initial=0.0)),
+            "chaos": gate.to_dict(),
         },
         series={"final_pose_band_per_step": poses.series},  # the largest body distance each step
         traces=[settle_trace(result, ref, run, sp, "actuated_contact")],

@@ -1,9 +1,10 @@
-"""Tier 6: dynamics with contact, judged statistically (rest heights, final-pose bands), never step by step.
+"""Tier 6: dynamics with contact, judged by the settled pose and step by step.
 
 Both sides start at qpos0 with no command and settle under gravity. Compared: the mean height of every
-floating root over the last quarter of the horizon (rest height), and every body's mean position over that
-window (final-pose band). MuJoCo's own spread under a perturbation of the start decides whether the outcome
-is predictable at all (otherwise: chaotic)."""
+floating root over the last quarter of the horizon (rest height), every body's mean position over that
+window (final-pose band), and the joint positions at every step over the horizon MuJoCo can predict
+(`rollout_qpos`). MuJoCo's own spread under a perturbation of the start decides whether the outcome is
+predictable at all (otherwise: chaotic)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,15 @@ from .. import chaos, reference, sapien_side
 from ..divergence import SpeedBound, first_divergence
 from ..report import TierReport, metric, skipped
 from ..tolerances import Tolerances
-from .rollouts import carried, compare_settled, sapien_rollout, settle_trace, settled_verdict, untouched
+from .rollouts import (
+    carried,
+    compare_settled,
+    sapien_rollout,
+    settle_trace,
+    settled_verdict,
+    trajectory,
+    untouched,
+)
 
 
 def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
@@ -31,10 +40,6 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     run = reference.rollout(ref, qpos0, qvel0, steps, None)
     if run.unstable(ref):
         return skipped("contact", run.unstable(ref))
-    # MuJoCo against itself: the 1e-6 gate of every rollout (recorded; contact is judged by bands, below)
-    gate = chaos.gate(
-        ref, run, seed, tolerances.setting("chaos", "perturbation"), tolerances.setting("chaos", "amplification_limit")
-    )
     other = reference.rollout(
         ref, chaos.perturbed(ref, qpos0, tolerances.setting("contact", "perturbation"), seed), qvel0, steps, None
     )
@@ -42,13 +47,15 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
     sapien_side.set_state(result, qpos0, qvel0)
     poses = compare_settled(result, model, run.body_pose, other.body_pose, sp)
+    rollout, gate, gated = trajectory(ref, run, sp, seed, tolerances, "contact")
     metrics = [
         metric("final_pose_band", poses.band, tolerances["contact.final_pose_band"], "m"),
         metric("rest_height", poses.rest, tolerances["contact.rest_height"], "m"),
+        rollout,
     ]
     spread = poses.spread
     status, notes = settled_verdict(metrics, spread, tolerances["contact.final_pose_band"], tolerances, diverged)
-    notes += untouched(run)
+    notes += gated + untouched(run)
     return TierReport(
         "contact",
         status,

@@ -10,8 +10,8 @@ import numpy as np
 
 from loader.model.joints import mujoco_coordinates
 
-from .. import reference, sapien_side
-from ..report import Metric, Trace, verdict
+from .. import chaos, reference, sapien_side
+from ..report import Metric, Trace, metric, verdict
 
 
 def is_floating(model: mujoco.MjModel) -> bool:
@@ -111,6 +111,28 @@ def compare_settled(
         spread=np.linalg.norm(own[bodies] - mj_final[bodies], axis=1),
         series=np.nanmax(np.linalg.norm(poses[:, bodies, :3] - mujoco_poses[:, bodies, :3], axis=2), axis=1),
     )
+
+
+def trajectory(ref: mujoco.MjModel, run, sp: sapien_side.Run, seed: int, tolerances, tier: str) -> tuple:
+    """A contact rollout judged step by step where MuJoCo can predict itself: the largest |qpos| difference from
+    MuJoCo's over the horizon MuJoCo's own 1e-6 gate keeps (`chaos.gate`, all of it where SAPIEN agrees throughout),
+    against `<tier>.rollout_qpos`, less what float32 cannot resolve. Returns the metric, the gate and its note
+    (tests/test_tiers_contact.py::test_a_contact_rollout_is_judged_step_by_step_where_mujoco_predicts_itself)."""
+    gate = chaos.gate(
+        ref, run, seed, tolerances.setting("chaos", "perturbation"), tolerances.setting("chaos", "amplification_limit")
+    )
+    err = reference.qpos_difference(ref, run.qpos, sp.qpos)
+    floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
+    tolerance = tolerances[f"{tier}.rollout_qpos"]
+    gate = gate.held(metric("whole", err, tolerance, "rad or m", floor=floor).passed)
+    judged = gate.judged_steps + 1
+    notes = []
+    if gate.chaotic:
+        notes.append(
+            f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
+            f"{gate.judged_steps} of {gate.steps}; the rollout is judged on the first {gate.judged_steps} steps"
+        )
+    return metric("rollout_qpos", err[:judged], tolerance, "rad or m", floor=floor[:judged]), gate, notes
 
 
 UNTOUCHED = "nothing touches in MuJoCo's run (no contact at any step): the settle was judged without a contact"
