@@ -326,9 +326,6 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
     ref, matched, removal, steps, qpos0, qvel0, start, run, scale, left = mj_run
     kind = "floating" if is_floating(model) else "fixed"
     dt = ref.opt.timestep
-    gate = chaos.gate(
-        ref, run, seed, tolerances.setting("chaos", "perturbation"), tolerances.setting("chaos", "amplification_limit")
-    )
     every = int(tolerances.setting("actuated", "one_step_every"))
     bound = SpeedBound.from_tolerances(tolerances)
     mismatched = settings_mismatches(result, ref)
@@ -338,12 +335,8 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
         )
         sp = sapien_ctrl_rollout(result, model, qpos0, qvel0, run.ctrl)
     diverged = first_of(diverged, first_divergence("rollout", sp.qpos, sp.qvel, run.qvel, bound, dt))
-    err = reference.qpos_difference(ref, run.qpos, sp.qpos)
-    # float32 holds SAPIEN's coordinates: what it cannot resolve at the size each has reached is not judged
-    floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
-    tolerance = tolerances[f"actuated.rollout_qpos_{kind}"]
-    gate = gate.held(metric("whole", err, tolerance, "rad or m", floor=floor).passed)
-    judged = gate.judged_steps + 1
+    judged = trajectory(ref, run, sp, seed, tolerances, f"actuated.rollout_qpos_{kind}")
+    gate, err = judged.gate, judged.errors
     metrics: list[Metric] = [
         settings_metric(mismatched),
         metric(
@@ -353,14 +346,9 @@ def actuated(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -
             "rad/s or m/s",
             floor=one_step_floor,
         ),
-        metric("rollout_qpos", err[:judged], tolerance, "rad or m", floor=floor[:judged]),
+        judged.metric,
     ]
-    notes = removal + list(mismatched) + _ctrl_notes(scale, left, steps)
-    if gate.chaotic:
-        notes.append(
-            f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
-            f"{gate.judged_steps} of {steps}; the rollout is judged on the first {gate.judged_steps} steps"
-        )
+    notes = removal + list(mismatched) + _ctrl_notes(scale, left, steps) + judged.notes
     rows = sapien_side.body_link_rows(result, model.nbody)
     time = np.arange(steps + 1) * dt
     trace = Trace(
@@ -417,15 +405,15 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
     poses = compare_settled(result, model, run.body_pose, other.body_pose, sp)
     spread = poses.spread
-    rollout, gate, gated = trajectory(ref, run, sp, seed, tolerances, "actuated_contact")
+    judged = trajectory(ref, run, sp, seed, tolerances, "actuated_contact.rollout_qpos")
     metrics = [
         metric("final_pose_band", poses.band, tolerances["actuated_contact.final_pose_band"], "m"),
         metric("rest_height", poses.rest, tolerances["actuated_contact.rest_height"], "m"),
-        rollout,
+        judged.metric,
     ]
     band = tolerances["actuated_contact.final_pose_band"]
     status, why = settled_verdict(metrics, spread, band, tolerances, diverged)
-    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why + gated + untouched(run)
+    notes = removal + _ctrl_notes(scale, left, steps, smooth=False) + why + judged.notes + untouched(run)
     time = np.arange(steps + 1) * dt
     return TierReport(
         "actuated_contact",
@@ -441,7 +429,7 @@ def actuated_contact(result, model: mujoco.MjModel, seed: int, tolerances: Toler
             "saturated_steps": left["saturated"],
             "limit_steps": left["at_limit"],
             "mujoco_self_spread": float(spread.max(initial=0.0)),
-            "chaos": gate.to_dict(),
+            "chaos": judged.gate.to_dict(),
         },
         series={"final_pose_band_per_step": poses.series},  # the largest body distance each step
         traces=[settle_trace(result, ref, run, sp, "actuated_contact")],

@@ -47,15 +47,15 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     diverged = first_divergence("settle", sp.qpos, sp.qvel, run.qvel, SpeedBound.from_tolerances(tolerances), dt)
     sapien_side.set_state(result, qpos0, qvel0)
     poses = compare_settled(result, model, run.body_pose, other.body_pose, sp)
-    rollout, gate, gated = trajectory(ref, run, sp, seed, tolerances, "contact")
+    judged = trajectory(ref, run, sp, seed, tolerances, "contact.rollout_qpos")
     metrics = [
         metric("final_pose_band", poses.band, tolerances["contact.final_pose_band"], "m"),
         metric("rest_height", poses.rest, tolerances["contact.rest_height"], "m"),
-        rollout,
+        judged.metric,
     ]
     spread = poses.spread
     status, notes = settled_verdict(metrics, spread, tolerances["contact.final_pose_band"], tolerances, diverged)
-    notes += gated + untouched(run)
+    notes += judged.notes + untouched(run)
     return TierReport(
         "contact",
         status,
@@ -66,7 +66,7 @@ def contact(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
             **matched,
             "steps": steps,
             "start": start,
-            "chaos": gate.to_dict(),
+            "chaos": judged.gate.to_dict(),
             "mujoco_self_spread": float(spread.max(initial=0.0)),
         },
         series={"final_pose_band_per_step": poses.series},  # the largest body distance each step

@@ -113,17 +113,29 @@ def compare_settled(
     )
 
 
-def trajectory(ref: mujoco.MjModel, run, sp: sapien_side.Run, seed: int, tolerances, tier: str) -> tuple:
-    """A contact rollout judged step by step where MuJoCo can predict itself: the largest |qpos| difference from
-    MuJoCo's over the horizon MuJoCo's own 1e-6 gate keeps (`chaos.gate`, all of it where SAPIEN agrees throughout),
-    against `<tier>.rollout_qpos`, less what float32 cannot resolve. Returns the metric, the gate and its note
+@dataclass
+class Trajectory:
+    """A rollout judged step by step (`trajectory`): its metric, MuJoCo's own gate, the gate's note (empty where
+    the whole horizon is judged) and the per-step errors (steps + 1, nv)."""
+
+    metric: Metric
+    gate: chaos.ChaosGate
+    notes: list[str]
+    errors: np.ndarray
+
+
+def trajectory(ref: mujoco.MjModel, run, sp: sapien_side.Run, seed: int, tolerances, key: str) -> Trajectory:
+    """A rollout judged step by step where MuJoCo can predict itself: the largest |qpos| difference from MuJoCo's
+    over the horizon MuJoCo's own 1e-6 gate keeps (`chaos.gate`, all of it where SAPIEN agrees throughout), against
+    the tolerance `key`, less what float32 cannot resolve: the actuated tier's rollout and the contact tiers' settle
     (tests/test_tiers_contact.py::test_a_contact_rollout_is_judged_step_by_step_where_mujoco_predicts_itself)."""
     gate = chaos.gate(
         ref, run, seed, tolerances.setting("chaos", "perturbation"), tolerances.setting("chaos", "amplification_limit")
     )
     err = reference.qpos_difference(ref, run.qpos, sp.qpos)
+    # float32 holds SAPIEN's coordinates: what it cannot resolve at the size each has reached is not judged
     floor = float(tolerances.setting("actuated", "float32_relative")) * reference.position_scale(ref, run.qpos)
-    tolerance = tolerances[f"{tier}.rollout_qpos"]
+    tolerance = tolerances[key]
     gate = gate.held(metric("whole", err, tolerance, "rad or m", floor=floor).passed)
     judged = gate.judged_steps + 1
     notes = []
@@ -132,7 +144,9 @@ def trajectory(ref: mujoco.MjModel, run, sp: sapien_side.Run, seed: int, toleran
             f"MuJoCo amplifies a {gate.perturbation:g} perturbation more than {gate.limit:g}x after step "
             f"{gate.judged_steps} of {gate.steps}; the rollout is judged on the first {gate.judged_steps} steps"
         )
-    return metric("rollout_qpos", err[:judged], tolerance, "rad or m", floor=floor[:judged]), gate, notes
+    return Trajectory(
+        metric("rollout_qpos", err[:judged], tolerance, "rad or m", floor=floor[:judged]), gate, notes, err
+    )
 
 
 UNTOUCHED = "nothing touches in MuJoCo's run (no contact at any step): the settle was judged without a contact"

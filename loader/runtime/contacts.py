@@ -79,13 +79,13 @@ def scene_shapes(scene) -> list:
     ]
 
 
-def load_bit(scene, own: list) -> int:
-    """The lowest of `LOAD_BITS` no other shape of `scene` carries in its g1: the load's own shapes take it, so
-    another load whose own contacts are MuJoCo's, with another bit, still touches this one through PhysX."""
-    mine = {id(shape) for shape in own}
+def load_bit(scene, own) -> int:
+    """The lowest of `LOAD_BITS` no other shape of `scene` carries in its g1 (`own`: the ids of the load's own
+    shapes): the load's shapes take it, so another load whose own contacts are MuJoCo's, with another bit, still
+    touches this one through PhysX."""
     used = 0
     for shape in scene_shapes(scene):
-        if id(shape) not in mine:
+        if id(shape) not in own:
             used |= int(shape.get_collision_groups()[1])
     free = [1 << b for b in LOAD_BITS if not used & (1 << b)]
     return free[0] if free else 1 << LOAD_BITS[-1]
@@ -99,7 +99,7 @@ class OwnContacts:
 
     def __init__(self, scene, shapes: list):
         self.scene, self.shapes = scene, shapes
-        self.own: list | None = None  # the groups to give back while taken
+        self.own: dict[int, list] | None = None  # while taken: the groups to give back, by id of the shape
 
     @property
     def taken(self) -> bool:
@@ -107,25 +107,23 @@ class OwnContacts:
 
     def groups(self, shape) -> list[int]:
         """`shape`'s own collision words (PhysX's filter of the model), also while taken."""
-        if self.own is not None:
-            for mine, groups in zip(self.shapes, self.own):
-                if mine is shape:
-                    return list(groups)
+        if self.own is not None and id(shape) in self.own:
+            return list(self.own[id(shape)])
         return list(shape.get_collision_groups())
 
     def take(self) -> None:
         if self.own is not None:
             return
-        self.own = [shape.get_collision_groups() for shape in self.shapes]
-        bit = load_bit(self.scene, self.shapes)
+        self.own = {id(shape): shape.get_collision_groups() for shape in self.shapes}
+        bit = load_bit(self.scene, self.own)
         warm_up(self.scene)
-        for shape, groups in zip(self.shapes, self.own):
-            shape.set_collision_groups(external_only(groups, bit))
+        for shape in self.shapes:
+            shape.set_collision_groups(external_only(self.own[id(shape)], bit))
 
     def give_back(self) -> None:
         if self.own is None:
             return
         warm_up(self.scene)
-        for shape, groups in zip(self.shapes, self.own):
-            shape.set_collision_groups(groups)
+        for shape in self.shapes:
+            shape.set_collision_groups(self.own[id(shape)])
         self.own = None
