@@ -75,28 +75,40 @@ SLIDING = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" siz
   </keyframe></mujoco>"""
 
 
-def test_a_contact_rollout_is_judged_step_by_step_where_mujoco_predicts_itself(monkeypatch):
+DRIVEN = SLIDING.replace("<freejoint/>", '<freejoint name="free"/>').replace(
+    "</worldbody>", '</worldbody><actuator><motor joint="free" gear="1 0 0 0 0 0" ctrlrange="-2 2"/></actuator>'
+)  # the same box pushed along x by a motor under the actuated_contact tier's hold-and-step ctrl
+
+
+def _tier_report(name: str):
+    """The tier `name` on its sliding box document (`SLIDING`, `DRIVEN`)."""
+    from conformance.session import quiet_load
+    from conformance.tiers.actuated import actuated_contact
+    from conformance.tiers.contact import contact
+
+    tier, document = {"contact": (contact, SLIDING), "actuated_contact": (actuated_contact, DRIVEN)}[name]
+    result = quiet_load(mujoco.MjSpec.from_string(document), fix_root_link=False)
+    return tier(result, result.model, 0, TOLERANCES)
+
+
+@pytest.mark.parametrize("name", ["contact", "actuated_contact"])
+def test_a_contact_rollout_is_judged_step_by_step_where_mujoco_predicts_itself(name, monkeypatch):
     """A tilted box thrown spinning onto a floor lands and slides to rest: MuJoCo's rollout is deterministic, and the
-    contact tier judges SAPIEN's joint positions against it at every step (`rollout_qpos`), not only the settled
+    contact tiers judge SAPIEN's joint positions against it at every step (`rollout_qpos`), not only the settled
     pose. Mutation: the box's friction 8 % low (0.55) in SAPIEN's copy of MuJoCo's contacts only, which the settled
     band alone passes."""
-    from conformance.session import quiet_load
-    from conformance.tiers.contact import contact
     from loader.runtime.rows import RowTerm
 
-    spec = mujoco.MjSpec.from_string(SLIDING)
-    result = quiet_load(spec, fix_root_link=False)
-    report = contact(result, result.model, 0, TOLERANCES)
+    report = _tier_report(name)
     rollout = next(m for m in report.metrics if m.name == "rollout_qpos")
     assert report.status == "pass" and rollout.passed, report.to_dict()
     mirror = RowTerm.mirror_state
 
-    def halved(self, step):
+    def lowered(self, step):
         mirror(self, step)
         self.lent.model.geom_friction[self.lent.model.geom("box").id, 0] = 0.55
 
-    monkeypatch.setattr(RowTerm, "mirror_state", halved)
-    result = quiet_load(mujoco.MjSpec.from_string(SLIDING), fix_root_link=False)
-    report = contact(result, result.model, 0, TOLERANCES)
+    monkeypatch.setattr(RowTerm, "mirror_state", lowered)
+    report = _tier_report(name)
     band, _, rollout = report.metrics
     assert report.status == "fail" and band.passed and not rollout.passed, report.to_dict()
