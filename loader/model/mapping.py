@@ -203,7 +203,8 @@ class Mapping:
         return qpos, qvel
 
     def qfrc_to_sapien(self, qfrc, articulations=None) -> list[np.ndarray]:
-        """A MuJoCo generalized force (nv) as per-articulation arrays for `art.set_qf` (root forces dropped).
+        """A MuJoCo generalized force (nv) as per-articulation arrays for `art.set_qf` (a free joint has none: its share
+        is a wrench on the root link, `Controller.push`).
 
         Ball joints need the current angles (from `articulations`): power is invariant, tau . omega =
         tau . E rates, so the angle-rate force is E^T tau.

@@ -32,6 +32,7 @@ from .drive_writer import DriveWriter, dof_inertia
 from .equalities import EqualityTerm, SoftConnect, plan_equalities
 from .fluid import plan_fluid
 from .gravcomp import map_gravcomp
+from .integrated import RootPush
 from .momentum import plan_momentum
 from .rows import plan_rows
 from .slides import SlideTerm, map_slides
@@ -91,6 +92,7 @@ class Controller:
         self.steps = 0  # physics steps begun by `set_ctrl` (its advancing calls)
         self.compilations = 0  # `compile` calls: a `Batch` compares its copies' plans again after one
         self.timings: dict[str, float] | None = None  # seconds per stage while timed (`timed`)
+        self.pushed = RootPush(model, mapping)  # the caller's qfrc_applied on the floating roots, as wrenches
 
     @property
     def timestep(self) -> float:
@@ -209,6 +211,8 @@ class Controller:
         if qfrc_applied is not None:
             applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
+        if advance:
+            self.push(qfrc_applied)
         refresh_link_velocities(self.velocity_readers())
         return Step(
             articulations,
@@ -227,6 +231,14 @@ class Controller:
             not self.options.implicit,
             advance,
         )
+
+    def push(self, qfrc_applied: np.ndarray | None) -> None:
+        """A free joint's share of the caller's `qfrc_applied` as a wrench on its root link, once per physics step
+        (tests/test_loader_free_joint.py::test_qfrc_applied_pushes_floating_roots_as_in_mujoco)."""
+        if qfrc_applied is None or not self.pushed.roots:
+            self.pushed.applied.clear()
+        else:
+            self.pushed.at_roots(qfrc_applied, self.articulations, self.layout.links)
 
     def run(self, step: Step) -> None:
         """The running terms' laws on the step, in stage order."""
@@ -262,7 +274,7 @@ class Controller:
 
     def settle(self) -> None:
         """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
-        wrenches = [wrench for term in self.terms for wrench in term.applied]
+        wrenches = [wrench for term in self.terms for wrench in term.applied] + self.pushed.applied
         for term in self.terms:
             if self.timings is None:
                 term.settle(self.articulations, wrenches)

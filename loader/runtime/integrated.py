@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from ..model import mj
-from ..model.frames import cross3
+from ..model.frames import cross3, quat_to_mat
 from ..model.joints import FREE
 from ..model.mapping import Mapping
 
@@ -72,12 +72,24 @@ class RootPush:
         """`data` at the step's start; `links` per articulation."""
         self.applied.clear()
         for art, link, body, dof, centre in self.roots:
-            wrench = force[dof : dof + 6]
-            if not wrench.any():
-                continue
-            rotation = data.xmat[body].reshape(3, 3)
-            origin = data.xpos[body]
-            com = origin + rotation @ centre
-            torque = rotation @ wrench[3:] + cross3(origin - com, wrench[:3])
-            links[art][link].add_force_torque(wrench[:3].astype(np.float32), torque.astype(np.float32))
-            self.applied.append((art, com, wrench[:3].copy(), torque))
+            if force[dof : dof + 6].any():
+                self.add(
+                    links[art][link], art, data.xmat[body].reshape(3, 3), data.xpos[body], centre, force[dof : dof + 6]
+                )
+
+    def at_roots(self, force: np.ndarray, articulations: list, links: list) -> None:
+        """The same, the roots' frames read from SAPIEN's root poses: a caller's `qfrc_applied`."""
+        self.applied.clear()
+        for art, link, _, dof, centre in self.roots:
+            if force[dof : dof + 6].any():
+                pose = articulations[art].get_root_pose()
+                origin = np.asarray(pose.p, np.float64)
+                self.add(links[art][link], art, quat_to_mat(pose.q), origin, centre, force[dof : dof + 6])
+
+    def add(self, link, art: int, rotation: np.ndarray, origin: np.ndarray, centre: np.ndarray, wrench) -> None:
+        """A free joint's generalized force (a world force at the body's origin, a torque in its frame) as a force
+        and torque at the link's centre of mass."""
+        com = origin + rotation @ centre
+        torque = rotation @ wrench[3:] + cross3(origin - com, wrench[:3])
+        link.add_force_torque(wrench[:3].astype(np.float32), torque.astype(np.float32))
+        self.applied.append((art, com, np.array(wrench[:3], np.float64), torque))
