@@ -84,18 +84,12 @@ def _run(
 
 
 def test_a_box_rests_on_a_plane_as_in_mujoco(tmp_path, monkeypatch):
-    """Mutation: PhysX's rest offset at 5 mm, so the box settles above the floor."""
+    """Mutation: PhysX's rest offset at 5 mm on every shape, so the box settles above the floor."""
+    from loader.plan import geom
+
     sapien_qpos, mujoco_qpos, _ = _run(tmp_path, BOX.format(floor=1, box=1))
     assert abs(sapien_qpos[2] - mujoco_qpos[2]) < REST
-    import sapien
-
-    build = sapien.physx.PhysxCollisionShapeBox.__init__
-
-    def offset(self, *args, **kwargs):
-        build(self, *args, **kwargs)
-        self.set_rest_offset(0.005)
-
-    monkeypatch.setattr(sapien.physx.PhysxCollisionShapeBox, "__init__", offset)
+    monkeypatch.setattr(geom, "contact_distances", lambda model, g: (0.005, 0.0))
     lifted, mujoco_qpos, _ = _run(tmp_path, BOX.format(floor=1, box=1))
     assert lifted[2] - mujoco_qpos[2] > REST
 
@@ -197,16 +191,87 @@ def test_a_foot_rests_on_a_floor_under_a_soft_solref_as_in_mujoco(tmp_path, monk
     assert lifted[2] - mujoco_qpos[2] > REST
 
 
-def test_a_contact_margin_is_noted_where_mujoco_rests_off_the_surface(tmp_path):
-    """A foot with `margin` rests that far above the floor in MuJoCo (less its soft sink) and on it in SAPIEN: the
-    load notes the margin, and a foot without one is not noted. MARGIN is ten times REST, so the gap is the margin's."""
+def _without_distances(monkeypatch) -> None:
+    """The mutation: PhysX's rest offset and torsional patch radius left at 0."""
+    from loader.plan import geom
+
+    monkeypatch.setattr(geom, "contact_distances", lambda model, g: (0.0, 0.0))
+
+
+def test_a_margin_is_each_pairs_rest_offset_where_one_geom_carries_it(tmp_path, monkeypatch):
+    """A foot with `margin` rests that far above the floor in MuJoCo (less its soft sink), and in SAPIEN on PhysX's
+    rest offset: within REST, with no note. With the floor's margin as well, MuJoCo takes the larger and PhysX adds
+    them: the load notes the pair. Mutation: the rest offset left at 0, so the foot rests MARGIN lower."""
     document = FOOT.format(kind="box", size=FEET["box"][0], pitch=0, soft=f'margin="{MARGIN}"')
     sapien_qpos, mujoco_qpos, result = _run(tmp_path, document)
-    assert mujoco_qpos[2] - sapien_qpos[2] == pytest.approx(MARGIN, abs=REST)
-    (note,) = [n for n in result.approximations if n.kind == "contact margin"]
-    assert note.name == "1 geoms" and f"largest {MARGIN:g} m" in note.reason and "foot" in note.reason
-    _, _, plain = _run(tmp_path, FOOT.format(kind="box", size=FEET["box"][0], pitch=0, soft=""))
-    assert not [n for n in plain.approximations if n.kind == "contact margin"]
+    assert abs(sapien_qpos[2] - mujoco_qpos[2]) < REST
+    assert not [n for n in result.approximations if n.kind == "contact margin"]
+    both = document.replace('size="5 5 .1"', f'size="5 5 .1" margin="{MARGIN / 2}"')
+    _, _, noted = _run(tmp_path, both)
+    (note,) = [n for n in noted.approximations if n.kind == "contact margin"]
+    assert note.name == "1 geom pairs" and f"largest difference {MARGIN / 2:g} m (floor/foot)" in note.reason
+    _without_distances(monkeypatch)
+    sunk, mujoco_qpos, _ = _run(tmp_path, document)
+    assert mujoco_qpos[2] - sunk[2] == pytest.approx(MARGIN, abs=REST)
+
+
+BALL = """<mujoco><option timestep="0.002"/><worldbody><geom name="floor" type="plane" size="5 5 .1"/>
+  <body pos="0 0 .1"><freejoint/><geom name="ball" type="sphere" size=".1" density="1000" condim="{condim}"
+  friction="1 {torsion} 0.0001"/></body></worldbody></mujoco>"""
+TORSION = 0.01  # m: the ball's torsional friction, twice the floor's default (MuJoCo takes the larger)
+SPIN = [0, 0, 0, 0, 0, 10]  # rad/s about the vertical
+TURNING = 0.3  # s: under a turn (pi) at SPIN, so the angle read from the quaternion does not wrap
+# relative: how far the ball turned in TURNING, MuJoCo's torsional friction against PhysX's patch radius under TGS
+# (1.90 rad in MuJoCo): measured 0.4 % apart; 58 % without the radius, or under PGS (mujoco 3.17.0, sapien 3.0.3)
+TORSION_SPIN = 0.05
+
+
+def test_torsional_friction_spins_a_ball_down_as_in_mujoco_under_tgs(tmp_path, monkeypatch):
+    """A ball spinning about the vertical on one contact point: only torsional friction (condim 4) slows it. MuJoCo's
+    torque is the torsional friction times the normal force, PhysX's the sliding friction times the shape's
+    minimum patch radius: the radius is their ratio. PhysX applies it under TGS (ManiSkill's default solver) and not
+    under PGS (the loader's own scene). Condim 3 keeps no radius and no torsion. Mutation: no radius."""
+    document = BALL.format(condim=4, torsion=TORSION)
+    ours, theirs = _turned(tmp_path, document, tgs=True)
+    assert abs(ours / theirs - 1) < TORSION_SPIN, (ours, theirs)
+    pgs, theirs = _turned(tmp_path, document, tgs=False)
+    assert abs(pgs / theirs - 1) > TORSION_SPIN, (pgs, theirs)
+    plain, still = _turned(tmp_path, BALL.format(condim=3, torsion=TORSION), tgs=True)
+    assert abs(plain / still - 1) < TORSION_SPIN, (plain, still)
+    _without_distances(monkeypatch)
+    lost, theirs = _turned(tmp_path, document, tgs=True)
+    assert abs(lost / theirs - 1) > TORSION_SPIN, (lost, theirs)
+
+
+def _turned(tmp_path, document: str, tgs: bool) -> tuple[float, float]:
+    """rad: how far the ball turned about the vertical in TURNING, in SAPIEN (its contacts PhysX's, under TGS or
+    PGS) and in MuJoCo."""
+    loader = MJCFLoader().set_scene(_scene(tgs, 0.002))
+    loader.contacts = "physx"
+    result = loader.load(mjcf_file(tmp_path, document, "ball.xml"))
+    model = result.model
+    data = mujoco.MjData(model)
+    data.qvel[:] = SPIN
+    result.set_state(model.qpos0, data.qvel)
+    for _ in range(round(TURNING / model.opt.timestep)):
+        result.set_ctrl(None)
+        result.scene.step()
+        mujoco.mj_step(model, data)
+    return tuple(2 * np.arctan2(q[6], q[3]) for q in (result.get_state()[0], data.qpos))
+
+
+def _scene(tgs: bool, timestep: float):
+    """A CPU scene under TGS or PGS with MuJoCo's gravity."""
+    import sapien
+
+    previous = sapien.physx.get_scene_config()
+    sapien.physx.set_scene_config(enable_tgs=tgs, gravity=[0.0, 0.0, -9.81])
+    try:
+        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    finally:
+        sapien.physx.set_scene_config(previous)
+    scene.timestep = timestep
+    return scene
 
 
 CLASSES = {
@@ -245,15 +310,7 @@ def _hand_walk(
     ctrlrange per step from its middle) at `timestep` (100 Hz: ManiSkill's default), SAPIEN under PGS or TGS with
     the hand's own contacts `contacts`'s, and the largest |qpos| difference; inf where SAPIEN's state stops being
     finite."""
-    import sapien
-
-    previous = sapien.physx.get_scene_config()
-    sapien.physx.set_scene_config(enable_tgs=tgs, gravity=[0.0, 0.0, -9.81])
-    try:
-        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
-    finally:
-        sapien.physx.set_scene_config(previous)
-    scene.timestep = timestep
+    scene = _scene(tgs, timestep)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         loader = MJCFLoader().set_scene(scene)

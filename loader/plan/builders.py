@@ -54,8 +54,12 @@ def make_shape(plan: ShapePlan, dynamic: bool) -> sapien.physx.PhysxCollisionSha
         raise ValueError(f"unknown shape kind {plan.kind!r}")
     shape.local_pose = plan.pose
     shape.set_collision_groups([int(x) & 0xFFFFFFFF for x in plan.groups])
-    if dynamic:  # a static shape (a floor, a table) keeps SAPIEN's offset: only a moving part's pairs are shrunk
-        shape.contact_offset = physx.CONTACT_OFFSET
+    # a static shape (a floor, a table) keeps SAPIEN's offset: only a moving part's pairs are shrunk. PhysX needs the
+    # contact offset above the rest offset: it is kept that far beyond it
+    offset = physx.CONTACT_OFFSET if dynamic else shape.contact_offset
+    shape.contact_offset = max(offset, plan.rest_offset + physx.CONTACT_OFFSET)
+    shape.rest_offset = plan.rest_offset
+    shape.min_patch_radius = plan.torsion
     return shape
 
 

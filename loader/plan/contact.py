@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import Notes
 from ..model import mj
+from . import geom
 from .tree import TreePlan
 
 GROUP_BITS = 32
@@ -138,6 +139,7 @@ def _assign_bits(model, must_exclude, must_collide, result: CollisionFilter, not
     result.body_words = {b: (g2.get(b, 0), g3.get(b, 0)) for b in set(g2) | set(g3)}
 
 
+DISTANCE_RESOLUTION = 1e-7  # m: a contact distance PhysX's float32 already misses (its offsets are float32)
 PAIR_FRICTION = 1e-9  # relative: a pair's sliding friction PhysX's average of its geoms' already gives
 
 
@@ -260,22 +262,66 @@ def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[
     )
 
 
-def note_contact_margins(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
-    """MuJoCo's contact between two geoms acts from the larger of their `margin - gap` off the surfaces, so a body
-    rests that far above what it stands on; PhysX's shapes keep a rest offset of 0 and rest touching. One note says
-    how many geoms that can touch another carry such a distance, and the largest
-    (tests/test_contact_classes.py::test_a_contact_margin_is_noted_where_mujoco_rests_off_the_surface)."""
+def note_contact_distances(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
+    """Where PhysX's rest offset and torsional patch radius (`geom.contact_distances`) miss MuJoCo's law for a pair
+    of geoms whose bits meet, one note per quantity says how many pairs and the largest difference: a pair where
+    both geoms carry `margin - gap` (PhysX adds them, MuJoCo takes the larger margin less the larger gap), a
+    torsional friction that is not PhysX's average sliding friction times the larger radius (frictions that differ,
+    a geom of condim 3 with the larger torsion, a geom's priority), and rolling friction (condim 6), which PhysX
+    has not (tests/test_contact_classes.py::test_a_margin_is_each_pairs_rest_offset_where_one_geom_carries_it,
+    tests/test_contact_classes.py::test_torsional_friction_spins_a_ball_down_as_in_mujoco)."""
     geoms = np.array(sorted(shaped), dtype=int)
     if geoms.size < 2:
         return
-    distance = model.geom_margin[geoms] - model.geom_gap[geoms]
-    carried = (distance != 0) & _meeting(model, geoms, static).any(axis=1)
-    if not carried.any():
-        return
-    i = int(np.argmax(np.where(carried, np.abs(distance), -1.0)))
-    notes.approximate(
+    meeting = np.triu(_meeting(model, geoms, static), 1)
+    rest, torsion = np.array([geom.contact_distances(model, int(g)) for g in geoms]).T
+    margin, gap = model.geom_margin[geoms], model.geom_gap[geoms]
+    theirs = np.maximum.outer(margin, margin) - np.maximum.outer(gap, gap)
+    _note_pairs(
+        notes,
+        model,
+        (geoms, meeting, np.abs(np.add.outer(rest, rest) - theirs)),
         "contact margin",
-        f"{int(carried.sum())} geoms",
-        f"MuJoCo's contact acts from margin - gap off the surface (largest {distance[i]:g} m, geom "
-        f"{mj.name(model, 'geom', int(geoms[i]))}); PhysX's rest offset is 0, so SAPIEN rests that much closer",
+        "PhysX rests a pair at the sum of its geoms' margin - gap, MuJoCo at the larger margin less the larger gap",
+    )
+    condim, friction = _pair_friction_law(model, geoms)
+    sliding = model.geom_friction[geoms, 0]
+    physx = np.add.outer(sliding, sliding) / 2 * np.maximum.outer(torsion, torsion)
+    mujocos = np.where(condim >= 4, friction[..., 1], 0.0)
+    _note_pairs(
+        notes,
+        model,
+        (geoms, meeting, np.abs(physx - mujocos)),
+        "contact torsion",
+        "PhysX's torsional friction is the average sliding friction times the larger patch radius, MuJoCo's the "
+        "pair's own",
+    )
+    rolling = np.where(condim == 6, np.maximum(friction[..., 2], 0.0), 0.0)
+    _note_pairs(notes, model, (geoms, meeting, rolling), "contact rolling", "PhysX has no rolling friction")
+
+
+def _pair_friction_law(model: mujoco.MjModel, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's condim and friction (3 coefficients) per pair of `geoms`: the higher priority geom's, else the larger
+    of the two."""
+    condim, friction, priority = model.geom_condim[geoms], model.geom_friction[geoms], model.geom_priority[geoms]
+    first, second = np.greater.outer(priority, priority), np.less.outer(priority, priority)
+    pair_condim = np.where(first, condim[:, None], np.where(second, condim[None, :], np.maximum.outer(condim, condim)))
+    larger = np.maximum(friction[:, None, :], friction[None, :, :])
+    pair_friction = np.where(
+        first[..., None], friction[:, None, :], np.where(second[..., None], friction[None, :, :], larger)
+    )
+    return pair_condim, pair_friction
+
+
+def _note_pairs(notes: Notes, model: mujoco.MjModel, pairs: tuple, kind: str, why: str) -> None:
+    """One note of `kind` for the meeting pairs whose difference (m; `pairs`: geoms, meeting, difference) exceeds
+    float32's resolution: how many, the largest, `why`."""
+    geoms, meeting, difference = pairs
+    differs = meeting & (difference > DISTANCE_RESOLUTION)
+    if not differs.any():
+        return
+    i, j = np.unravel_index(np.argmax(np.where(differs, difference, -1.0)), difference.shape)
+    names = f"{mj.name(model, 'geom', int(geoms[i]))}/{mj.name(model, 'geom', int(geoms[j]))}"
+    notes.approximate(
+        kind, f"{int(differs.sum())} geom pairs", f"{why}; largest difference {difference[i, j]:g} m ({names})"
     )

@@ -50,6 +50,8 @@ class ShapePlan:
     triangles: np.ndarray | None = None
     scale: np.ndarray = field(default_factory=lambda: np.ones(3))
     friction: float = 1.0
+    rest_offset: float = 0.0  # m: MuJoCo's margin - gap, where PhysX's contact comes to rest (`contact_distances`)
+    torsion: float = 0.0  # m: PhysX's minimum torsional patch radius, MuJoCo's torsional friction over sliding
     groups: list[int] = field(default_factory=lambda: [0, 0, 0, 0])
     mesh_key: str | None = None  # a convex shape's vertex set (`hulls.plan_sharing`)
     shared: bool = False  # ... which another shape of the load has too: cooked once for both
@@ -127,8 +129,32 @@ def _hull_vertices(model: mujoco.MjModel, g: int, notes: Notes, meshes: dict[int
 def plan_shape(
     model: mujoco.MjModel, g: int, static: bool, notes: Notes, meshes: dict[int, np.ndarray] | None = None
 ) -> ShapePlan | None:
-    """The collision shape of geom `g` (None when it gets none); `static` says the body never moves. `meshes`
-    keeps each mesh's vertices for the geoms after the first that use it (one array, read only)."""
+    """The collision shape of geom `g` (None when it gets none) with its contact distances; `static` says the body
+    never moves. `meshes` keeps each mesh's vertices for the geoms after the first that use it (one array, read
+    only)."""
+    shape = _primitive(model, g, static, notes, meshes)
+    if shape is not None:
+        shape.rest_offset, shape.torsion = contact_distances(model, g)
+    return shape
+
+
+def contact_distances(model: mujoco.MjModel, g: int) -> tuple[float, float]:
+    """PhysX's rest offset and minimum torsional patch radius for geom `g`: `margin - gap`, the distance off the
+    surface from which MuJoCo's contact acts (PhysX rests a pair at the sum of its shapes' rest offsets, MuJoCo at
+    the larger margin less the larger gap); and, with condim 4 or more, torsional over sliding friction (PhysX's
+    torsional torque is the pair's average friction times its larger patch radius times the normal force, MuJoCo's
+    the larger torsional friction times the normal force). Exact where one of the two geoms carries the distance and
+    the frictions agree; `contact.note_contact_distances` names the pairs where not (docs/mapping.md#geoms)."""
+    rest = float(model.geom_margin[g] - model.geom_gap[g])
+    sliding, torsional = float(model.geom_friction[g][0]), float(model.geom_friction[g][1])
+    torsion = torsional / sliding if int(model.geom_condim[g]) >= 4 and sliding > 0 else 0.0
+    return rest, torsion
+
+
+def _primitive(
+    model: mujoco.MjModel, g: int, static: bool, notes: Notes, meshes: dict[int, np.ndarray] | None
+) -> ShapePlan | None:
+    """The PhysX shape of geom `g` and its sliding friction (`plan_shape`)."""
     gtype = int(model.geom_type[g])
     size = model.geom_size[g]
     geom_pose = pose(model.geom_pos[g], model.geom_quat[g])
