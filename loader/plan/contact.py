@@ -269,7 +269,7 @@ def note_contact_distances(model: mujoco.MjModel, shaped: list[int], static: set
     torsional friction that is not PhysX's average sliding friction times the larger radius (frictions that differ,
     a geom of condim 3 with the larger torsion, a geom's priority), and rolling friction (condim 6), which PhysX
     has not (tests/test_contact_classes.py::test_a_margin_is_each_pairs_rest_offset_where_one_geom_carries_it,
-    tests/test_contact_classes.py::test_torsional_friction_spins_a_ball_down_as_in_mujoco)."""
+    tests/test_contact_classes.py::test_torsional_friction_spins_a_ball_down_as_in_mujoco_under_tgs)."""
     geoms = np.array(sorted(shaped), dtype=int)
     if geoms.size < 2:
         return
@@ -298,6 +298,29 @@ def note_contact_distances(model: mujoco.MjModel, shaped: list[int], static: set
     )
     rolling = np.where(condim == 6, np.maximum(friction[..., 2], 0.0), 0.0)
     _note_pairs(notes, model, (geoms, meeting, rolling), "contact rolling", "PhysX has no rolling friction")
+
+
+def note_contact_rebound(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
+    """MuJoCo's contact at a damping ratio of 1 or more (its default) does not rebound, nor does PhysX's at
+    restitution 0, the loader's. Below 1 MuJoCo's rebounds by an amount its impedance shapes, which no PhysX
+    restitution reproduces at every speed: one note names the geoms that can touch another with such a `solref`
+    (tests/test_contact_classes.py::test_a_dropped_ball_does_not_rebound_as_in_mujoco)."""
+    geoms = np.array(sorted(shaped), dtype=int)
+    if geoms.size < 2:
+        return
+    timeconst, damping = model.geom_solref[geoms].T
+    stiffness = np.maximum(-timeconst, np.finfo(float).tiny)
+    ratio = np.where(timeconst > 0, damping, -damping / (2 * np.sqrt(stiffness)))  # solref's direct form: -k, -b
+    rebounds = (ratio < 1) & _meeting(model, geoms, static).any(axis=1)
+    if not rebounds.any():
+        return
+    i = int(np.argmin(np.where(rebounds, ratio, np.inf)))
+    notes.approximate(
+        "contact rebound",
+        f"{int(rebounds.sum())} geoms",
+        f"MuJoCo's contact rebounds under a damping ratio below 1 (lowest {ratio[i]:g}, geom "
+        f"{mj.name(model, 'geom', int(geoms[i]))}); PhysX's restitution stays 0",
+    )
 
 
 def _pair_friction_law(model: mujoco.MjModel, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
