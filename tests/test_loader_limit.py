@@ -331,13 +331,13 @@ LENT = """<mujoco><option timestep="0.002"/><worldbody>
 
 def test_the_rows_solve_with_the_loaded_model_and_leave_it_as_it_was():
     """MuJoCo's copy for the rows is the runtime's model lent for each solve (`rows.LentModel`): what the copy changes
-    (the ball joint's limit and friction, the unmapped actuator's gains) and the flags the solve sets are in it only
+    (the ball joint's limit, the unmapped actuator's gains) and the flags the solve sets are in it only
     while MuJoCo solves, so the model every other term reads stays as compiled after steps, number for number."""
     result = MJCFLoader().load(mujoco.MjSpec.from_string(LENT))
     lent = result.controller.term("rows").lent
     runtime = result.controller.model
     assert lent.model is runtime and not lent.copied
-    assert {field for field, _, _ in lent.overrides} >= {"jnt_limited", "dof_frictionloss"}
+    assert {field for field, _, _ in lent.overrides} >= {"jnt_limited", "actuator_gainprm"}
     before = mujoco.MjModel.from_xml_string(LENT)
     for disabled in (False, True):  # the solve turns actuation off in the flags while the actuators are
         result.disable_actuators(disabled)

@@ -17,7 +17,7 @@ import sapien
 from ..errors import Notes
 from ..model import mj
 from ..model.frames import pose, quat_from_axis_angle, quat_x_to
-from ..model.joints import BALL, FREE, HINGE, SLIDE, closed_range, dof_damping, is_limited, joint_stiffness
+from ..model.joints import FREE, HINGE, SLIDE, closed_range, dof_damping, is_limited, joint_stiffness
 
 
 @dataclass
@@ -48,13 +48,6 @@ def plan_joint(model: mujoco.MjModel, j: int, notes: Notes) -> list[JointPlan]:
     damping = dof_damping(model, dof)
     armature = float(model.dof_armature[dof])
     stiffness = joint_stiffness(model, j)
-    if model.dof_frictionloss[dof] > 0 and jtype == BALL:  # hinges, slides, free joints: `runtime/rows.py`
-        notes.drop(
-            "joint",
-            name,
-            f"frictionloss {model.dof_frictionloss[dof]:g} dropped: PhysX joint friction "
-            "scales with the joint reaction force, MuJoCo's is a constant torque",
-        )
     if jtype == FREE:
         if stiffness > 0:  # damping and armature: `runtime/free_joint.py`
             notes.drop(

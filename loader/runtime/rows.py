@@ -32,7 +32,8 @@ from .term import Compilation, Handover, Term
 HINGE_MARGIN = 20 * math.pi  # PhysX's hard limit sits ten turns beyond MuJoCo's ends (or the range, if wider):
 SLIDE_MARGIN = 10.0  # ... and 10 m beyond a slide's; MuJoCo's soft limit has no hard stop, an impact may spin past
 MAPPED_JOINTS = ("hinge", "slide")
-FRICTIONAL_JOINTS = (*MAPPED_JOINTS, "free")  # a free joint's frictionloss force goes on its root link (`RootPush`)
+# a free joint's frictionloss force goes on its root link (`RootPush`), a ball joint's on its angle rates (E^T tau)
+FRICTIONAL_JOINTS = (*MAPPED_JOINTS, "free", "ball")
 JOINT_ROWS = tuple(
     int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}"))
     for name in ("LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON", "EQUALITY")
@@ -161,7 +162,7 @@ class RowTerm(Term):
         self.keys = [(t.articulation, t.dofs[0]) for _, t in joints]  # the hinge/slide DoFs the rows' force reaches
         self.mujoco_dofs = np.array([int(model.jnt_dofadr[j]) for j, _ in joints], dtype=int)
         balls = [(int(model.jnt_dofadr[j]), t) for j, t in enumerate(mapping.joints) if t.kind == "ball"]
-        self.ball_keys = [[(t.articulation, d) for d in t.dofs] for _, t in balls]  # MuJoCo's contacts turn them
+        self.ball_keys = [[(t.articulation, d) for d in t.dofs] for _, t in balls]  # frictionloss, contacts turn them
         self.ball_dofs = [dof for dof, _ in balls]
         self.push = RootPush(model, mapping)  # a free joint's share of an unconverged solve
         self.soft = False
@@ -229,8 +230,8 @@ class RowTerm(Term):
             solve(model, self.data, self.with_contacts, step.timestep, self.depenetration, not self.mujocos)
             force = self.joint_rows()
         step.force[self.flat] += force[self.mujoco_dofs]
-        if self.mujocos:
-            for dof, flat in zip(self.ball_dofs, self.ball_flat):  # a ball joint's angle rates take E^T tau
+        for dof, flat in zip(self.ball_dofs, self.ball_flat):  # a ball joint's angle rates take E^T tau
+            if force[dof : dof + 3].any():  # its frictionloss, MuJoCo's contacts
                 step.force[flat] += euler_xyz_rate_matrix(step.q[flat]).T @ force[dof : dof + 3]
         if step.advance:
             self.push(self.data, force, step.layout.links)
