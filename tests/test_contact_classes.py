@@ -356,8 +356,12 @@ def _compliant_sinks(restitution: float) -> np.ndarray:
 
 def test_sapiens_compliant_contact_has_a_stiffness_and_no_damping():
     """The evidence behind mapping no solref or solimp (docs/mapping.md#geoms): a negative restitution is PhysX's
-    compliant stiffness (the ball rests at mg/k on average) and nothing damps its ringing. Contrast: restitution 0
-    is rigid."""
+    compliant stiffness (the ball rests at mg/k on average) and nothing damps its ringing; SAPIEN's material has no
+    damping (nor a friction combine mode) to set. Contrast: restitution 0 is rigid."""
+    import sapien
+
+    material = [name for name in dir(sapien.physx.PhysxMaterial) if not name.startswith("_")]
+    assert not [name for name in material if "damping" in name or "combine" in name or "flag" in name], material
     sinks, mass = _compliant_sinks(-STIFFNESS)
     assert np.mean(sinks) == pytest.approx(mass * 9.81 / STIFFNESS, rel=0.05)
     late = sinks[round(STILL_RINGING / 0.002) :]
