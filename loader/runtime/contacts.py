@@ -3,6 +3,8 @@ between a load's own shapes to MuJoCo (`OwnContacts`)."""
 
 from __future__ import annotations
 
+from itertools import combinations
+
 import sapien
 
 
@@ -55,17 +57,18 @@ def restore_contacts(result, saved: list) -> None:
 
 
 EVERY_BIT = 0xFFFFFFFF
-LOAD_BITS = range(16, 31)  # the g1 bits a load's own shapes may take (`load_bit`)
+LOAD_BITS = range(16, 31)  # the g1 bits a load's own shapes take sets of (`load_bits`)
+LOAD_MASK = sum(1 << b for b in LOAD_BITS)
 
 
-def external_only(groups: list[int], bit: int) -> list[int]:
-    """A shape's collision groups that touch no shape of its own load (all carry g0 = every bit but `bit`, g1 =
-    `bit`) and every other shape with a g1 bit other than `bit`: PhysX's rule `(g0a & g1b) or (g1a & g0b)`
+def external_only(groups: list[int], bits: int) -> list[int]:
+    """A shape's collision groups that touch no shape of its own load (all carry g0 = every bit but `bits`, g1 =
+    `bits`) and every other shape whose g1 has a bit outside `bits`: PhysX's rule `(g0a & g1b) or (g1a & g0b)`
     (docs/mapping.md#collision-filter). A shape that touches nothing keeps its groups; g2 and g3 (MuJoCo's body
     filter, ManiSkill's bits) stay."""
     if not (groups[0] or groups[1]):
         return list(groups)
-    return [EVERY_BIT & ~bit, bit, int(groups[2]), int(groups[3])]
+    return [EVERY_BIT & ~bits, bits, int(groups[2]), int(groups[3])]
 
 
 def scene_shapes(scene) -> list:
@@ -79,16 +82,33 @@ def scene_shapes(scene) -> list:
     ]
 
 
-def load_bit(scene, own) -> int:
-    """The lowest of `LOAD_BITS` no other shape of `scene` carries in its g1 (`own`: the ids of the load's own
-    shapes): the load's shapes take it, so another load whose own contacts are MuJoCo's, with another bit, still
-    touches this one through PhysX."""
-    used = 0
+def taken_by_a_load(groups: list[int]) -> bool:
+    """Whether a shape's words are a load's `external_only` ones: g1 a set of `LOAD_BITS`, g0 every other bit."""
+    g0, g1 = int(groups[0]), int(groups[1])
+    return bool(g1) and not g1 & ~LOAD_MASK and g0 == EVERY_BIT & ~g1
+
+
+def load_bits(scene, own) -> int:
+    """The set of `LOAD_BITS` (a mask) the load's own shapes take as g1 (`own`: the ids of the load's own shapes):
+    the smallest, lowest first, of the bits no other shape carries in its g1, that no other load has taken. Two loads
+    with sets A and B touch through PhysX: A's g0 meets B's g1 unless B lies within A, and the other way round, so
+    only equal sets miss both; 15 free bits serve 2^15 - 1 loads
+    (tests/test_loader_contact.py::test_loads_beyond_the_free_bits_still_touch_each_other)."""
+    others, loads = 0, set()
     for shape in scene_shapes(scene):
-        if id(shape) not in own:
-            used |= int(shape.get_collision_groups()[1])
-    free = [1 << b for b in LOAD_BITS if not used & (1 << b)]
-    return free[0] if free else 1 << LOAD_BITS[-1]
+        if id(shape) in own:
+            continue
+        groups = shape.get_collision_groups()
+        if taken_by_a_load(groups):
+            loads.add(int(groups[1]))
+        else:
+            others |= int(groups[1])
+    free = [1 << b for b in LOAD_BITS if not others & (1 << b)]
+    for size in range(1, len(free) + 1):
+        for bits in combinations(free, size):
+            if sum(bits) not in loads:
+                return sum(bits)
+    return 1 << LOAD_BITS[-1]  # every load bit in another shape's g1: the load touches what carries it
 
 
 class OwnContacts:
@@ -115,10 +135,10 @@ class OwnContacts:
         if self.own is not None:
             return
         self.own = {id(shape): shape.get_collision_groups() for shape in self.shapes}
-        bit = load_bit(self.scene, self.own)
+        bits = load_bits(self.scene, self.own)
         warm_up(self.scene)
         for shape in self.shapes:
-            shape.set_collision_groups(external_only(self.own[id(shape)], bit))
+            shape.set_collision_groups(external_only(self.own[id(shape)], bits))
 
     def give_back(self) -> None:
         if self.own is None:
