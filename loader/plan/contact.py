@@ -273,31 +273,33 @@ def note_contact_distances(model: mujoco.MjModel, shaped: list[int], static: set
     geoms = np.array(sorted(shaped), dtype=int)
     if geoms.size < 2:
         return
-    meeting = np.triu(_meeting(model, geoms, static), 1)
+    a, b = np.nonzero(np.triu(_meeting(model, geoms, static), 1))  # the pairs, as indices into `geoms`
+    pairs = (geoms[a], geoms[b])
     rest, torsion = np.array([geom.contact_distances(model, int(g)) for g in geoms]).T
     margin, gap = model.geom_margin[geoms], model.geom_gap[geoms]
-    theirs = np.maximum.outer(margin, margin) - np.maximum.outer(gap, gap)
+    theirs = np.maximum(margin[a], margin[b]) - np.maximum(gap[a], gap[b])
     _note_pairs(
         notes,
         model,
-        (geoms, meeting, np.abs(np.add.outer(rest, rest) - theirs)),
+        pairs,
+        np.abs(rest[a] + rest[b] - theirs),
         "contact margin",
         "PhysX rests a pair at the sum of its geoms' margin - gap, MuJoCo at the larger margin less the larger gap",
     )
-    condim, friction = _pair_friction_law(model, geoms)
+    condim, friction = _pair_friction_law(model, *pairs)
     sliding = model.geom_friction[geoms, 0]
-    physx = np.add.outer(sliding, sliding) / 2 * np.maximum.outer(torsion, torsion)
-    mujocos = np.where(condim >= 4, friction[..., 1], 0.0)
+    physx = (sliding[a] + sliding[b]) / 2 * np.maximum(torsion[a], torsion[b])
     _note_pairs(
         notes,
         model,
-        (geoms, meeting, np.abs(physx - mujocos)),
+        pairs,
+        np.abs(physx - np.where(condim >= 4, friction[:, 1], 0.0)),
         "contact torsion",
         "PhysX's torsional friction is the average sliding friction times the larger patch radius, MuJoCo's the "
         "pair's own",
     )
-    rolling = np.where(condim == 6, np.maximum(friction[..., 2], 0.0), 0.0)
-    _note_pairs(notes, model, (geoms, meeting, rolling), "contact rolling", "PhysX has no rolling friction")
+    rolling = np.where(condim == 6, np.maximum(friction[:, 2], 0.0), 0.0)
+    _note_pairs(notes, model, pairs, rolling, "contact rolling", "PhysX has no rolling friction")
 
 
 def note_contact_rebound(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
@@ -323,28 +325,28 @@ def note_contact_rebound(model: mujoco.MjModel, shaped: list[int], static: set[i
     )
 
 
-def _pair_friction_law(model: mujoco.MjModel, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """MuJoCo's condim and friction (3 coefficients) per pair of `geoms`: the higher priority geom's, else the larger
-    of the two."""
-    condim, friction, priority = model.geom_condim[geoms], model.geom_friction[geoms], model.geom_priority[geoms]
-    first, second = np.greater.outer(priority, priority), np.less.outer(priority, priority)
-    pair_condim = np.where(first, condim[:, None], np.where(second, condim[None, :], np.maximum.outer(condim, condim)))
-    larger = np.maximum(friction[:, None, :], friction[None, :, :])
-    pair_friction = np.where(
-        first[..., None], friction[:, None, :], np.where(second[..., None], friction[None, :, :], larger)
+def _pair_friction_law(model: mujoco.MjModel, first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's condim and friction (3 coefficients) per pair of geoms (`first[k]`, `second[k]`): the higher
+    priority geom's, else the larger of the two."""
+    priority = model.geom_priority
+    leads, trails = priority[first] > priority[second], priority[first] < priority[second]
+    condim = np.maximum(model.geom_condim[first], model.geom_condim[second])
+    condim = np.where(leads, model.geom_condim[first], np.where(trails, model.geom_condim[second], condim))
+    friction = np.maximum(model.geom_friction[first], model.geom_friction[second])
+    friction = np.where(
+        leads[:, None], model.geom_friction[first], np.where(trails[:, None], model.geom_friction[second], friction)
     )
-    return pair_condim, pair_friction
+    return condim, friction
 
 
-def _note_pairs(notes: Notes, model: mujoco.MjModel, pairs: tuple, kind: str, why: str) -> None:
-    """One note of `kind` for the meeting pairs whose difference (m; `pairs`: geoms, meeting, difference) exceeds
+def _note_pairs(notes: Notes, model: mujoco.MjModel, pairs: tuple, difference: np.ndarray, kind: str, why: str) -> None:
+    """One note of `kind` for the pairs of geoms (`pairs`: first and second geom ids) whose `difference` (m) exceeds
     float32's resolution: how many, the largest, `why`."""
-    geoms, meeting, difference = pairs
-    differs = meeting & (difference > DISTANCE_RESOLUTION)
+    differs = difference > DISTANCE_RESOLUTION
     if not differs.any():
         return
-    i, j = np.unravel_index(np.argmax(np.where(differs, difference, -1.0)), difference.shape)
-    names = f"{mj.name(model, 'geom', int(geoms[i]))}/{mj.name(model, 'geom', int(geoms[j]))}"
+    k = int(np.argmax(np.where(differs, difference, -1.0)))
+    names = f"{mj.name(model, 'geom', int(pairs[0][k]))}/{mj.name(model, 'geom', int(pairs[1][k]))}"
     notes.approximate(
-        kind, f"{int(differs.sum())} geom pairs", f"{why}; largest difference {difference[i, j]:g} m ({names})"
+        kind, f"{int(differs.sum())} geom pairs", f"{why}; largest difference {difference[k]:g} m ({names})"
     )
