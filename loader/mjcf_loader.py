@@ -23,13 +23,7 @@ from .plan.actuators import map_actuators
 from .plan.builders import MJCFActorBuilder, MJCFArticulationBuilder
 from .plan.camera import CameraConfig, cameras, sites
 from .plan.compile import CompiledModel, compile_mjcf
-from .plan.contact import (
-    note_contact_distances,
-    note_contact_rebound,
-    note_friction_combine,
-    plan_collision_filter,
-    plan_pairs,
-)
+from .plan.contact import note_contact_laws, plan_collision_filter, plan_pairs
 from .plan.equalities import map_equalities
 from .plan.features import find_unmapped
 from .plan.geom import collides, plan_shape
@@ -201,9 +195,7 @@ def _shapes(model: mujoco.MjModel, tree: TreePlan, kept: list[int], static: set[
     plan_pairs(model, tree, contact_filter, set(shapes), static, notes)
     contact_off = mj.disabled(model, "contact", "constraint")
     if not contact_off:
-        note_friction_combine(model, list(shapes), static, notes)
-        note_contact_distances(model, list(shapes), static, notes)
-        note_contact_rebound(model, list(shapes), static, notes)
+        note_contact_laws(model, shapes, static, notes)
     for g, shape in shapes.items():
         shape.groups = [0, 0, 0, 0] if contact_off else contact_filter.groups(model, g)
     return shapes

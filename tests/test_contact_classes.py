@@ -64,11 +64,16 @@ def _grown(monkeypatch, factor: float = 1.1) -> None:
 
 
 def _run(
-    tmp_path, document: str, qvel: list[float] | None = None, seconds: float = 1.0, contacts: str = "physx"
+    tmp_path,
+    document: str,
+    qvel: list[float] | None = None,
+    seconds: float = 1.0,
+    contacts: str = "physx",
+    scene=None,
 ) -> tuple:
     """SAPIEN's and MuJoCo's qpos after `seconds` from qpos0 and `qvel`, with no command, the model's own contacts
-    `contacts`'s (`MJCFLoader.contacts`)."""
-    loader = MJCFLoader()
+    `contacts`'s (`MJCFLoader.contacts`), in `scene` (None: the loader's own)."""
+    loader = MJCFLoader() if scene is None else MJCFLoader().set_scene(scene)
     loader.contacts = contacts
     result = loader.load(mjcf_file(tmp_path, document, "contact.xml"))
     model = result.model
@@ -265,18 +270,8 @@ def test_pairs_whose_torsion_or_rolling_physx_misses_are_noted(tmp_path):
 def _turned(tmp_path, document: str, tgs: bool) -> tuple[float, float]:
     """rad: how far the ball turned about the vertical in TURNING, in SAPIEN (its contacts PhysX's, under TGS or
     PGS) and in MuJoCo."""
-    loader = MJCFLoader().set_scene(_scene(tgs, 0.002))
-    loader.contacts = "physx"
-    result = loader.load(mjcf_file(tmp_path, document, "ball.xml"))
-    model = result.model
-    data = mujoco.MjData(model)
-    data.qvel[:] = SPIN
-    result.set_state(model.qpos0, data.qvel)
-    for _ in range(round(TURNING / model.opt.timestep)):
-        result.set_ctrl(None)
-        result.scene.step()
-        mujoco.mj_step(model, data)
-    return tuple(2 * np.arctan2(q[6], q[3]) for q in (result.get_state()[0], data.qpos))
+    ours, theirs, _ = _run(tmp_path, document, SPIN, TURNING, scene=_scene(tgs, 0.002))
+    return tuple(2 * np.arctan2(q[6], q[3]) for q in (ours, theirs))
 
 
 def _scene(tgs: bool, timestep: float):

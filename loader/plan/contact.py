@@ -13,7 +13,6 @@ import numpy as np
 
 from ..errors import Notes
 from ..model import mj
-from . import geom
 from .tree import TreePlan
 
 GROUP_BITS = 32
@@ -238,18 +237,30 @@ def _meeting(model: mujoco.MjModel, geoms: np.ndarray, static: set[int]) -> np.n
     return meet & (bodies[:, None] != bodies[None, :]) & ~(fixed[:, None] & fixed[None, :])
 
 
-def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
+def note_contact_laws(model: mujoco.MjModel, plans: dict, static: set[int], notes: Notes) -> None:
+    """The notes on the pairs of a load's geoms (`plans`: geom id -> its `ShapePlan`) whose bits meet, where PhysX's
+    contact follows another law than MuJoCo's: the friction combine, the contact distances, the rebound. The pairs
+    are found once for the three."""
+    geoms = np.array(sorted(plans), dtype=int)
+    if geoms.size < 2:
+        return
+    meeting = np.triu(_meeting(model, geoms, static), 1)  # each pair once, the lower-indexed geom first
+    note_friction_combine(model, geoms, meeting, notes)
+    note_contact_distances(model, geoms, meeting, [plans[int(g)] for g in geoms], notes)
+    note_contact_rebound(model, geoms, meeting | meeting.T, notes)
+
+
+def note_friction_combine(model: mujoco.MjModel, geoms: np.ndarray, meeting: np.ndarray, notes: Notes) -> None:
     """MuJoCo gives a contact the larger of its two geoms' sliding frictions; PhysX averages its two materials', and
     SAPIEN 3.0.3 exposes no combine mode. Where geoms whose bits meet differ in sliding friction, the contact between
     them slides on another coefficient: one note says how many such pairs and the largest difference (explicit
     pairs carry their own note, `plan_pairs`)
     (tests/test_contact_classes.py::test_unequal_frictions_combine_by_average_in_physx_and_by_max_in_mujoco)."""
-    geoms = np.array(sorted(shaped), dtype=int)
     friction = model.geom_friction[geoms, 0]
-    if geoms.size < 2 or np.all(friction == friction[0]):
+    if np.all(friction == friction[0]):
         return
     gap = np.abs(friction[:, None] - friction[None, :]) / 2  # max(a, b) - (a + b) / 2
-    differs = np.triu(_meeting(model, geoms, static) & (gap > 0), 1)
+    differs = meeting & (gap > 0)
     if not differs.any():
         return
     i, j = np.unravel_index(np.argmax(np.where(differs, gap, -1.0)), gap.shape)
@@ -262,20 +273,20 @@ def note_friction_combine(model: mujoco.MjModel, shaped: list[int], static: set[
     )
 
 
-def note_contact_distances(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
-    """Where PhysX's rest offset and torsional patch radius (`geom.contact_distances`) miss MuJoCo's law for a pair
-    of geoms whose bits meet, one note per quantity says how many pairs and the largest difference: a pair where
-    both geoms carry `margin - gap` (PhysX adds them, MuJoCo takes the larger margin less the larger gap), a
-    torsional friction that is not PhysX's average sliding friction times the larger radius (frictions that differ,
-    a geom of condim 3 with the larger torsion, a geom's priority), and rolling friction (condim 6), which PhysX
-    has not (tests/test_contact_classes.py::test_a_margin_is_each_pairs_rest_offset_where_one_geom_carries_it,
-    tests/test_contact_classes.py::test_torsional_friction_spins_a_ball_down_as_in_mujoco_under_tgs)."""
-    geoms = np.array(sorted(shaped), dtype=int)
-    if geoms.size < 2:
-        return
-    a, b = np.nonzero(np.triu(_meeting(model, geoms, static), 1))  # the pairs, as indices into `geoms`
+def note_contact_distances(
+    model: mujoco.MjModel, geoms: np.ndarray, meeting: np.ndarray, plans: list, notes: Notes
+) -> None:
+    """Where PhysX's rest offset and torsional patch radius (the `plans`' own, `geom.contact_distances`) miss
+    MuJoCo's law for a pair of geoms whose bits meet (`meeting`, each pair once), one note per quantity says how
+    many pairs and the largest difference: a pair where both geoms carry `margin - gap` (PhysX adds them, MuJoCo
+    takes the larger margin less the larger gap), a torsional friction that is not PhysX's average sliding friction
+    times the larger radius (frictions that differ, a geom of condim 3 with the larger torsion, a geom's priority),
+    and rolling friction (condim 6), which PhysX has not
+    (tests/test_contact_classes.py::test_a_margin_is_each_pairs_rest_offset_where_one_geom_carries_it,
+    tests/test_contact_classes.py::test_pairs_whose_torsion_or_rolling_physx_misses_are_noted)."""
+    a, b = np.nonzero(meeting)  # the pairs, as indices into `geoms`
     pairs = (geoms[a], geoms[b])
-    rest, torsion = np.array([geom.contact_distances(model, int(g)) for g in geoms]).T
+    rest, torsion = np.array([(plan.rest_offset, plan.torsion) for plan in plans]).T
     margin, gap = model.geom_margin[geoms], model.geom_gap[geoms]
     theirs = np.maximum(margin[a], margin[b]) - np.maximum(gap[a], gap[b])
     _note_pairs(
@@ -302,18 +313,15 @@ def note_contact_distances(model: mujoco.MjModel, shaped: list[int], static: set
     _note_pairs(notes, model, pairs, rolling, "contact rolling", "PhysX has no rolling friction")
 
 
-def note_contact_rebound(model: mujoco.MjModel, shaped: list[int], static: set[int], notes: Notes) -> None:
+def note_contact_rebound(model: mujoco.MjModel, geoms: np.ndarray, meeting: np.ndarray, notes: Notes) -> None:
     """MuJoCo's contact at a damping ratio of 1 or more (its default) does not rebound, nor does PhysX's at
     restitution 0, the loader's. Below 1 MuJoCo's rebounds by an amount its impedance shapes, which no PhysX
     restitution reproduces at every speed: one note names the geoms that can touch another with such a `solref`
     (tests/test_contact_classes.py::test_a_dropped_ball_does_not_rebound_as_in_mujoco)."""
-    geoms = np.array(sorted(shaped), dtype=int)
-    if geoms.size < 2:
-        return
     timeconst, damping = model.geom_solref[geoms].T
     stiffness = np.maximum(-timeconst, np.finfo(float).tiny)
     ratio = np.where(timeconst > 0, damping, -damping / (2 * np.sqrt(stiffness)))  # solref's direct form: -k, -b
-    rebounds = (ratio < 1) & _meeting(model, geoms, static).any(axis=1)
+    rebounds = (ratio < 1) & meeting.any(axis=1)
     if not rebounds.any():
         return
     i = int(np.argmin(np.where(rebounds, ratio, np.inf)))
