@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 import sapien
@@ -51,16 +53,56 @@ def cross3(a, b) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+Vec3 = tuple[float, float, float]
+
+
+def rotation_rows(q) -> tuple[Vec3, Vec3, Vec3]:
+    """The rotation of the quaternion `q` (normalized first) as three rows of floats. Per-step code turns a handful
+    of 3-vectors, and a numpy call costs more than the arithmetic (`turn`, `turn_back`, `cross_floats`)."""
+    w, x, y, z = q.tolist() if isinstance(q, np.ndarray) else (float(c) for c in q)
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    return (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
+    )
+
+
 def quat_to_mat(q) -> np.ndarray:
-    array = np.asarray(q)
-    norm = np.sqrt(array.dot(array)) if array.dtype.kind == "f" else np.linalg.norm(q)  # np.linalg.norm's own
-    w, x, y, z = (np.asarray(q, dtype=np.float64) / norm).tolist()  # floats: numpy scalars are slow
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
+    return np.array(rotation_rows(q))
+
+
+def turn(rows: tuple[Vec3, Vec3, Vec3], v) -> Vec3:
+    """R v, R given by its rows (`rotation_rows`)."""
+    x, y, z = v
+    return tuple(r0 * x + r1 * y + r2 * z for r0, r1, r2 in rows)
+
+
+def turn_back(rows: tuple[Vec3, Vec3, Vec3], v) -> Vec3:
+    """R^T v, R given by its rows (`rotation_rows`)."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = rows
+    x, y, z = v
+    return (a0 * x + b0 * y + c0 * z, a1 * x + b1 * y + c1 * z, a2 * x + b2 * y + c2 * z)
+
+
+def cross_floats(a, b) -> Vec3:
+    """a x b of two float triples."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def solve_symmetric(m: Vec3 | tuple, b) -> Vec3:
+    """x with S x = b, S symmetric positive definite given as (xx, yy, zz, xy, xz, yz) (MuJoCo's order for
+    inertia), by its cofactors."""
+    xx, yy, zz, xy, xz, yz = m
+    c_xx, c_yy, c_zz = yy * zz - yz * yz, xx * zz - xz * xz, xx * yy - xy * xy
+    c_xy, c_xz, c_yz = xz * yz - xy * zz, xy * yz - xz * yy, xy * xz - xx * yz
+    det = xx * c_xx + xy * c_xy + xz * c_xz
+    x, y, z = b
+    return (
+        (c_xx * x + c_xy * y + c_xz * z) / det,
+        (c_xy * x + c_yy * y + c_yz * z) / det,
+        (c_xz * x + c_yz * y + c_zz * z) / det,
     )
 
 

@@ -8,6 +8,7 @@ velocity omega becomes angle rates through omega = E(a, b, c) @ rates.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import mujoco
@@ -15,7 +16,15 @@ import numpy as np
 import sapien
 
 from . import mj
-from .frames import cross3, euler_xyz_from_quat, euler_xyz_rate_matrix, quat_from_euler_xyz, quat_to_mat
+from .frames import (
+    cross_floats,
+    euler_xyz_from_quat,
+    euler_xyz_rate_matrix,
+    quat_from_euler_xyz,
+    rotation_rows,
+    turn,
+    turn_back,
+)
 from .joints import BALL, DRIVEN, FREE
 
 CARRIED = ("hinge", "slide", "free")  # joints whose share of a tendon's force SAPIEN applies
@@ -62,16 +71,17 @@ def centres(model: mujoco.MjModel) -> np.ndarray:
     return np.where(model.body_mass[:, None] > 0, model.body_ipos, 0.0)
 
 
-def root_state(art, ipos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def root_state(art, ipos: np.ndarray) -> tuple[list[float], list[float]]:
     """A floating root's MuJoCo free-joint qpos (7) and qvel (6: the body origin's velocity in the world, the
     angular velocity in the body frame) from PhysX's root pose and centre-of-mass velocities."""
     root = art.get_root_pose()
-    rotation = quat_to_mat(root.q)
-    omega = np.asarray(art.get_root_angular_velocity(), np.float64)
-    v_com = np.asarray(art.get_root_linear_velocity(), np.float64)
-    (rx, ry, rz), (wx, wy, wz) = (rotation @ ipos).tolist(), omega.tolist()  # floats: numpy scalars are slow
-    origin = v_com - (wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx)
-    return np.concatenate([root.p, root.q]), np.concatenate([origin, rotation.T @ omega])
+    position, quat = root.p.tolist(), root.q.tolist()
+    rotation = rotation_rows(quat)
+    omega = art.get_root_angular_velocity().tolist()
+    v_com = art.get_root_linear_velocity().tolist()
+    arm = turn(rotation, ipos.tolist())
+    origin = [v - w for v, w in zip(v_com, cross_floats(omega, arm))]
+    return position + quat, origin + list(turn_back(rotation, omega))
 
 
 def scalar_joints(mapping) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
@@ -168,12 +178,14 @@ class Mapping:
 
     def set_root(self, art, body: int, qpos7, qvel6) -> None:
         """A floating root's MuJoCo free-joint qpos (7) and qvel (6) into PhysX's root pose and velocities."""
-        rotation = quat_to_mat(qpos7[3:])
-        omega_world = rotation @ qvel6[3:]
-        v_com = qvel6[:3] + cross3(omega_world, rotation @ self.centres[body])
-        art.set_root_pose(sapien.Pose(qpos7[:3], qpos7[3:] / np.linalg.norm(qpos7[3:])))
-        art.set_root_linear_velocity(v_com.astype(np.float32))
-        art.set_root_angular_velocity(omega_world.astype(np.float32))
+        qpos7, qvel6 = np.asarray(qpos7, np.float64).tolist(), np.asarray(qvel6, np.float64).tolist()
+        rotation = rotation_rows(qpos7[3:])
+        omega_world = turn(rotation, qvel6[3:])
+        arm = cross_floats(omega_world, turn(rotation, self.centres[body].tolist()))
+        norm = math.sqrt(sum(c * c for c in qpos7[3:]))
+        art.set_root_pose(sapien.Pose(qpos7[:3], [c / norm for c in qpos7[3:]]))
+        art.set_root_linear_velocity(np.array([v + a for v, a in zip(qvel6[:3], arm)], np.float32))
+        art.set_root_angular_velocity(np.array(omega_world, np.float32))
 
     def get_state(self, articulations, q: list | None = None, v: list | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Read SAPIEN's state back in MuJoCo's layout (qpos of size nq, qvel of size nv); `q`, `v`: the

@@ -20,6 +20,7 @@ velocity): not after a `set_state`, where contacts corrected positions, or on a 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -27,7 +28,7 @@ import numpy as np
 
 from ..errors import Notes
 from ..model import mj
-from ..model.frames import cross3, quat_to_mat
+from ..model.frames import Vec3, cross_floats, rotation_rows, solve_symmetric, turn_back
 from ..model.joints import BALL, FREE
 from ..model.mapping import Mapping
 from .free_joint import FreeJointLaw, differs
@@ -37,33 +38,33 @@ ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which it
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
 
 
-def composite(data: mujoco.MjData, bodies: np.ndarray) -> tuple[float, np.ndarray]:
-    """Mass and rotational inertia about its centre of mass (world axes) of a tree, from `cinert` (MuJoCo's
-    per-body inertia about the tree's centre of mass)."""
-    total = data.cinert[bodies].sum(axis=0)
-    xx, yy, zz, xy, xz, yz = total[:6]
-    return float(total[9]), np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+def composite(data: mujoco.MjData, bodies: np.ndarray) -> tuple[float, tuple]:
+    """Mass and rotational inertia about its centre of mass (world axes; xx, yy, zz, xy, xz, yz) of a tree, from
+    `cinert` (MuJoCo's per-body inertia about the tree's centre of mass)."""
+    total = data.cinert[bodies].sum(axis=0).tolist()
+    return total[9], tuple(total[:6])
 
 
-def pose7(art) -> np.ndarray:
+def pose7(art) -> tuple[float, ...]:
     pose = art.get_root_pose()
-    return np.concatenate([pose.p, pose.q])
+    return tuple(pose.p.tolist() + pose.q.tolist())
 
 
-def advanced(qpos7: np.ndarray, qvel6: np.ndarray, dt: float) -> np.ndarray:
+def advanced(qpos7: np.ndarray, qvel6, dt: float) -> np.ndarray:
     """A free joint's position after MuJoCo's position update: origin by dt times its velocity, orientation turned
     by dt times the body-frame angular velocity."""
-    quat = np.array(qpos7[3:], np.float64)
-    mujoco.mju_quatIntegrate(quat, qvel6[3:], dt)
-    return np.concatenate([qpos7[:3] + dt * qvel6[:3], quat])
+    out = np.array(qpos7, np.float64)
+    out[:3] += dt * np.asarray(qvel6[:3])
+    mujoco.mju_quatIntegrate(out[3:], np.asarray(qvel6[3:], np.float64), dt)
+    return out
 
 
-def angular(kept: np.ndarray, carried: np.ndarray) -> np.ndarray:
+def angular(kept, carried) -> list[float]:
     """The angular momentum the step carried: PhysX keeps its size and loses its direction (it rescales an
     uncorrected intermediate's); `carried` is the start's plus dt times the external torque, all of it known where
     no contact pushed the tree (`touching`)."""
-    size, norm = float(np.linalg.norm(kept)), float(np.linalg.norm(carried))
-    return carried * (size / norm) if norm > 0.0 else kept
+    size, norm = math.sqrt(sum(c * c for c in kept)), math.sqrt(sum(c * c for c in carried))
+    return [c * (size / norm) for c in carried] if norm > 0.0 else list(kept)
 
 
 def touching(links: set, contacts) -> bool:
@@ -76,15 +77,17 @@ def touching(links: set, contacts) -> bool:
     )
 
 
-def external_torque(data: mujoco.MjData, root, gravity: np.ndarray, wrenches) -> np.ndarray:
+def external_torque(data: mujoco.MjData, root, gravity: tuple, wrenches) -> Vec3:
     """External torque about the root's tree's centre of mass at the step's start (`data` there): gravity on the
     links it acts on and the loader's link forces (articulation, point, force, torque)."""
-    centre = data.subtree_com[root.body]
-    weights = root.weights
-    torque = cross3(weights @ data.xipos[root.tree] - weights.sum() * centre, gravity)
+    centre = data.subtree_com[root.body].tolist()
+    moment = (root.weights @ data.xipos[root.tree]).tolist()  # sum of weight x position
+    arm = [m - root.weight * c for m, c in zip(moment, centre)]
+    torque = cross_floats(arm, gravity)
     for a, point, force, moment in wrenches:
         if a == root.articulation:
-            torque += moment + cross3(point - centre, force)
+            lever = cross_floats([p - c for p, c in zip(point, centre)], force)
+            torque = tuple(t + float(m) + f for t, m, f in zip(torque, moment, lever))
     return torque
 
 
@@ -102,6 +105,11 @@ class Root:
     weights: np.ndarray
     damped: bool  # MuJoCo's step adds to the free joint what PhysX's does not (`FreeJointLaw`)
 
+    @property
+    def weight(self) -> float:
+        """The tree's mass gravity pulls on."""
+        return float(self.weights.sum())
+
 
 class Momentum(Term):
     """Per floating articulation (`Root`): the root's velocity after each PhysX step as MuJoCo's step leaves it."""
@@ -115,7 +123,12 @@ class Momentum(Term):
         self.data = mujoco.MjData(model)
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
-        self.gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+        gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+        self.gravity = tuple(gravity.tolist())
+        self.bodies = np.array([root.body for root in roots], dtype=int)  # per root, its body
+        self.masses = model.body_subtreemass[self.bodies][:, None]
+        self.weights = self.masses * gravity  # per root, the tree's weight (what cfrc_int carries beside the drift)
+        self.root_dofs = np.concatenate([np.arange(root.dofadr, root.dofadr + 6) for root in roots])
         self.scene = scene
         self.sees_contacts = scene is not None  # SAPIEN's contacts are on (`contacts`)
         self.links = {root.articulation: set(articulations[root.articulation].links) for root in roots}
@@ -157,7 +170,7 @@ class Momentum(Term):
         stepped, still = [], True
         for root, q0, pose0 in zip(self.roots, joints0, poses0):
             a = root.articulation
-            still = still and np.array_equal(q[a], q0) and np.array_equal(pose7(articulations[a]), pose0)
+            still = still and np.array_equal(q[a], q0) and pose7(articulations[a]) == pose0
             if np.abs(q[a] - q0 - dt * v[a]).max(initial=0.0) <= MOVED * (1.0 + np.abs(q[a]).max(initial=0.0)):
                 stepped.append(root)
         if still:
@@ -169,25 +182,20 @@ class Momentum(Term):
         qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
         (kept,) = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
         joints_only = qvel1.copy()
-        for root in self.roots:
-            joints_only[root.dofadr : root.dofadr + 6] = 0.0
+        joints_only[self.root_dofs] = 0.0
         started, joints_part, drifts = self._momenta(qpos0, qvel0, joints_only, drift=True)  # data stays at q0
         for i, root in enumerate(self.roots):
             if root not in stepped:
                 continue
-            drift = drifts[i]  # (dA/dt) v0
             if touching(self.links[root.articulation], contacts):  # friction's torque unseen: PhysX's L
                 k = kept[i]
             else:
-                carried = started[i][3:] + dt * external_torque(self.data, root, self.gravity, wrenches)
-                k = np.concatenate([kept[i][:3], angular(kept[i][3:], carried)])
-            mass, inertia = composite(self.data, root.tree)
-            adr, dof = root.qposadr, root.dofadr
-            offset = self.data.subtree_com[root.body] - qpos0[adr : adr + 3]  # centre of mass from the root's origin
-            own = k - dt * drift - joints_part[i]  # the root's own momentum at q0
-            omega = np.linalg.solve(inertia, own[3:])
-            linear = own[:3] / mass - cross3(omega, offset)
-            qvel1[dof : dof + 3], qvel1[dof + 3 : dof + 6] = linear, quat_to_mat(qpos0[adr + 3 : adr + 7]).T @ omega
+                torque = external_torque(self.data, root, self.gravity, wrenches)
+                carried = [s + dt * t for s, t in zip(started[i][3:], torque)]
+                k = kept[i][:3] + angular(kept[i][3:], carried)
+            own = [a - dt * b - c for a, b, c in zip(k, drifts[i], joints_part[i])]  # the root's momentum at q0
+            dof = root.dofadr
+            qvel1[dof : dof + 6] = self._root_velocity(root, own, qpos0)
         if self.law is not None:  # `self.data` is still at q0
             self.law.correct(self.data, [r for r in stepped if r.damped], qvel0, qvel1, articulations)
         for root in stepped:
@@ -200,13 +208,24 @@ class Momentum(Term):
             )
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
 
-    def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray, drift: bool = False) -> list[list[np.ndarray]]:
+    def _root_velocity(self, root: Root, own: list[float], qpos0: np.ndarray) -> list[float]:
+        """The free joint's velocity (qvel, 6) that carries the root's own momentum `own` (linear, angular about
+        the tree's centre of mass) at q0, from the tree's composite inertia there (`self.data` at q0)."""
+        mass, inertia = composite(self.data, root.tree)
+        adr = root.qposadr
+        origin = qpos0[adr : adr + 3].tolist()
+        offset = [c - o for c, o in zip(self.data.subtree_com[root.body].tolist(), origin)]  # from the origin
+        omega = solve_symmetric(inertia, own[3:])
+        linear = [p / mass - w for p, w in zip(own[:3], cross_floats(omega, offset))]
+        return linear + list(turn_back(rotation_rows(qpos0[adr + 3 : adr + 7]), omega))
+
+    def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray, drift: bool = False) -> list[list[list[float]]]:
         """Per velocity, per root: the tree's linear momentum and angular momentum about its centre of mass at
-        qpos, as one 6-vector; leaves `self.data` at that pose (its `cinert` and `subtree_com` serve the composite
+        qpos, as six floats; leaves `self.data` at that pose (its `cinert` and `subtree_com` serve the composite
         inertia). `drift`: also, per root, (dA/dt) v of the first velocity: the rate of the momentum at zero
         acceleration, the force MuJoCo's RNE needs at the root (`cfrc_int`, less the weight it carries)
         (tests/test_loader_momentum.py::test_the_momentum_drift_is_the_derivative_of_a_v)."""
-        model, data = self.model, self.data
+        model, data, bodies = self.model, self.data, self.bodies
         data.qpos[:] = qpos
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
@@ -215,25 +234,17 @@ class Momentum(Term):
             data.qvel[:] = qvel
             mujoco.mj_comVel(model, data)
             mujoco.mj_subtreeVel(model, data)
-            out.append(
-                [
-                    np.concatenate(
-                        [data.subtree_linvel[r.body] * model.body_subtreemass[r.body], data.subtree_angmom[r.body]]
-                    )
-                    for r in self.roots
-                ]
-            )
+            linear = (data.subtree_linvel[bodies] * self.masses).tolist()
+            out.append([p + a for p, a in zip(linear, data.subtree_angmom[bodies].tolist())])
             if drift and k == 0:
                 data.qacc[:] = 0.0
                 mujoco.mj_rnePostConstraint(model, data)
+                forces = data.cfrc_int[bodies]
                 rates = [
-                    np.concatenate(
-                        [
-                            data.cfrc_int[r.body][3:] + model.body_subtreemass[r.body] * self.gravity,
-                            data.cfrc_int[r.body][:3],
-                        ]
+                    [f + w for f, w in zip(force, weight)] + torque
+                    for force, weight, torque in zip(
+                        forces[:, 3:].tolist(), self.weights.tolist(), forces[:, :3].tolist()
                     )
-                    for r in self.roots
                 ]
         return out + [rates] if drift else out
 
