@@ -50,6 +50,7 @@ class HardLimit:
     lower: float
     upper: float
     slide: bool
+    mujoco_margin: float = 0.0  # MuJoCo's jnt_margin: its limit row exists within this distance of an end
 
     @property
     def held(self) -> tuple[float, float]:
@@ -148,8 +149,10 @@ class RowTerm(Term):
         standby: list | None = None,
         own: OwnContacts | None = None,
         joint_rows: bool = True,
+        limits_only: bool = False,
     ):
         self.lent, model = lent, lent.model
+        self.limits_only = limits_only  # the copy's only joint-space rows are joint limits (`rowless`)
         self.own = own  # the model's own contacts, MuJoCo's while set_ctrl runs (None: PhysX's)
         self.joint_rows_planned = joint_rows  # limits, frictionloss, couplings (else only the contacts)
         self.data = mujoco.MjData(model)
@@ -214,6 +217,11 @@ class RowTerm(Term):
         self.rows = {limit.key: limit for limit in limits}  # by (articulation, SAPIEN dof)
         self.limit_keys = [limit.key for limit in limits]
         self.margins = np.array([limit.margin for limit in limits])
+        self.distances = (  # MuJoCo's ends and margin, where its limit rows begin (`rowless`)
+            np.array([limit.lower for limit in limits]),
+            np.array([limit.upper for limit in limits]),
+            np.array([limit.mujoco_margin for limit in limits]),
+        )
         self.physx = np.array([limit.widened() for limit in limits]).reshape(-1, 2)  # PhysX's limits while soft
         self.near: tuple | None = None  # half a margin within them (`clear_of`); None: to compute
 
@@ -225,6 +233,10 @@ class RowTerm(Term):
         if not self.soft:
             self.hold(step.joints, soft=True)
         self.clear_of(step)
+        if self.rowless(step):
+            if step.advance:
+                self.push.applied.clear()
+            return  # MuJoCo's copy would have no row: its constraint force is zero
         with self.lent as model:
             self.mirror_state(step)
             solve(model, self.data, self.with_contacts, step.timestep, self.depenetration, not self.mujocos)
@@ -236,6 +248,18 @@ class RowTerm(Term):
         if step.advance:
             self.push(self.data, force, step.layout.links)
         self.data.qacc_warmstart[:] = self.data.qacc  # MuJoCo's next solve starts from this one's acceleration
+
+    def rowless(self, step: Step) -> bool:
+        """Whether MuJoCo's copy has no constraint row at this state, so its solve would return no force: its only
+        joint-space rows are joint limits, none within its margin (MuJoCo makes a limit row where the distance to
+        an end is below the joint's margin), and it makes no contacts (SAPIEN's are off). Only the copy as planned:
+        one a caller took to edit (`mirror`) is solved every step
+        (tests/test_loader_limit.py::test_a_joint_clear_of_its_limits_skips_the_solve)."""
+        if not self.limits_only or self.lent.copied or self.with_contacts:
+            return False
+        q = step.q[self.limit_flat]
+        lower, upper, margin = self.distances
+        return bool(((q - lower >= margin) & (upper - q >= margin)).all())
 
     def joint_rows(self) -> np.ndarray:
         """The force of the rows SAPIEN takes from MuJoCo, as MuJoCo's step integrates it (`integrated.py`): every
@@ -440,8 +464,10 @@ def plan_rows(
             (mapping.joints[j].articulation, mapping.joints[j].dofs[0]),
             *map(float, model.jnt_range[j]),
             slide=mapping.joints[j].kind == "slide",
+            mujoco_margin=float(model.jnt_margin[j]),
         )
         for j in limited
     ]
     lent = LentModel(model, overrides(model, edits), float(model.opt.timestep if timestep is None else timestep))
-    return RowTerm(lent, mapping, limits, couplings, standby, own if touching else None, joint_rows)
+    limits_only = not (frictional or couplings or tendons)
+    return RowTerm(lent, mapping, limits, couplings, standby, own if touching else None, joint_rows, limits_only)
