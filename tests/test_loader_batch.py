@@ -102,6 +102,8 @@ def test_a_batch_steps_each_copy_as_its_own_set_ctrl(path, stages, tmp_path):
             targets_b = [j.drive_target for j in art_b.active_joints]
             np.testing.assert_array_equal(np.array(targets_a), np.array(targets_b))
     assert stages <= batched
+    if batch_results[0].controller.term("momentum") is not None:  # the roots settled on the stack of copies
+        assert batch.passes
 
 
 def test_a_batch_refuses_a_command_per_copy_of_the_wrong_shape(tmp_path):
@@ -136,3 +138,52 @@ def test_a_copy_edited_apart_is_stepped_by_its_own_laws(tmp_path):
     assert batch.batched == []
     for a, b in zip(batch_results, lone):
         np.testing.assert_array_equal(a.get_state()[0], b.get_state()[0])
+
+
+def _stack_and_its_numbers(path, mistake: bool = False) -> tuple[bool, float]:
+    """The stack of COPIES copies of a model's trees: whether `stack` found it exact, and the largest difference
+    between each copy's momenta from the stack's passes and from its own model's, at random states. `mistake`: one
+    body of the last copy 1e-12 kg heavier in the stack."""
+    from loader.runtime.centroidal import Ended, Passes, gives_each_copy_its_own, random_state, stack
+
+    term = quiet_load(path).controller.term("momentum")
+    model = term.model
+    stacked = stack(model, COPIES)
+    assert stacked is not None
+    if mistake:
+        stacked.body_mass[-1] += 1e-12
+    exact = gives_each_copy_its_own(model, stacked, COPIES)
+    rng = np.random.default_rng(11)
+    ended = []
+    for _ in range(COPIES):
+        (qpos0, qvel0), (qpos1, qvel1) = random_state(model, rng), random_state(model, rng)
+        ended.append(Ended(qpos0, qvel0, qpos1, qvel1, rng.standard_normal(model.nv), [], []))
+    together = Passes(stacked, model, term.roots, term.gravity_vector, COPIES).momenta(ended)
+    alone = Passes(model, model, term.roots, term.gravity_vector)
+    worst = 0.0
+    for one, joint in zip(ended, together):
+        (own,) = alone.momenta([one])
+        for name in ("kept", "started", "joints_part", "drifts"):
+            worst = max(worst, float(np.abs(np.array(getattr(own, name)) - np.array(getattr(joint, name))).max()))
+        for a, b in zip(own.starts, joint.starts):
+            worst = max(
+                worst,
+                float(
+                    np.abs(
+                        np.array([*a.centre, a.mass, *a.inertia, *a.moment])
+                        - [*b.centre, b.mass, *b.inertia, *b.moment]
+                    ).max()
+                ),
+            )
+    return exact, worst
+
+
+@pytest.mark.parametrize("path", [suite_path("humanoid"), MIXED], ids=["suite/humanoid", "mixed"])
+def test_a_stack_of_copies_gives_each_copy_its_own_numbers(path, tmp_path):
+    """A `Batch` runs the momentum's MuJoCo passes once for every copy, on one model holding all their trees: each
+    copy's momenta and trees come out exactly as from its own model, at random states. Mutation: one body of the
+    last copy 1e-12 kg heavier in the stack, which `stack`'s own check refuses and the momenta show."""
+    path = mjcf_file(tmp_path, path) if isinstance(path, str) else path
+    assert _stack_and_its_numbers(path) == (True, 0.0)
+    exact, worst = _stack_and_its_numbers(path, mistake=True)
+    assert not exact and worst > 0.0

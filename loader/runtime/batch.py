@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ControlError, command_vector
 from .dof_step import Step
+from .momentum import settle_copies, stacked_passes
 
 
 class Batch:
@@ -35,6 +36,7 @@ class Batch:
         self.batched: list[str] = []  # the stages the last `set_ctrl` ran once for every copy
         self.seen: list[int] | None = None  # each copy's `Controller.compilations` when `alike` was decided
         self.alike = False  # every copy runs the same stages with the same laws (`plans_alike`)
+        self.passes = None  # MuJoCo's momentum passes for every copy at once (`settle`; False: none exact)
 
     def __len__(self) -> int:
         return len(self.results)
@@ -61,6 +63,7 @@ class Batch:
         model = self.results[0].model
         ctrls = self.commands("ctrl", ctrl, model.nu, "actuators (nu)")
         applied = self.commands("qfrc_applied", qfrc_applied, model.nv, "DoFs (nv)")
+        self.settle()
         steps = [c.begin(u, f, advance) for c, u, f in zip(self.controllers, ctrls, applied)]
         compilations = [c.compilations for c in self.controllers]
         if compilations != self.seen:  # a copy compiled again (an edit, a term switched): compare the plans
@@ -82,6 +85,26 @@ class Batch:
                     step.regular = stacked.regular
                     copy.contribute(step)
                 stacked.regular = all(step.regular for step in steps)
+
+    def settle(self) -> None:
+        """Every copy's floating roots after the last physics step, MuJoCo's passes run once for all copies
+        (`momentum.settle_copies`), where every copy's momentum term is on, has the first's roots and no free
+        joint law; otherwise each copy's `begin` settles its own."""
+        terms = [c.term("momentum", on=True) for c in self.controllers]
+        if len(self) < 2 or any(t is None or t.law is not None for t in terms):
+            return
+        roots = [(r.articulation, r.body, r.qposadr, r.dofadr) for r in terms[0].roots]
+        if any([(r.articulation, r.body, r.qposadr, r.dofadr) for r in t.roots] != roots for t in terms[1:]):
+            return
+        if self.passes is None:
+            self.passes = stacked_passes(terms[0], len(self)) or False  # False: the stack is not exact
+        if self.passes:
+            settle_copies(
+                terms,
+                self.passes,
+                [c.articulations for c in self.controllers],
+                [c.wrenches() for c in self.controllers],
+            )
 
     def plans_alike(self) -> bool:
         """Whether every copy runs the stages of the first with its drive laws, actuators and timestep: what the

@@ -272,9 +272,14 @@ class Controller:
             "(a smaller timestep, or more solver iterations, may hold it)"
         )
 
+    def wrenches(self) -> list:
+        """The link forces the terms and the caller's `qfrc_applied` added this step, (articulation, point, force,
+        torque) in the world."""
+        return [wrench for term in self.terms for wrench in term.applied] + self.pushed.applied
+
     def settle(self) -> None:
         """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
-        wrenches = [wrench for term in self.terms for wrench in term.applied] + self.pushed.applied
+        wrenches = self.wrenches()
         for term in self.terms:
             if self.timings is None:
                 term.settle(self.articulations, wrenches)

@@ -31,18 +31,12 @@ from ..model import mj
 from ..model.frames import Vec3, cross_floats, rotation_rows, solve_symmetric, turn_back
 from ..model.joints import BALL, FREE
 from ..model.mapping import Mapping
+from .centroidal import Ended, Momenta, Passes, Start, stack
 from .free_joint import FreeJointLaw, differs
 from .term import Term
 
 ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
-
-
-def composite(data: mujoco.MjData, bodies: np.ndarray) -> tuple[float, tuple]:
-    """Mass and rotational inertia about its centre of mass (world axes; xx, yy, zz, xy, xz, yz) of a tree, from
-    `cinert` (MuJoCo's per-body inertia about the tree's centre of mass)."""
-    total = data.cinert[bodies].sum(axis=0).tolist()
-    return total[9], tuple(total[:6])
 
 
 def pose7(art) -> tuple[float, ...]:
@@ -77,12 +71,11 @@ def touching(links: set, contacts) -> bool:
     )
 
 
-def external_torque(data: mujoco.MjData, root, gravity: tuple, wrenches) -> Vec3:
-    """External torque about the root's tree's centre of mass at the step's start (`data` there): gravity on the
-    links it acts on and the loader's link forces (articulation, point, force, torque)."""
-    centre = data.subtree_com[root.body].tolist()
-    moment = (root.weights @ data.xipos[root.tree]).tolist()  # sum of weight x position
-    arm = [m - root.weight * c for m, c in zip(moment, centre)]
+def external_torque(start: Start, root, gravity: tuple, wrenches) -> Vec3:
+    """External torque about the root's tree's centre of mass at the step's start (`start`): gravity on the links
+    it acts on and the loader's link forces (articulation, point, force, torque)."""
+    centre, weight = start.centre, root.weight
+    arm = [m - weight * c for m, c in zip(start.moment, centre)]
     torque = cross_floats(arm, gravity)
     for a, point, force, moment in wrenches:
         if a == root.articulation:
@@ -104,11 +97,7 @@ class Root:
     dofs: np.ndarray
     weights: np.ndarray
     damped: bool  # MuJoCo's step adds to the free joint what PhysX's does not (`FreeJointLaw`)
-
-    @property
-    def weight(self) -> float:
-        """The tree's mass gravity pulls on."""
-        return float(self.weights.sum())
+    weight: float  # the tree's mass gravity pulls on (the sum of `weights`)
 
 
 class Momentum(Term):
@@ -120,14 +109,13 @@ class Momentum(Term):
         self, model: mujoco.MjModel, mapping: Mapping, roots: list[Root], timestep: float, scene=None, articulations=()
     ):
         self.model, self.mapping, self.roots = model, mapping, roots
-        self.data = mujoco.MjData(model)
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
         gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+        self.gravity_vector = gravity
         self.gravity = tuple(gravity.tolist())
-        self.bodies = np.array([root.body for root in roots], dtype=int)  # per root, its body
-        self.masses = model.body_subtreemass[self.bodies][:, None]
-        self.weights = self.masses * gravity  # per root, the tree's weight (what cfrc_int carries beside the drift)
+        self.passes = Passes(model, model, roots, gravity)  # on this copy's own data
+        self.data = self.passes.data
         self.root_dofs = np.concatenate([np.arange(root.dofadr, root.dofadr + 6) for root in roots])
         self.scene = scene
         self.sees_contacts = scene is not None  # SAPIEN's contacts are on (`contacts`)
@@ -161,8 +149,16 @@ class Momentum(Term):
     def settle(self, articulations, wrenches=()) -> None:
         """Once after a physics step: each floating root's velocity as MuJoCo's step leaves it. `wrenches`: the
         link forces the loader added this step, (articulation, point, force, torque) in the world."""
+        ended = self.ended(articulations)
+        if ended is not None:
+            (momenta,) = self.passes.momenta([ended])
+            self.finish(ended, momenta, articulations, wrenches)
+
+    def ended(self, articulations) -> Ended | None:
+        """The physics step since `contribute`, read back; None where none ended (a read before the step, or
+        after a `set_state`) or no root stepped as PhysX's position update moves it."""
         if self.start is None:
-            return
+            return None
         qpos0, qvel0, joints0, poses0 = self.start
         dt = self.timestep
         q = [np.asarray(art.get_qpos(), np.float64) for art in articulations]
@@ -174,31 +170,36 @@ class Momentum(Term):
             if np.abs(q[a] - q0 - dt * v[a]).max(initial=0.0) <= MOVED * (1.0 + np.abs(q[a]).max(initial=0.0)):
                 stepped.append(root)
         if still:
-            return  # read before the physics step: it is still to come
+            return None  # read before the physics step: it is still to come
         self.start = None
         if not stepped:
-            return
+            return None
         contacts = self.scene.get_contacts() if self.sees_contacts else []
         qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
-        (kept,) = self._momenta(qpos1, qvel1)  # what PhysX kept, at the step's end
         joints_only = qvel1.copy()
         joints_only[self.root_dofs] = 0.0
-        started, joints_part, drifts = self._momenta(qpos0, qvel0, joints_only, drift=True)  # data stays at q0
+        return Ended(qpos0, qvel0, qpos1, qvel1, joints_only, stepped, contacts)
+
+    def finish(self, ended: Ended, momenta: Momenta, articulations, wrenches) -> None:
+        """The roots that stepped at MuJoCo's velocity and position after the step, from the passes' `momenta`
+        (the free joint law reads `self.data`, which must then be at the step's start)."""
+        dt, qpos0, qvel1 = self.timestep, ended.qpos0, ended.qvel1
         for i, root in enumerate(self.roots):
-            if root not in stepped:
+            if root not in ended.stepped:
                 continue
-            if touching(self.links[root.articulation], contacts):  # friction's torque unseen: PhysX's L
-                k = kept[i]
+            kept, start = momenta.kept[i], momenta.starts[i]
+            if touching(self.links[root.articulation], ended.contacts):  # friction's torque unseen: PhysX's L
+                k = kept
             else:
-                torque = external_torque(self.data, root, self.gravity, wrenches)
-                carried = [s + dt * t for s, t in zip(started[i][3:], torque)]
-                k = kept[i][:3] + angular(kept[i][3:], carried)
-            own = [a - dt * b - c for a, b, c in zip(k, drifts[i], joints_part[i])]  # the root's momentum at q0
+                torque = external_torque(start, root, self.gravity, wrenches)
+                carried = [s + dt * t for s, t in zip(momenta.started[i][3:], torque)]
+                k = kept[:3] + angular(kept[3:], carried)
+            own = [a - dt * b - c for a, b, c in zip(k, momenta.drifts[i], momenta.joints_part[i])]  # at q0
             dof = root.dofadr
-            qvel1[dof : dof + 6] = self._root_velocity(root, own, qpos0)
+            qvel1[dof : dof + 6] = root_velocity(root, start, own, qpos0)
         if self.law is not None:  # `self.data` is still at q0
-            self.law.correct(self.data, [r for r in stepped if r.damped], qvel0, qvel1, articulations)
-        for root in stepped:
+            self.law.correct(self.data, [r for r in ended.stepped if r.damped], ended.qvel0, qvel1, articulations)
+        for root in ended.stepped:
             adr, dof = root.qposadr, root.dofadr
             self.mapping.set_root(
                 articulations[root.articulation],
@@ -208,45 +209,43 @@ class Momentum(Term):
             )
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
 
-    def _root_velocity(self, root: Root, own: list[float], qpos0: np.ndarray) -> list[float]:
-        """The free joint's velocity (qvel, 6) that carries the root's own momentum `own` (linear, angular about
-        the tree's centre of mass) at q0, from the tree's composite inertia there (`self.data` at q0)."""
-        mass, inertia = composite(self.data, root.tree)
-        adr = root.qposadr
-        origin = qpos0[adr : adr + 3].tolist()
-        offset = [c - o for c, o in zip(self.data.subtree_com[root.body].tolist(), origin)]  # from the origin
-        omega = solve_symmetric(inertia, own[3:])
-        linear = [p / mass - w for p, w in zip(own[:3], cross_floats(omega, offset))]
-        return linear + list(turn_back(rotation_rows(qpos0[adr + 3 : adr + 7]), omega))
-
-    def _momenta(self, qpos: np.ndarray, *velocities: np.ndarray, drift: bool = False) -> list[list[list[float]]]:
-        """Per velocity, per root: the tree's linear momentum and angular momentum about its centre of mass at
-        qpos, as six floats; leaves `self.data` at that pose (its `cinert` and `subtree_com` serve the composite
-        inertia). `drift`: also, per root, (dA/dt) v of the first velocity: the rate of the momentum at zero
-        acceleration, the force MuJoCo's RNE needs at the root (`cfrc_int`, less the weight it carries)
+    def _momenta(self, qpos: np.ndarray, qvel: np.ndarray) -> list[float]:
+        """Per root: its tree's linear momentum and angular momentum about its centre of mass at (qpos, qvel), six
+        floats; and the drift (dA/dt) qvel, the rate of the momentum at zero acceleration, the force MuJoCo's RNE
+        needs at the root (`cfrc_int`, less the weight it carries)
         (tests/test_loader_momentum.py::test_the_momentum_drift_is_the_derivative_of_a_v)."""
-        model, data, bodies = self.model, self.data, self.bodies
-        data.qpos[:] = qpos
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        out = []
-        for k, qvel in enumerate(velocities):
-            data.qvel[:] = qvel
-            mujoco.mj_comVel(model, data)
-            mujoco.mj_subtreeVel(model, data)
-            linear = (data.subtree_linvel[bodies] * self.masses).tolist()
-            out.append([p + a for p, a in zip(linear, data.subtree_angmom[bodies].tolist())])
-            if drift and k == 0:
-                data.qacc[:] = 0.0
-                mujoco.mj_rnePostConstraint(model, data)
-                forces = data.cfrc_int[bodies]
-                rates = [
-                    [f + w for f, w in zip(force, weight)] + torque
-                    for force, weight, torque in zip(
-                        forces[:, 3:].tolist(), self.weights.tolist(), forces[:, :3].tolist()
-                    )
-                ]
-        return out + [rates] if drift else out
+        zero = np.zeros_like(qvel)
+        (momenta,) = self.passes.momenta([Ended(qpos, qvel, qpos, qvel, zero, [], [])])
+        return momenta.started, momenta.drifts
+
+
+def root_velocity(root: Root, start: Start, own: list[float], qpos0: np.ndarray) -> list[float]:
+    """The free joint's velocity (qvel, 6) that carries the root's own momentum `own` (linear, angular about the
+    tree's centre of mass) at q0, from the tree's composite inertia there (`start`)."""
+    adr = root.qposadr
+    offset = [c - o for c, o in zip(start.centre, qpos0[adr : adr + 3].tolist())]  # from the origin
+    omega = solve_symmetric(start.inertia, own[3:])
+    linear = [p / start.mass - w for p, w in zip(own[:3], cross_floats(omega, offset))]
+    return linear + list(turn_back(rotation_rows(qpos0[adr + 3 : adr + 7]), omega))
+
+
+def stacked_passes(term: Momentum, copies: int) -> Passes | None:
+    """The passes for `copies` copies of `term`'s model at once, on one model that holds them all
+    (`centroidal.stack`); None where the stack is not exact."""
+    stacked = stack(term.model, copies)
+    return None if stacked is None else Passes(stacked, term.model, term.roots, term.gravity_vector, copies)
+
+
+def settle_copies(terms: list[Momentum], passes: Passes, articulations: list[list], wrenches: list[list]) -> None:
+    """`Momentum.settle` for copies of one model (a `Batch`'s), each with its own term, articulations and wrenches,
+    with MuJoCo's passes run once for every copy on the stack (`passes`). No term may carry a free joint law,
+    which reads its own data."""
+    ended = [term.ended(arts) for term, arts in zip(terms, articulations)]
+    if not any(ended):
+        return
+    for term, one, momenta, arts, pushed in zip(terms, ended, passes.momenta(ended), articulations, wrenches):
+        if one is not None:
+            term.finish(one, momenta, arts, pushed)
 
 
 def plan_momentum(
@@ -278,5 +277,17 @@ def plan_momentum(
                 "joints keep PhysX's velocity where MuJoCo's couples them to the root's",
             )
         weights = model.body_mass[tree] * (1.0 - model.body_gravcomp[tree])
-        roots.append(Root(target.articulation, body, int(model.jnt_qposadr[j]), dof, tree, dofs, weights, damped))
+        roots.append(
+            Root(
+                target.articulation,
+                body,
+                int(model.jnt_qposadr[j]),
+                dof,
+                tree,
+                dofs,
+                weights,
+                damped,
+                float(weights.sum()),
+            )
+        )
     return Momentum(model, mapping, roots, timestep, scene, articulations) if roots else None
