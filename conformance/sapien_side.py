@@ -29,7 +29,8 @@ def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.nda
     q, v = get_state(result)
     qpos, qvel = np.zeros((steps + 1, q.size)), np.zeros((steps + 1, v.size))
     poses = np.zeros((steps + 1, len(links(result)), 7))
-    qpos[0], qvel[0], poses[0] = q, v, link_poses(result)
+    every = links(result)
+    qpos[0], qvel[0], poses[0] = q, v, link_poses(result, every)
     for t in range(steps):
         if not (np.isfinite(qpos[t]).all() and np.isfinite(qvel[t]).all()):  # diverged: `set_ctrl` refuses it, and
             qpos[t + 1 :], qvel[t + 1 :], poses[t + 1 :] = np.nan, np.nan, np.nan  # PhysX would step NaN on
@@ -37,7 +38,7 @@ def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.nda
         before_step(t, qpos[t], qvel[t])
         result.scene.step()
         qpos[t + 1], qvel[t + 1] = get_state(result)
-        poses[t + 1] = link_poses(result)
+        poses[t + 1] = link_poses(result, every)
     return Run(qpos, qvel, poses)
 
 
@@ -69,9 +70,14 @@ def links(result) -> list[tuple[int, object]]:
     return [(a, link) for a, art in enumerate(result.articulations) for link in art.links]
 
 
-def link_poses(result) -> np.ndarray:
-    """World pose (L, 7) of every link, in the order of `links`."""
-    return np.array([pose7(link.entity_pose) for _, link in links(result)]).reshape(-1, 7)
+def link_poses(result, every: list | None = None) -> np.ndarray:
+    """World pose (L, 7) of every link, in the order of `links` (`every`: that list, when already made). Read as
+    floats: a numpy call per link would cost more than the step's own reads."""
+    rows = []
+    for _, link in every if every is not None else links(result):
+        pose = link.entity_pose
+        rows.append(pose.p.tolist() + pose.q.tolist())
+    return np.array(rows, dtype=float).reshape(-1, 7)
 
 
 def body_link_rows(result, nbody: int) -> np.ndarray:
