@@ -75,8 +75,9 @@ def quat_to_mat(q) -> np.ndarray:
 
 def turn(rows: tuple[Vec3, Vec3, Vec3], v) -> Vec3:
     """R v, R given by its rows (`rotation_rows`)."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = rows
     x, y, z = v
-    return tuple(r0 * x + r1 * y + r2 * z for r0, r1, r2 in rows)
+    return (a0 * x + a1 * y + a2 * z, b0 * x + b1 * y + b2 * z, c0 * x + c1 * y + c2 * z)
 
 
 def turn_back(rows: tuple[Vec3, Vec3, Vec3], v) -> Vec3:
