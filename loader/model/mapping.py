@@ -194,9 +194,7 @@ class Mapping:
         qvel = np.zeros(self.nv)
         q = q if q is not None else [np.asarray(art.get_qpos(), np.float64) for art in articulations]
         v = v if v is not None else [np.asarray(art.get_qvel(), np.float64) for art in articulations]
-        if getattr(self, "_scalars", None) is None:
-            self._scalars = scalar_joints(self)
-            self._rotating = [j for j in range(len(self.joints)) if int(self.jnt_type[j]) in (FREE, BALL)]
+        self._index()
         for a, qadr, dadr, dofs in self._scalars:
             qpos[qadr] = q[a][dofs]
             qvel[dadr] = v[a][dofs]
@@ -223,14 +221,23 @@ class Mapping:
         """
         qfrc = np.asarray(qfrc, dtype=np.float64)
         out = [np.zeros(n) for n in self.articulation_dofs]
-        for j, target in enumerate(self.joints):
+        self._index()
+        for a, _, dadr, dofs in self._scalars:
+            out[a][dofs] = qfrc[dadr]
+        for j in self._rotating:
+            target = self.joints[j]
+            if int(self.jnt_type[j]) != BALL:
+                continue
+            if articulations is None:
+                raise ValueError("a ball joint's force conversion needs the articulations' current angles")
             a, dof = target.articulation, int(self.jnt_dofadr[j])
-            jtype = int(self.jnt_type[j])
-            if jtype == BALL:
-                if articulations is None:
-                    raise ValueError("a ball joint's force conversion needs the articulations' current angles")
-                angles = np.asarray(articulations[a].get_qpos(), np.float64)[list(target.dofs)]
-                out[a][list(target.dofs)] = euler_xyz_rate_matrix(angles).T @ qfrc[dof : dof + 3]
-            elif jtype != FREE:
-                out[a][target.dofs[0]] = qfrc[dof]
+            angles = np.asarray(articulations[a].get_qpos(), np.float64)[list(target.dofs)]
+            out[a][list(target.dofs)] = euler_xyz_rate_matrix(angles).T @ qfrc[dof : dof + 3]
         return out
+
+    def _index(self) -> None:
+        """The hinges' and slides' addresses per articulation (`scalar_joints`) and the free and ball joints, found
+        once."""
+        if getattr(self, "_scalars", None) is None:
+            self._scalars = scalar_joints(self)
+            self._rotating = [j for j in range(len(self.joints)) if int(self.jnt_type[j]) in (FREE, BALL)]
