@@ -158,8 +158,8 @@ def _stack_and_its_numbers(path, mistake: bool = False) -> tuple[bool, float]:
     for _ in range(COPIES):
         (qpos0, qvel0), (qpos1, qvel1) = random_state(model, rng), random_state(model, rng)
         ended.append(Ended(qpos0, qvel0, qpos1, qvel1, rng.standard_normal(model.nv), [], []))
-    together = Passes(stacked, model, term.roots, term.gravity_vector, COPIES).momenta(ended)
-    alone = Passes(model, model, term.roots, term.gravity_vector)
+    together = Passes(stacked, model, term.roots, np.array(term.gravity), COPIES).momenta(ended)
+    alone = Passes(model, model, term.roots, np.array(term.gravity))
     worst = 0.0
     for one, joint in zip(ended, together):
         (own,) = alone.momenta([one])

@@ -26,11 +26,6 @@ def pose(p, q=(1.0, 0.0, 0.0, 0.0)) -> sapien.Pose:
     return sapien.Pose(np.asarray(p, dtype=np.float64), unit_quat(q))
 
 
-def cross(a, b) -> np.ndarray:
-    """a x b for 3-vectors (numpy's cross costs about 20 us a call: it is run several times per step)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 def quat_mul(a, b) -> np.ndarray:
     aw, ax, ay, az = a
     bw, bx, by, bz = b
@@ -46,11 +41,6 @@ def quat_mul(a, b) -> np.ndarray:
 
 def quat_conj(q) -> np.ndarray:
     return np.array([q[0], -q[1], -q[2], -q[3]])
-
-
-def cross3(a, b) -> np.ndarray:
-    """a x b for two 3-vectors (numpy's `cross` costs several times the arithmetic, on every step)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 Vec3 = tuple[float, float, float]
@@ -88,8 +78,13 @@ def turn_back(rows: tuple[Vec3, Vec3, Vec3], v) -> Vec3:
 
 
 def cross_floats(a, b) -> Vec3:
-    """a x b of two float triples."""
+    """a x b of two 3-vectors, as floats when they hold floats."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def cross(a, b) -> np.ndarray:
+    """a x b for 3-vectors as an array (numpy's own `cross` costs several times the arithmetic, on every step)."""
+    return np.array(cross_floats(a, b))
 
 
 def solve_symmetric(m: Vec3 | tuple, b) -> Vec3:

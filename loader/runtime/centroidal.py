@@ -74,12 +74,14 @@ class Passes:
         self.bodies = np.array([root.body + s for s in shifts for root in roots], dtype=int)
         self.trees = [root.tree + s for s in shifts for root in roots]
         self.weights = [root.weights for _ in shifts for root in roots]
-        self.masses = single.body_subtreemass[self.bodies - np.repeat(shifts, len(roots))][:, None]
+        self.masses = np.array([single.body_subtreemass[root.body] for _ in shifts for root in roots])[:, None]
         self.rates_weight = self.masses * gravity  # per root, the weight its cfrc_int carries beside the drift
 
     def momenta(self, ended: list[Ended | None]) -> list[Momenta | None]:
         """Per copy (None where its step did not end): its roots' momenta and trees; `data` is left at the
-        starts' pose."""
+        starts' pose. The drift is the rate of the momentum at zero acceleration, the force MuJoCo's RNE needs at
+        the root (`cfrc_int`, less the weight it carries)
+        (tests/test_loader_momentum.py::test_the_momentum_drift_is_the_derivative_of_a_v)."""
         model, data = self.model, self.data
         self._pose([e.qpos1 if e else None for e in ended])
         kept = self._gather([e.qvel1 if e else None for e in ended])

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from ..model import mj
-from ..model.frames import cross3, quat_to_mat
+from ..model.frames import cross, quat_to_mat
 from ..model.joints import FREE
 from ..model.mapping import Mapping
 
@@ -90,6 +90,6 @@ class RootPush:
         """A free joint's generalized force (a world force at the body's origin, a torque in its frame) as a force
         and torque at the link's centre of mass."""
         com = origin + rotation @ centre
-        torque = rotation @ wrench[3:] + cross3(origin - com, wrench[:3])
+        torque = rotation @ wrench[3:] + cross(origin - com, wrench[:3])
         link.add_force_torque(wrench[:3].astype(np.float32), torque.astype(np.float32))
         self.applied.append((art, com, np.array(wrench[:3], np.float64), torque))

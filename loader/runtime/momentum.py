@@ -112,7 +112,6 @@ class Momentum(Term):
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
         gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
-        self.gravity_vector = gravity
         self.gravity = tuple(gravity.tolist())
         self.passes = Passes(model, model, roots, gravity)  # on this copy's own data
         self.data = self.passes.data
@@ -209,15 +208,6 @@ class Momentum(Term):
             )
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
 
-    def _momenta(self, qpos: np.ndarray, qvel: np.ndarray) -> list[float]:
-        """Per root: its tree's linear momentum and angular momentum about its centre of mass at (qpos, qvel), six
-        floats; and the drift (dA/dt) qvel, the rate of the momentum at zero acceleration, the force MuJoCo's RNE
-        needs at the root (`cfrc_int`, less the weight it carries)
-        (tests/test_loader_momentum.py::test_the_momentum_drift_is_the_derivative_of_a_v)."""
-        zero = np.zeros_like(qvel)
-        (momenta,) = self.passes.momenta([Ended(qpos, qvel, qpos, qvel, zero, [], [])])
-        return momenta.started, momenta.drifts
-
 
 def root_velocity(root: Root, start: Start, own: list[float], qpos0: np.ndarray) -> list[float]:
     """The free joint's velocity (qvel, 6) that carries the root's own momentum `own` (linear, angular about the
@@ -233,7 +223,7 @@ def stacked_passes(term: Momentum, copies: int) -> Passes | None:
     """The passes for `copies` copies of `term`'s model at once, on one model that holds them all
     (`centroidal.stack`); None where the stack is not exact."""
     stacked = stack(term.model, copies)
-    return None if stacked is None else Passes(stacked, term.model, term.roots, term.gravity_vector, copies)
+    return None if stacked is None else Passes(stacked, term.model, term.roots, np.array(term.gravity), copies)
 
 
 def settle_copies(terms: list[Momentum], passes: Passes, articulations: list[list], wrenches: list[list]) -> None:
