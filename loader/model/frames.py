@@ -14,16 +14,25 @@ _S = np.sqrt(0.5)
 X_TO_Z = np.array([_S, 0.0, -_S, 0.0])
 
 
+def _floats(v) -> list[float]:
+    return v.tolist() if isinstance(v, np.ndarray) else [float(c) for c in v]
+
+
+def _unit(q) -> list[float]:
+    w, x, y, z = _floats(q)
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    return [w / norm, x / norm, y / norm, z / norm] if norm >= mujoco.mjMINVAL else [1.0, 0.0, 0.0, 0.0]
+
+
 def unit_quat(q) -> np.ndarray:
     """`q` normalized in float64 before SAPIEN's float32 sees it (one shorter than mjMINVAL, which
-    `plan/numbers.py` rejects before any pose is built, is the identity rather than NaN)."""
-    q = np.asarray(q, dtype=np.float64)
-    norm = float(np.linalg.norm(q))
-    return q / norm if norm >= mujoco.mjMINVAL else np.array([1.0, 0.0, 0.0, 0.0])
+    `plan/numbers.py` rejects before any pose is built, is the identity rather than NaN). On Python floats: a load
+    builds hundreds of poses, and numpy's call costs more than the arithmetic (the same numbers as numpy's norm)."""
+    return np.array(_unit(q))
 
 
 def pose(p, q=(1.0, 0.0, 0.0, 0.0)) -> sapien.Pose:
-    return sapien.Pose(np.asarray(p, dtype=np.float64), unit_quat(q))
+    return sapien.Pose(_floats(p), _unit(q))
 
 
 def quat_mul(a, b) -> np.ndarray:
@@ -131,15 +140,15 @@ EXACT_X_TO = {
 def quat_x_to(axis) -> np.ndarray:
     """A rotation that carries +X onto `axis` (a joint frame for SAPIEN, whose joints act along +X): exact in float32
     for a coordinate axis, otherwise the shortest one."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
+    x, y, z = _floats(axis)
+    norm = math.sqrt(x * x + y * y + z * z)
+    x, y, z = x / norm, y / norm, z / norm
     for unit, q in EXACT_X_TO.items():
-        if np.abs(a - unit).max() < 1e-12:
+        if max(abs(x - unit[0]), abs(y - unit[1]), abs(z - unit[2])) < 1e-12:
             return np.array(q)
-    if a[0] < -1.0 + 1e-12:
+    if x < -1.0 + 1e-12:
         return np.array([0.0, 0.0, 0.0, 1.0])  # half turn about Z
-    q = np.array([1.0 + a[0], 0.0, -a[2], a[1]])
-    return q / np.linalg.norm(q)
+    return np.array(_unit((1.0 + x, 0.0, -z, y)))
 
 
 def euler_xyz_from_quat(q) -> np.ndarray:

@@ -57,9 +57,8 @@ def cameras(model: mujoco.MjModel) -> list[CameraConfig]:
 
 def sites(model: mujoco.MjModel) -> dict[str, SiteConfig]:
     result = {}
-    for s in range(model.nsite):
+    rows = zip(model.site_bodyid.tolist(), model.site_pos.tolist(), model.site_quat.tolist())
+    for s, (body, position, quat) in enumerate(rows):
         name = mj.name(model, "site", s)
-        result[name] = SiteConfig(
-            name, mj.name(model, "body", int(model.site_bodyid[s])), pose(model.site_pos[s], model.site_quat[s])
-        )
+        result[name] = SiteConfig(name, mj.name(model, "body", body), pose(position, quat))
     return result
