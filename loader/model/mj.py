@@ -22,7 +22,7 @@ _OBJECT = {
     "texture": mujoco.mjtObj.mjOBJ_TEXTURE,
     "pair": mujoco.mjtObj.mjOBJ_PAIR,
 }
-_DISABLE = mujoco.mjtDisableBit
+_DISABLE_BITS = {name[len("mjDSBL_") :].lower(): int(bit) for name, bit in mujoco.mjtDisableBit.__members__.items()}
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL: the smallest mass, time constant or length its formulas divide by
 
 
@@ -48,10 +48,7 @@ def disabled(model: mujoco.MjModel, *flags: str) -> bool:
 
 def disabled_bits(disableflags: int, *flags: str) -> bool:
     """Whether `disableflags` (MuJoCo's bits) has any of the named flags set."""
-    bits = 0
-    for flag in flags:
-        bits |= int(getattr(_DISABLE, f"mjDSBL_{flag.upper()}"))
-    return bool(disableflags & bits)
+    return any(disableflags & _DISABLE_BITS[flag] for flag in flags)
 
 
 def explicit_damping(model: mujoco.MjModel) -> bool:
@@ -96,16 +93,24 @@ def inertia_blocks(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[np.
     """The joint-space inertia at `data`'s state as its diagonal blocks, one per kinematic tree: (the tree's DoFs,
     its dense block), read from MuJoCo's sparse rows (data.M), so that a model of thousands of trees never builds
     an nv x nv matrix (tests/test_loader_structure.py::test_inertia_blocks_are_mujocos_full_matrix)."""
+    nnz, tree_of = model.M_rownnz, model.dof_treeid
+    row = np.repeat(np.arange(model.nv), nnz)  # every stored entry: its row, column and value
+    entry = np.repeat(model.M_rowadr - np.cumsum(nnz) + nnz, nnz) + np.arange(int(nnz.sum()))
+    col, value = model.M_colind[entry], data.M[entry]
+    by_dof = np.argsort(tree_of, kind="stable")  # the DoFs, tree by tree, each tree's in order
+    dof_bounds = np.searchsorted(tree_of[by_dof], np.arange(model.ntree + 1))
+    by_entry = np.argsort(tree_of[row], kind="stable")
+    entry_bounds = np.searchsorted(tree_of[row][by_entry], np.arange(model.ntree + 1))
+    local = np.zeros(model.nv, dtype=np.int64)  # a DoF's place in its tree's block
     blocks = []
     for tree in range(model.ntree):
-        dofs = np.flatnonzero(model.dof_treeid == tree)
-        at = {int(d): i for i, d in enumerate(dofs)}
+        dofs = by_dof[dof_bounds[tree] : dof_bounds[tree + 1]]
+        local[dofs] = np.arange(len(dofs))
+        mine = by_entry[entry_bounds[tree] : entry_bounds[tree + 1]]
+        i, j = local[row[mine]], local[col[mine]]
         block = np.zeros((len(dofs), len(dofs)))
-        for i, dof in enumerate(dofs):
-            start = int(model.M_rowadr[dof])
-            for k in range(start, start + int(model.M_rownnz[dof])):
-                j = at[int(model.M_colind[k])]
-                block[i, j] = block[j, i] = data.M[k]
+        block[i, j] = value[mine]
+        block[j, i] = value[mine]
         blocks.append((dofs, block))
     return blocks
 
@@ -165,14 +170,27 @@ def mujoco_filters(
 ) -> bool:
     """True when MuJoCo never generates a contact between bodies b1 and b2 (`filter_parent`: the model does not
     disable its parent filter; `excluded`: `excluded_body_pairs`)."""
-    weld1, weld2 = int(model.body_weldid[b1]), int(model.body_weldid[b2])
-    if weld1 == weld2:
-        return True
-    parent1 = int(model.body_weldid[model.body_parentid[weld1]])
-    parent2 = int(model.body_weldid[model.body_parentid[weld2]])
-    if filter_parent and weld1 != 0 and weld2 != 0 and (weld1 == parent2 or weld2 == parent1):
-        return True
-    return (min(b1, b2), max(b1, b2)) in excluded
+    return bool(filtered_pairs(model, np.array([b1, b2]), excluded, filter_parent)[0, 1])
+
+
+def filtered_pairs(
+    model: mujoco.MjModel, bodies: np.ndarray, excluded: set[tuple[int, int]], filter_parent: bool
+) -> np.ndarray:
+    """`mujoco_filters` for every pair of `bodies` at once, as a symmetric boolean matrix: on one weld (welded
+    to each other), parent and child welds (neither the world's) where the parent filter is on, or `<exclude>`d."""
+    weld = model.body_weldid[bodies]
+    parent = model.body_weldid[model.body_parentid[weld]]
+    same = weld[:, None] == weld[None, :]
+    if filter_parent:
+        moving = weld != 0
+        family = (weld[:, None] == parent[None, :]) | (parent[:, None] == weld[None, :])
+        same |= family & moving[:, None] & moving[None, :]
+    if excluded:
+        where = {int(b): i for i, b in enumerate(bodies.tolist())}
+        for a, b in excluded:
+            if a in where and b in where:
+                same[where[a], where[b]] = same[where[b], where[a]] = True
+    return same
 
 
 def contact_partners(model: mujoco.MjModel, body: int) -> set[int]:

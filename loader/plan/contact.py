@@ -6,7 +6,6 @@ not). Derivation: docs/mapping.md#collision-filter.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import combinations
 
 import mujoco
 import numpy as np
@@ -48,32 +47,33 @@ def plan_collision_filter(
     result = CollisionFilter()
     contype = np.zeros(model.nbody, dtype=np.int64)
     conaffinity = np.zeros(model.nbody, dtype=np.int64)
-    for g in range(model.ngeom):
-        b = int(model.geom_bodyid[g])
-        if b in shape_bodies:
-            contype[b] |= int(model.geom_contype[g])
-            conaffinity[b] |= int(model.geom_conaffinity[g])
+    shaped = np.isin(model.geom_bodyid, sorted(shape_bodies))
+    np.bitwise_or.at(contype, model.geom_bodyid[shaped], model.geom_contype[shaped].astype(np.int64))
+    np.bitwise_or.at(conaffinity, model.geom_bodyid[shaped], model.geom_conaffinity[shaped].astype(np.int64))
     excluded = mj.excluded_body_pairs(model)
-    must_exclude: list[tuple[int, int]] = []
-    must_collide: set[tuple[int, int]] = set()
     filter_parent = not mj.disabled(model, "filterparent")
-    for b1, b2 in combinations(sorted(shape_bodies), 2):
-        if not ((contype[b1] & conaffinity[b2]) or (contype[b2] & conaffinity[b1])):
-            continue  # their bits never meet: nothing to decide
-        if b1 in static_bodies and b2 in static_bodies:
-            continue  # PhysX never makes contacts between two bodies that cannot move
-        physx_skips = _physx_parent_body(tree, b2) == b1 or _physx_parent_body(tree, b1) == b2
-        if mj.mujoco_filters(model, b1, b2, excluded, filter_parent):
-            if not physx_skips:
-                must_exclude.append((b1, b2))
-        elif physx_skips:
+    bodies = np.array(sorted(shape_bodies), dtype=np.int64)
+    # The pairs to decide, in order: bits that meet, not both unable to move (PhysX makes no contact there).
+    meet = ((contype[bodies][:, None] & conaffinity[bodies][None, :]) != 0) | (
+        (contype[bodies][None, :] & conaffinity[bodies][:, None]) != 0
+    )
+    fixed = np.isin(bodies, sorted(static_bodies))
+    first, second = np.nonzero(np.triu(meet & ~(fixed[:, None] & fixed[None, :]), 1))
+    filtered = mj.filtered_pairs(model, bodies, excluded, filter_parent)[first, second]
+    parents = (_physx_parent_body(tree, b) for b in bodies.tolist())
+    physx_parent = np.array([-1 if p is None else p for p in parents], dtype=np.int64)
+    b1, b2 = bodies[first], bodies[second]
+    physx_skips = (physx_parent[second] == b1) | (physx_parent[first] == b2)
+    pairs = list(zip(b1.tolist(), b2.tolist()))
+    must_exclude = [pair for pair, yes in zip(pairs, (filtered & ~physx_skips).tolist()) if yes]
+    must_collide = {pair for pair, yes in zip(pairs, (~filtered & ~physx_skips).tolist()) if yes}
+    for (a, b), yes in zip(pairs, (~filtered & physx_skips).tolist()):
+        if yes:
             notes.approximate(
                 "contact",
-                f"{mj.name(model, 'body', b1)}/{mj.name(model, 'body', b2)}",
+                f"{mj.name(model, 'body', a)}/{mj.name(model, 'body', b)}",
                 "PhysX never lets a link touch its direct parent; MuJoCo would let these bodies touch",
             )
-        else:
-            must_collide.add((b1, b2))
     for g1, g2 in zip(model.pair_geom1, model.pair_geom2):  # an explicit pair's bodies must meet (`plan_pairs`)
         b1, b2 = sorted((int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])))
         if b1 != b2 and not mj.mujoco_filters(model, b1, b2, excluded, filter_parent):
