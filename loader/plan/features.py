@@ -40,26 +40,23 @@ def _elements(model: mujoco.MjModel, notes: Notes) -> None:
         notes.drop("flex", f"flex{i}", "deformable (flex) objects have no PhysX articulation equivalent")
     for i in range(model.nplugin):
         notes.drop("plugin", f"plugin{i}", "engine plugins (sdf, elasticity, ...) cannot run inside PhysX")
-    for b in range(model.nbody):
-        if model.body_mocapid[b] >= 0:
-            notes.approximate(
-                "body", mj.name(model, "body", b), "mocap body loaded as a fixed link at its initial pose"
-            )
-    for j in range(model.njnt):
-        dofs = range(model.jnt_dofadr[j], model.jnt_dofadr[j] + mj.joint_dof_count(model, j))
-        if np.any(model.jnt_stiffnesspoly[j]) or any(np.any(model.dof_dampingpoly[d]) for d in dofs):
-            notes.drop(
-                "joint",
-                mj.name(model, "joint", j),
-                "nonlinear (polynomial) stiffness or damping: only the linear term is mapped",
-            )
-    for a in range(model.nu):
-        if model.actuator_damping[a] or np.any(model.actuator_dampingpoly[a]) or model.actuator_armature[a]:
-            notes.drop(
-                "actuator",
-                mj.name(model, "actuator", a),
-                "actuator damping/armature (passive terms on the transmission) are not mapped",
-            )
+    for b in np.flatnonzero(model.body_mocapid >= 0).tolist():
+        notes.approximate("body", mj.name(model, "body", b), "mocap body loaded as a fixed link at its initial pose")
+    nonlinear = np.any(model.jnt_stiffnesspoly != 0, axis=1)
+    nonlinear[model.dof_jntid[np.any(model.dof_dampingpoly != 0, axis=1)]] = True
+    for j in np.flatnonzero(nonlinear).tolist():
+        notes.drop(
+            "joint",
+            mj.name(model, "joint", j),
+            "nonlinear (polynomial) stiffness or damping: only the linear term is mapped",
+        )
+    passive = (model.actuator_damping != 0) | np.any(model.actuator_dampingpoly != 0, axis=1)
+    for a in np.flatnonzero(passive | (model.actuator_armature != 0)).tolist():
+        notes.drop(
+            "actuator",
+            mj.name(model, "actuator", a),
+            "actuator damping/armature (passive terms on the transmission) are not mapped",
+        )
 
 
 def _options(model: mujoco.MjModel, notes: Notes) -> None:

@@ -179,25 +179,26 @@ def _check_joints(model: mujoco.MjModel, path) -> None:
         joint = int(np.flatnonzero(bad)[0])
         _raise(path, "joint", mj.name(model, "joint", joint), "jnt_range", ranges[joint], False)
     for field in DOF_FIELDS:
-        rows = np.flatnonzero(_bad(getattr(model, field), False))
-        if rows.size:
+        values = getattr(model, field)
+        rows = np.flatnonzero(_bad(values, False)) if not _held(values, False) else ()
+        if len(rows):
             joint = int(model.dof_jntid[rows[0]])
-            _raise(path, "joint", mj.name(model, "joint", joint), field, getattr(model, field)[rows[0]], False)
-    for joint in range(model.njnt):  # a hinge's or slide's reference angle or offset, where PhysX starts it
-        kind = int(model.jnt_type[joint])
-        if kind in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            value = float(model.qpos0[model.jnt_qposadr[joint]])
-            slide = kind == int(mujoco.mjtJoint.mjJNT_SLIDE)
-            if not abs(value) <= (REACH if slide else TURNS):
-                _raise(
-                    path,
-                    "joint",
-                    mj.name(model, "joint", joint),
-                    "qpos0 (ref)",
-                    np.array([value]),
-                    slide,
-                    "" if slide else f"beyond {TURNS:g} rad",
-                )
+            _raise(path, "joint", mj.name(model, "joint", joint), field, values[rows[0]], False)
+    # a hinge's or slide's reference angle or offset, where PhysX starts it
+    slide = model.jnt_type == int(mujoco.mjtJoint.mjJNT_SLIDE)
+    held = ~(slide | (model.jnt_type == int(mujoco.mjtJoint.mjJNT_HINGE)))
+    held |= np.abs(model.qpos0[model.jnt_qposadr]) <= np.where(slide, REACH, TURNS)  # a NaN is not held
+    if not held.all():
+        joint = int(np.flatnonzero(~held)[0])
+        _raise(
+            path,
+            "joint",
+            mj.name(model, "joint", joint),
+            "qpos0 (ref)",
+            np.array([float(model.qpos0[model.jnt_qposadr[joint]])]),
+            bool(slide[joint]),
+            "" if slide[joint] else f"beyond {TURNS:g} rad",
+        )
 
 
 def _check_options(model: mujoco.MjModel, path) -> None:
@@ -220,9 +221,12 @@ def _check_options(model: mujoco.MjModel, path) -> None:
             hint="give <option iterations> at least 1",
             rejected_by="the loader cannot follow the model",
         )
-    for field in OPTION_FIELDS:  # every real-valued option: the solver's tolerances too
-        if _bad(np.atleast_1d(getattr(model.opt, field))[None, :], False).any():
-            _raise(path, "option", field, f"opt.{field}", np.atleast_1d(getattr(model.opt, field)), False)
+    options = {field: np.atleast_1d(getattr(model.opt, field)) for field in OPTION_FIELDS}
+    if _held(np.concatenate(list(options.values())), False):
+        return
+    for field, values in options.items():  # every real-valued option: the solver's tolerances too
+        if _bad(values[None, :], False).any():
+            _raise(path, "option", field, f"opt.{field}", values, False)
 
 
 def _raise(path, kind: str, name: str, field: str, values, length: bool, what: str = "") -> None:

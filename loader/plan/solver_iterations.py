@@ -51,7 +51,9 @@ def drive_radii(
     rows: dict[int, list[tuple[np.ndarray, float]]] = {}  # per articulation: (row over MuJoCo's DoFs, compliance)
     for key, weight in weights.items():
         if weight > 0 and key in dof_of:
-            rows.setdefault(key[0], []).append((np.eye(model.nv)[dof_of[key]], 1.0 / weight))
+            row = np.zeros(model.nv)
+            row[dof_of[key]] = 1.0
+            rows.setdefault(key[0], []).append((row, 1.0 / weight))
     for art, jacobian, compliance in connect_rows(model, data, connects):
         rows.setdefault(art, []).extend((j, compliance) for j in jacobian)
     radii = {}
