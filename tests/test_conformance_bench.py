@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.bench import COPIES, TARGET, bench, cold_seconds
+from conformance.bench import COPIES, TARGET, TINY_BEYOND_S, TINY_COMPILE_S, bench, cold_seconds, over_target
 from conformance.manifest import ModelEntry
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,6 +26,7 @@ def test_bench_writes_timings_per_model(tmp_path):
     for when in ("", "cold_"):  # warm (the plain names) and cold, each a median of positive times
         assert row[f"{when}mujoco_compile_s"] > 0 and row[f"{when}loader_load_s"] > 0
         assert row[f"{when}load_over_compile"] == row[f"{when}loader_load_s"] / row[f"{when}mujoco_compile_s"]
+        assert row[f"{when}beyond_compile_s"] == row[f"{when}loader_load_s"] - row[f"{when}mujoco_compile_s"]
     assert row["steps"] == 50 and row["harness_sapien_steps_per_s"] > 0 and row["harness_mujoco_steps_per_s"] > 0
     assert row["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_us"] / row["physx_step_us"])
     stages = row["set_ctrl_stages_us"]  # the pendulum's limits are MuJoCo's rows; its drives always run
@@ -48,8 +49,23 @@ def test_bench_writes_timings_per_model(tmp_path):
     assert totals["harness_sapien_steps_per_s"] == pytest.approx(row["harness_sapien_steps_per_s"])
     assert totals["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_over_step"])
     assert totals["batch_set_ctrl_over_step"] == pytest.approx({n: b["set_ctrl_over_step"] for n, b in batch.items()})
-    for when, key in (("warm", "load_over_compile"), ("cold", "cold_load_over_compile")):
-        assert totals["over_target"][when] == (["pendulum"] if row[key] > TARGET else [])
+    for when, prefix in (("warm", ""), ("cold", "cold_")):
+        assert totals["over_target"][when] == (["pendulum"] if over_target(row, prefix) else [])
+
+
+def test_a_tiny_model_is_judged_by_its_time_beyond_the_compile():
+    """A compile under `TINY_COMPILE_S` is judged by the milliseconds beyond it, any other by the ratio: a tiny model
+    at five times its compile but within `TINY_BEYOND_S` meets its target; one past it, or a large model past the
+    ratio, misses."""
+    tiny = 0.2 * TINY_COMPILE_S
+    row = {"mujoco_compile_s": tiny, "loader_load_s": 5 * tiny}
+    row.update(load_over_compile=5.0, beyond_compile_s=4 * tiny)
+    assert 4 * tiny < TINY_BEYOND_S and not over_target(row, "")
+    row.update(loader_load_s=tiny + 1.01 * TINY_BEYOND_S, beyond_compile_s=1.01 * TINY_BEYOND_S)
+    assert over_target(row, "")
+    large = {"mujoco_compile_s": 0.1, "loader_load_s": 0.1 * 1.01 * TARGET, "load_over_compile": 1.01 * TARGET}
+    large["beyond_compile_s"] = large["loader_load_s"] - 0.1
+    assert over_target(large, "") and not over_target({**large, "load_over_compile": 0.99 * TARGET}, "")
 
 
 def test_a_cold_measurement_that_fails_names_why():
