@@ -10,6 +10,7 @@ import zlib
 import mujoco
 import numpy as np
 
+from .data_pool import borrowed
 from .reference import limited_dofs
 
 _HINGE_SLIDE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -32,14 +33,14 @@ def actuated_dofs(model: mujoco.MjModel) -> np.ndarray:
 def dof_inertia(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     """Effective inertia 1 / (M^-1)_ii of each dof at qpos: the torque giving unit acceleration on that dof
     alone (scales commands so that light and heavy dofs move comparably)."""
-    data = mujoco.MjData(model)
-    data.qpos[:] = qpos
-    mujoco.mj_forward(model, data)
-    full = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, full)
-    # the pseudo-inverse: redundant DoFs (two hinges on one axis) make M singular, and MuJoCo accepts them
-    compliance = np.diag(np.linalg.pinv(full))
-    return 1.0 / np.maximum(compliance, np.finfo(float).tiny)
+    with borrowed(model) as data:
+        data.qpos[:] = qpos
+        mujoco.mj_forward(model, data)
+        full = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, full)
+        # the pseudo-inverse: redundant DoFs (two hinges on one axis) make M singular, and MuJoCo accepts them
+        compliance = np.diag(np.linalg.pinv(full))
+        return 1.0 / np.maximum(compliance, np.finfo(float).tiny)
 
 
 def smooth_signal(
@@ -125,15 +126,15 @@ def hold_ctrl(model: mujoco.MjModel, qpos0: np.ndarray, qvel0: np.ndarray) -> np
     if model.nkey:
         ctrl = model.key_ctrl[0].copy()
     else:
-        data = mujoco.MjData(model)
-        data.qpos[:], data.qvel[:] = qpos0, qvel0
-        mujoco.mj_forward(model, data)
-        gain, bias = model.actuator_gainprm[:, 0], model.actuator_biasprm
-        affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
-        bias_force = np.where(
-            affine, bias[:, 0] + bias[:, 1] * data.actuator_length + bias[:, 2] * data.actuator_velocity, 0.0
-        )
-        ctrl = np.where(gain != 0, -bias_force / np.where(gain != 0, gain, 1.0), 0.0)
+        with borrowed(model) as data:
+            data.qpos[:], data.qvel[:] = qpos0, qvel0
+            mujoco.mj_forward(model, data)
+            gain, bias = model.actuator_gainprm[:, 0], model.actuator_biasprm
+            affine = model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+            bias_force = np.where(
+                affine, bias[:, 0] + bias[:, 1] * data.actuator_length + bias[:, 2] * data.actuator_velocity, 0.0
+            )
+            ctrl = np.where(gain != 0, -bias_force / np.where(gain != 0, gain, 1.0), 0.0)
     return clip_ctrl(model, ctrl)
 
 

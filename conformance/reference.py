@@ -11,6 +11,8 @@ import numpy as np
 
 from loader.model import mj
 
+from .data_pool import borrowed
+
 _INT = mujoco.mjtIntegrator
 # PhysX integrates semi-implicitly with implicit drives: RK4 has no counterpart, Euler/implicitfast do.
 _MATCHED_INTEGRATOR = {_INT.mjINT_RK4: _INT.mjINT_EULER, _INT.mjINT_IMPLICIT: _INT.mjINT_IMPLICITFAST}
@@ -181,16 +183,16 @@ def step_from(
 ) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's next (qpos, qvel) from exactly this state: a one-step comparison starts both simulators from the
     state SAPIEN holds (float32), so that a constraint row switching on at a boundary sees the same state."""
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = qpos, qvel
-    if act is not None and model.na:
-        data.act[:] = act
-    if ctrl is not None and model.nu:
-        data.ctrl[:] = ctrl
-    if qfrc is not None:
-        data.qfrc_applied[:] = qfrc
-    mujoco.mj_step(model, data)
-    return data.qpos.copy(), data.qvel.copy()
+    with borrowed(model) as data:
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        if act is not None and model.na:
+            data.act[:] = act
+        if ctrl is not None and model.nu:
+            data.ctrl[:] = ctrl
+        if qfrc is not None:
+            data.qfrc_applied[:] = qfrc
+        mujoco.mj_step(model, data)
+        return data.qpos.copy(), data.qvel.copy()
 
 
 def rollout(
@@ -203,39 +205,39 @@ def rollout(
 ) -> Rollout:
     """Step MuJoCo from (qpos0, qvel0); `command` is a (steps, nv) array or a policy(step, qpos, qvel);
     `ctrl` (steps, nu) is written to `data.ctrl` before each step."""
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = qpos0, qvel0
-    mujoco.mj_forward(model, data)
-    qpos = np.zeros((steps + 1, model.nq))
-    qvel = np.zeros((steps + 1, model.nv))
-    poses = np.zeros((steps + 1, model.nbody, 7))
-    applied = np.zeros((steps, model.nv))
-    force = np.zeros((steps, model.nu)) if ctrl is not None else None
-    act = np.zeros((steps + 1, model.na))
-    contacts = np.zeros(steps, dtype=int)
-    unstable_step = None
-    bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
-    for t in range(steps + 1):
-        if t:  # mj_step leaves xpos/xquat at the state before the step: bring them to the new state
-            mujoco.mj_kinematics(model, data)
-        qpos[t], qvel[t], poses[t], act[t] = data.qpos, data.qvel, body_poses(data), data.act
-        if t == steps:
-            break
-        if command is None:
-            tau = np.zeros(model.nv)
-        elif callable(command):
-            tau = command(t, data.qpos.copy(), data.qvel.copy())
-        else:
-            tau = command[t]
-        applied[t] = tau
-        data.qfrc_applied[:] = tau
-        if ctrl is not None:
-            data.ctrl[:] = ctrl[t]
-        mujoco.mj_step(model, data)
-        contacts[t] = data.ncon  # found by mj_step at the state before the step
-        if force is not None:  # computed by mj_step from the state before the step
-            force[t] = data.actuator_force
-        if unstable_step is None and (data.warning[bad].number or not np.all(np.isfinite(data.qacc))):
-            unstable_step = t
-    ctrl = None if ctrl is None else np.asarray(ctrl)
-    return Rollout(qpos, qvel, applied, poses, ctrl, force, act, unstable_step, contacts)
+    with borrowed(model) as data:
+        data.qpos[:], data.qvel[:] = qpos0, qvel0
+        mujoco.mj_forward(model, data)
+        qpos = np.zeros((steps + 1, model.nq))
+        qvel = np.zeros((steps + 1, model.nv))
+        poses = np.zeros((steps + 1, model.nbody, 7))
+        applied = np.zeros((steps, model.nv))
+        force = np.zeros((steps, model.nu)) if ctrl is not None else None
+        act = np.zeros((steps + 1, model.na))
+        contacts = np.zeros(steps, dtype=int)
+        unstable_step = None
+        bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
+        for t in range(steps + 1):
+            if t:  # mj_step leaves xpos/xquat at the state before the step: bring them to the new state
+                mujoco.mj_kinematics(model, data)
+            qpos[t], qvel[t], poses[t], act[t] = data.qpos, data.qvel, body_poses(data), data.act
+            if t == steps:
+                break
+            if command is None:
+                tau = np.zeros(model.nv)
+            elif callable(command):
+                tau = command(t, data.qpos.copy(), data.qvel.copy())
+            else:
+                tau = command[t]
+            applied[t] = tau
+            data.qfrc_applied[:] = tau
+            if ctrl is not None:
+                data.ctrl[:] = ctrl[t]
+            mujoco.mj_step(model, data)
+            contacts[t] = data.ncon  # found by mj_step at the state before the step
+            if force is not None:  # computed by mj_step from the state before the step
+                force[t] = data.actuator_force
+            if unstable_step is None and (data.warning[bad].number or not np.all(np.isfinite(data.qacc))):
+                unstable_step = t
+        ctrl = None if ctrl is None else np.asarray(ctrl)
+        return Rollout(qpos, qvel, applied, poses, ctrl, force, act, unstable_step, contacts)

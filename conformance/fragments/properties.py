@@ -24,6 +24,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from ..data_pool import borrowed
 from ..report import TierReport
 from ..session import quiet_load
 from ..tiers import TIERS
@@ -129,11 +130,11 @@ def start_acceleration(model: mujoco.MjModel) -> float:
     from ..reference import initial_state, matched
 
     ref, _ = matched(model, contact=False)
-    data = mujoco.MjData(ref)
-    data.qpos[:], data.qvel[:], _ = initial_state(model)
-    mujoco.mj_forward(ref, data)
-    qacc = np.abs(data.qacc)
-    return float(qacc.max()) if np.all(np.isfinite(qacc)) else 0.0
+    with borrowed(ref) as data:
+        data.qpos[:], data.qvel[:], _ = initial_state(model)
+        mujoco.mj_forward(ref, data)
+        qacc = np.abs(data.qacc)
+        return float(qacc.max()) if np.all(np.isfinite(qacc)) else 0.0
 
 
 def scaled_tolerances(model: mujoco.MjModel, base: Tolerances | None = None) -> Tolerances:
@@ -247,9 +248,9 @@ def actuated_ill_posed(model: mujoco.MjModel) -> str | None:
     from ..reference import matched
 
     ref, _ = matched(model, contact=False, actuation=True)
-    data = mujoco.MjData(ref)
-    mujoco.mj_forward(ref, data)
-    return explicit_damping_unstable(ref, data) or explicit_stiffness_unstable(ref, data, actuated=True)
+    with borrowed(ref) as data:
+        mujoco.mj_forward(ref, data)
+        return explicit_damping_unstable(ref, data) or explicit_stiffness_unstable(ref, data, actuated=True)
 
 
 def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
@@ -258,39 +259,39 @@ def mujoco_ill_posed(model: mujoco.MjModel, steps: int) -> str | None:
     from ..reference import initial_state, matched
 
     ref, _ = matched(model, contact=False)
-    data = mujoco.MjData(ref)
-    mujoco.mj_forward(ref, data)
-    if redundant_dofs(ref, data):  # two slides on one axis: MuJoCo need not warn
-        return "redundant DoFs (two joints move a body the same way): no unique acceleration to compare"
-    if (springy := explicit_stiffness_unstable(ref, data, actuated=False)) is not None:
-        return springy.split(" (")[0]  # tallied with the blow-ups
-    for _ in range(steps):
-        mujoco.mj_step(ref, data)
-    if data.warning[int(mujoco.mjtWarning.mjWARN_INERTIA)].number:
-        return "MuJoCo's joint-space inertia is singular (mjWARN_INERTIA)"
-    if data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number or not np.all(np.isfinite(data.qpos)):
-        return "MuJoCo itself is unstable on the model (bad qacc)"
-    if model.nu:  # explicit actuator gains (kv under Euler) can diverge slowly, past the short judged horizon
-        ref, _ = matched(model, contact=False, actuation=True)
-        # from where the tiers start (the model's own start), with a seed velocity: at rest with zero ctrl
-        # a growing mode may never start
-        if blows_up(ref, initial_state(model)[0], np.full(model.nv, 1e-3), max(steps, ACTUATED_STABILITY_STEPS)):
-            return "MuJoCo itself is unstable on the model with its actuators on (bad qacc)"
-    return None
+    with borrowed(ref) as data:
+        mujoco.mj_forward(ref, data)
+        if redundant_dofs(ref, data):  # two slides on one axis: MuJoCo need not warn
+            return "redundant DoFs (two joints move a body the same way): no unique acceleration to compare"
+        if (springy := explicit_stiffness_unstable(ref, data, actuated=False)) is not None:
+            return springy.split(" (")[0]  # tallied with the blow-ups
+        for _ in range(steps):
+            mujoco.mj_step(ref, data)
+        if data.warning[int(mujoco.mjtWarning.mjWARN_INERTIA)].number:
+            return "MuJoCo's joint-space inertia is singular (mjWARN_INERTIA)"
+        if data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number or not np.all(np.isfinite(data.qpos)):
+            return "MuJoCo itself is unstable on the model (bad qacc)"
+        if model.nu:  # explicit actuator gains (kv under Euler) can diverge slowly, past the short judged horizon
+            ref, _ = matched(model, contact=False, actuation=True)
+            # from where the tiers start (the model's own start), with a seed velocity: at rest with zero ctrl
+            # a growing mode may never start
+            if blows_up(ref, initial_state(model)[0], np.full(model.nv, 1e-3), max(steps, ACTUATED_STABILITY_STEPS)):
+                return "MuJoCo itself is unstable on the model with its actuators on (bad qacc)"
+        return None
 
 
 def blows_up(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, steps: int) -> bool:
     """MuJoCo flags a bad qacc (or computes a non-finite one) within `steps` steps from (qpos, qvel), zero ctrl
     and no applied force: `reference.rollout(...).unstable` without recording the states it does not need."""
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = qpos, qvel
-    mujoco.mj_forward(model, data)
-    bad = data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
-    for _ in range(steps):
-        mujoco.mj_step(model, data)
-        if bad.number or not np.all(np.isfinite(data.qacc)):
-            return True
-    return False
+    with borrowed(model) as data:
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        mujoco.mj_forward(model, data)
+        bad = data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+            if bad.number or not np.all(np.isfinite(data.qacc)):
+                return True
+        return False
 
 
 def compile_with_mujoco(path: Path) -> tuple[mujoco.MjModel | None, str | None]:

@@ -9,6 +9,7 @@ import numpy as np
 import sapien
 
 from .. import sapien_side
+from ..data_pool import borrowed
 from ..reference import contacts_disabled
 from ..report import Metric, TierReport, judged, metric
 from ..sampling import line_angle, quaternion_angle
@@ -124,26 +125,26 @@ class _Findings:
 
 
 def collision(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
-    found = _Findings()
-    groups = _Groups.of(model, contacts_disabled(model))
-    for g in range(model.ngeom):
-        _check_geom(result, model, data, g, groups, found)
-    problems = found.mismatches + found.groups_wrong
-    notes = problems[:_MAX_NOTES] + found.notes[:_MAX_NOTES]
-    mismatches, groups_wrong, checked = len(found.mismatches), len(found.groups_wrong), found.checked
-    metrics = [
-        Metric("mismatches", float(mismatches), float(mismatches), 0.0, "count", model.ngeom),
-        Metric("groups", float(groups_wrong), float(groups_wrong), 0.0, "count", checked),
-        metric("size", found.size_err, tolerances["collision.size"], "m"),
-        metric("position", found.pos_err, tolerances["collision.position"], "m"),
-        metric("orientation", found.rot_err, tolerances["collision.orientation"], "rad"),
-        metric("mesh_aabb", found.mesh_err, tolerances["collision.mesh_aabb"], "m"),
-        metric("approximation_aabb", found.approx_err, tolerances["collision.approximation_aabb"], "relative"),
-    ]
-    return judged("collision", metrics, notes, settings={"geoms": model.ngeom, "shapes_checked": checked})
+    with borrowed(model) as data:
+        mujoco.mj_kinematics(model, data)
+        sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
+        found = _Findings()
+        groups = _Groups.of(model, contacts_disabled(model))
+        for g in range(model.ngeom):
+            _check_geom(result, model, data, g, groups, found)
+        problems = found.mismatches + found.groups_wrong
+        notes = problems[:_MAX_NOTES] + found.notes[:_MAX_NOTES]
+        mismatches, groups_wrong, checked = len(found.mismatches), len(found.groups_wrong), found.checked
+        metrics = [
+            Metric("mismatches", float(mismatches), float(mismatches), 0.0, "count", model.ngeom),
+            Metric("groups", float(groups_wrong), float(groups_wrong), 0.0, "count", checked),
+            metric("size", found.size_err, tolerances["collision.size"], "m"),
+            metric("position", found.pos_err, tolerances["collision.position"], "m"),
+            metric("orientation", found.rot_err, tolerances["collision.orientation"], "rad"),
+            metric("mesh_aabb", found.mesh_err, tolerances["collision.mesh_aabb"], "m"),
+            metric("approximation_aabb", found.approx_err, tolerances["collision.approximation_aabb"], "relative"),
+        ]
+        return judged("collision", metrics, notes, settings={"geoms": model.ngeom, "shapes_checked": checked})
 
 
 def _check_geom(result, model: mujoco.MjModel, data: mujoco.MjData, g: int, groups: _Groups, found: _Findings) -> None:

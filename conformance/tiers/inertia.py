@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 
 from .. import sapien_side
+from ..data_pool import borrowed
 from ..report import TierReport, judged, metric, skipped
 from ..tolerances import Tolerances
 
@@ -29,34 +30,34 @@ def inertia(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) ->
     an absolute floor (`inertia.tensor_floor`: what a zero or tiny moment may become in PhysX).
 
     Only bodies with mass in MuJoCo count; massless bodies (helper frames) carry whatever PhysX needs."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
-    floor = tolerances["inertia.tensor_floor"]
-    mass_err, com_err, tensor_err, tensor_floor, notes = [], [], [], [], []
-    for b in range(1, model.nbody):
-        link = sapien_side.body_link(result, b)
-        if link is None or model.body_mass[b] <= 0:
-            continue
-        mass, com, tensor = link_inertia_world(link)
-        ref_rot = data.ximat[b].reshape(3, 3)
-        ref_tensor = ref_rot @ np.diag(model.body_inertia[b]) @ ref_rot.T
-        scale = max(float(np.max(model.body_inertia[b])), floor)
-        mass_err.append(abs(mass - model.body_mass[b]) / model.body_mass[b])
-        com_err.append(np.linalg.norm(com - data.xipos[b]))
-        tensor_err.append(np.max(np.abs(tensor - ref_tensor)) / scale)
-        tensor_floor.append(floor / scale)
-    if not mass_err:
-        return skipped("inertia", "no body with mass is carried by an articulation link")
-    return judged(
-        "inertia",
-        [
-            metric("mass", mass_err, tolerances["inertia.mass"], "relative"),
-            metric("com", com_err, tolerances["inertia.com"], "m"),
-            metric(
-                "tensor", tensor_err, tolerances["inertia.tensor"], "relative to largest moment", floor=tensor_floor
-            ),
-        ],
-        notes,
-        settings={"bodies": len(mass_err)},
-    )
+    with borrowed(model) as data:
+        mujoco.mj_kinematics(model, data)
+        sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
+        floor = tolerances["inertia.tensor_floor"]
+        mass_err, com_err, tensor_err, tensor_floor, notes = [], [], [], [], []
+        for b in range(1, model.nbody):
+            link = sapien_side.body_link(result, b)
+            if link is None or model.body_mass[b] <= 0:
+                continue
+            mass, com, tensor = link_inertia_world(link)
+            ref_rot = data.ximat[b].reshape(3, 3)
+            ref_tensor = ref_rot @ np.diag(model.body_inertia[b]) @ ref_rot.T
+            scale = max(float(np.max(model.body_inertia[b])), floor)
+            mass_err.append(abs(mass - model.body_mass[b]) / model.body_mass[b])
+            com_err.append(np.linalg.norm(com - data.xipos[b]))
+            tensor_err.append(np.max(np.abs(tensor - ref_tensor)) / scale)
+            tensor_floor.append(floor / scale)
+        if not mass_err:
+            return skipped("inertia", "no body with mass is carried by an articulation link")
+        return judged(
+            "inertia",
+            [
+                metric("mass", mass_err, tolerances["inertia.mass"], "relative"),
+                metric("com", com_err, tolerances["inertia.com"], "m"),
+                metric(
+                    "tensor", tensor_err, tolerances["inertia.tensor"], "relative to largest moment", floor=tensor_floor
+                ),
+            ],
+            notes,
+            settings={"bodies": len(mass_err)},
+        )

@@ -10,6 +10,7 @@ import numpy as np
 from loader.model import mj
 
 from .. import sapien_side
+from ..data_pool import borrowed
 from ..reference import limits_disabled
 from ..report import Metric, TierReport, judged, metric
 from ..sampling import direction_angle
@@ -84,42 +85,46 @@ class _JointChecks:
 
 def structure(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     mismatches: list[str] = []
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
-    carried = _link_index(result)
-    _check_bodies(result, model, carried, mismatches)
+    with borrowed(model) as data:
+        mujoco.mj_kinematics(model, data)
+        sapien_side.set_state(result, model.qpos0, np.zeros(model.nv))
+        carried = _link_index(result)
+        _check_bodies(result, model, carried, mismatches)
 
-    # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
-    checks = _JointChecks(mismatches)
-    limits = result.controller.term("rows", on=True)
-    limit_rows = limits.rows if limits is not None else {}  # MuJoCo solves their limit rows
-    for j in range(model.njnt):
-        _check_joint(result, model, data, j, limit_rows, checks)
-    sapien_dofs = sum(a.dof for a in result.articulations)
-    if sapien_dofs != checks.expected_dofs:
-        mismatches.append(f"{sapien_dofs} SAPIEN dofs, {checks.expected_dofs} MuJoCo joint dofs (free joints excluded)")
+        # Joints: kind, DoF count, SAPIEN type, name, axis, anchor, limits.
+        checks = _JointChecks(mismatches)
+        limits = result.controller.term("rows", on=True)
+        limit_rows = limits.rows if limits is not None else {}  # MuJoCo solves their limit rows
+        for j in range(model.njnt):
+            _check_joint(result, model, data, j, limit_rows, checks)
+        sapien_dofs = sum(a.dof for a in result.articulations)
+        if sapien_dofs != checks.expected_dofs:
+            mismatches.append(
+                f"{sapien_dofs} SAPIEN dofs, {checks.expected_dofs} MuJoCo joint dofs (free joints excluded)"
+            )
 
-    notes = mismatches[:_MAX_NOTES] + (
-        [f"... {len(mismatches) - _MAX_NOTES} more"] if len(mismatches) > _MAX_NOTES else []
-    )
-    metrics = [
-        Metric("mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count", model.nbody + model.njnt),
-        metric("axis", checks.axis_err, tolerances["structure.axis"], "rad"),
-        metric("anchor", checks.anchor_err, tolerances["structure.anchor"], "m"),
-        metric("limit", checks.limit_err, tolerances["structure.limit"], "rad or m"),
-    ]
-    return judged(
-        "structure",
-        metrics,
-        notes,
-        settings={
-            "bodies": model.nbody - 1,
-            "joints": model.njnt,
-            "dofs": sapien_dofs,
-            "links": sum(len(a.links) for a in result.articulations),
-        },
-    )
+        notes = mismatches[:_MAX_NOTES] + (
+            [f"... {len(mismatches) - _MAX_NOTES} more"] if len(mismatches) > _MAX_NOTES else []
+        )
+        metrics = [
+            Metric(
+                "mismatches", float(len(mismatches)), float(len(mismatches)), 0.0, "count", model.nbody + model.njnt
+            ),
+            metric("axis", checks.axis_err, tolerances["structure.axis"], "rad"),
+            metric("anchor", checks.anchor_err, tolerances["structure.anchor"], "m"),
+            metric("limit", checks.limit_err, tolerances["structure.limit"], "rad or m"),
+        ]
+        return judged(
+            "structure",
+            metrics,
+            notes,
+            settings={
+                "bodies": model.nbody - 1,
+                "joints": model.njnt,
+                "dofs": sapien_dofs,
+                "links": sum(len(a.links) for a in result.articulations),
+            },
+        )
 
 
 def _check_bodies(result, model: mujoco.MjModel, carried: dict, mismatches: list[str]) -> None:
