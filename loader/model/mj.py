@@ -78,6 +78,7 @@ def forward_at(
     """MuJoCo's forward pass at qpos0 (or `qpos`): inertia and constraint rows. `all_equalities`: every equality
     active (their rows at load time, whatever `eq_active0` says); `kinematics_only`: body poses only (the full pass
     where one is shared: its poses are the same numbers). A caller reads the result and never writes it."""
+    all_equalities = all_equalities and not model.eq_active0.all()  # every one on at qpos0 already: the same pass
     shared = _AT_QPOS0.get()
     if qpos is None and not all_equalities and shared is not None and shared[0] is model:
         return shared[1]
@@ -87,6 +88,13 @@ def forward_at(
         data.eq_active[:] = 1
     (mujoco.mj_kinematics if kinematics_only else mujoco.mj_forward)(model, data)
     return data
+
+
+def body_mask(model: mujoco.MjModel, bodies) -> np.ndarray:
+    """Per body of the model, whether it is one of `bodies` (ids): a lookup table, where `np.isin` sorts."""
+    mask = np.zeros(model.nbody, dtype=bool)
+    mask[list(bodies)] = True
+    return mask
 
 
 def inertia_blocks(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[np.ndarray, np.ndarray]]:

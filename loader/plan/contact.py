@@ -47,7 +47,7 @@ def plan_collision_filter(
     result = CollisionFilter()
     contype = np.zeros(model.nbody, dtype=np.int64)
     conaffinity = np.zeros(model.nbody, dtype=np.int64)
-    shaped = np.isin(model.geom_bodyid, sorted(shape_bodies))
+    shaped = mj.body_mask(model, shape_bodies)[model.geom_bodyid]
     np.bitwise_or.at(contype, model.geom_bodyid[shaped], model.geom_contype[shaped].astype(np.int64))
     np.bitwise_or.at(conaffinity, model.geom_bodyid[shaped], model.geom_conaffinity[shaped].astype(np.int64))
     excluded = mj.excluded_body_pairs(model)
@@ -57,7 +57,7 @@ def plan_collision_filter(
     meet = ((contype[bodies][:, None] & conaffinity[bodies][None, :]) != 0) | (
         (contype[bodies][None, :] & conaffinity[bodies][:, None]) != 0
     )
-    fixed = np.isin(bodies, sorted(static_bodies))
+    fixed = mj.body_mask(model, static_bodies)[bodies]
     first, second = np.nonzero(np.triu(meet & ~(fixed[:, None] & fixed[None, :]), 1))
     filtered = mj.filtered_pairs(model, bodies, excluded, filter_parent)[first, second]
     parents = (_physx_parent_body(tree, b) for b in bodies.tolist())
@@ -233,7 +233,7 @@ def _meeting(model: mujoco.MjModel, geoms: np.ndarray, static: set[int]) -> np.n
     contype, conaffinity = model.geom_contype[geoms], model.geom_conaffinity[geoms]
     meet = ((contype[:, None] & conaffinity[None, :]) | (contype[None, :] & conaffinity[:, None])) != 0
     bodies = model.body_weldid[model.geom_bodyid[geoms]]
-    fixed = np.isin(model.geom_bodyid[geoms], list(static))
+    fixed = mj.body_mask(model, static)[model.geom_bodyid[geoms]]
     return meet & (bodies[:, None] != bodies[None, :]) & ~(fixed[:, None] & fixed[None, :])
 
 
