@@ -110,6 +110,7 @@ class MJCFLoader:
             self.warn_each_note,
             warn_approximations=self.warn_approximations,
             contacts=self.contacts,
+            sole=True,
         )
 
     def new_articulation_builder(self) -> MJCFArticulationBuilder:
@@ -228,11 +229,13 @@ def finish(
     stacklevel: int = 4,
     warn_approximations: bool = False,
     contacts: str = "mujoco",
+    sole: bool = False,
 ) -> LoadResult:
     """The mapping and the per-step terms of built articulations (one per tree, in order) in `scene`: the
     `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller): what was
     dropped, and the approximations where `warn_approximations`; `contacts`: whose the model's own contacts are
-    (`MJCFLoader`)."""
+    (`MJCFLoader`). `sole`: this is the parse's only build (not one sub-scene's of several), so the terms may keep
+    its forward pass at qpos0 once the build has read it (`Controller.spare`)."""
     if contacts not in CONTACTS:
         raise ControlError(f"contacts={contacts!r}: one of {', '.join(map(repr, CONTACTS))}")
     model = parsed.compiled.model
@@ -244,6 +247,8 @@ def finish(
         if solver_iterations == "auto":
             connects = [link.joint for link in equalities if link.kind == "D6 joint"]
             tune_iterations(articulations, model, controller.drive_weights(), connects, mapping, parsed.notes)
+    if sole:
+        controller.spare(model, parsed.compiled.at_qpos0)
     result = LoadResult(
         path=str(parsed.compiled.path),
         spec=parsed.compiled.spec,

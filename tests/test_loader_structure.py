@@ -362,6 +362,40 @@ def test_a_load_reads_one_forward_pass_at_qpos0(monkeypatch):
     assert original(result.model) is not made[0]
 
 
+def test_a_load_makes_one_mujoco_data_where_its_rows_need_one(monkeypatch):
+    """A limited hinge (constraint rows) and a ball-jointed body pinned to it by a connect (a D6 joint, which the
+    rows' copy must not solve again): the load makes one MuJoCo data, the rows keeping the load's forward pass at
+    qpos0 once the build has read it (`Controller.spare`), with only the copy's couplings active, and the pair
+    steps bit for bit as with a data of the rows' own. Mutation: no hand-over makes two."""
+    from loader.runtime.controller import Controller
+
+    xml = (
+        '<mujoco><worldbody><body name="a" pos="0 0 1"><joint type="hinge" axis="0 1 0" range="-1 1"/>'
+        '<geom type="capsule" fromto="0 0 0 .2 0 0" size=".02"/></body><body name="b" pos=".4 0 1">'
+        '<joint type="ball"/><geom type="capsule" fromto="0 0 0 -.2 0 0" size=".02"/></body></worldbody>'
+        '<equality><connect body1="a" body2="b" anchor=".2 0 0"/></equality></mujoco>'
+    )
+    made, original = [], mujoco.MjData
+
+    def counted(model):
+        made.append(model)
+        return original(model)
+
+    monkeypatch.setattr(mujoco, "MjData", counted)
+    handed = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    assert len(made) == 1
+    monkeypatch.setattr(mujoco, "MjData", original)
+    assert [link.kind for link in handed.equalities] == ["D6 joint"]
+    assert handed.controller.term("rows").data.eq_active.tolist() == [False]
+    monkeypatch.setattr(Controller, "spare", lambda self, model, data: False)
+    own = MJCFLoader().load(mujoco.MjSpec.from_string(xml))
+    for result in (handed, own):
+        for _ in range(100):
+            result.step(np.zeros(result.model.nu))
+    assert np.abs(handed.get_state()[0] - handed.model.qpos0).max() > 0.01  # it sags on its pin
+    np.testing.assert_array_equal(np.concatenate(handed.get_state()), np.concatenate(own.get_state()))
+
+
 @pytest.mark.parametrize(
     "element, where",
     [

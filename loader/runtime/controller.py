@@ -286,6 +286,11 @@ class Controller:
             else:
                 self.time(term.name, term.settle, self.articulations, wrenches)
 
+    def spare(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+        """Offer the planned terms a MuJoCo data of `model` that nothing else reads any more (`Term.spare`): the
+        first that would make its own keeps it."""
+        return any(term.spare(model, data) for term in self.planned())
+
     def forget(self) -> None:
         """A state set from outside: no step ends at it (`momentum`), MuJoCo's solve starts cold (`rows`)."""
         for term in self.planned():

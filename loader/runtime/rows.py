@@ -155,10 +155,9 @@ class RowTerm(Term):
         self.limits_only = limits_only  # the copy's only joint-space rows are joint limits (`rowless`)
         self.own = own  # the model's own contacts, MuJoCo's while set_ctrl runs (None: PhysX's)
         self.joint_rows_planned = joint_rows  # limits, frictionloss, couplings (else only the contacts)
-        self.data = mujoco.MjData(model)
+        self._data: mujoco.MjData | None = None  # MuJoCo's data of the copy: made at first use, or handed over
         self.couplings = couplings  # the equalities MuJoCo's copy solves
         self.standby = standby or []  # the D6 joints that hold those loops after release() (runtime/equalities.py)
-        self.reset_active()
         self.mapping = mapping
         self.set_limits(limits)
         joints = [(j, t) for j, t in enumerate(mapping.joints) if t.kind in MAPPED_JOINTS]
@@ -173,6 +172,28 @@ class RowTerm(Term):
         self.with_contacts = not mj.disabled(model, "contact")  # the copy's contacts are on (`contacts`)
         self.depenetration = MAX_DEPENETRATION_VELOCITY  # m/s, PhysX's push on penetrating bodies
         self.accelerated = accelerated(model)  # MuJoCo integrates the solver's qacc (`integrated.py`)
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """MuJoCo's data of the copy, its couplings as the model starts them; made at first use where the load
+        handed none over (`spare`)."""
+        if self._data is None:
+            self._keep(mujoco.MjData(self.lent.model))
+        return self._data
+
+    def spare(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+        """The load's own data of the copy's model, kept (reset: as a new one) where this term has made none yet:
+        making one costs most of a millisecond whatever the model's size
+        (tests/test_loader_structure.py::test_a_load_makes_one_mujoco_data_where_its_rows_need_one)."""
+        if self._data is not None or model is not self.lent.model:
+            return False
+        mujoco.mj_resetData(model, data)
+        self._keep(data)
+        return True
+
+    def _keep(self, data: mujoco.MjData) -> None:
+        self._data = data
+        self.reset_active()
 
     def claim(self) -> None:
         """Before a physics step's terms add their forces (`Controller.begin`): the model's own contacts become

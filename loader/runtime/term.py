@@ -85,6 +85,11 @@ class Term:
     def reset_active(self) -> None:
         """Every equality back to the model's `eq_active0`."""
 
+    def spare(self, model, data) -> bool:
+        """Offered `data`, a MuJoCo data of `model` that nothing else reads any more (the load's own forward pass at
+        qpos0, once the build has read it): True where this term keeps it as its own, instead of making one."""
+        return False
+
 
 class LinkForces(Term):
     """A term that adds forces to links: PhysX accumulates them until the step, so they are added once per physics
