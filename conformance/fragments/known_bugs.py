@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..reference import limited_dofs
+
 
 @dataclass(frozen=True)
 class KnownBug:
@@ -64,17 +66,11 @@ LIGHT_LINK = 1e-6  # kg: a jointed body this light, started past a limit
 
 
 def _started_past_their_ends(model: mujoco.MjModel) -> list[int]:
-    """The limited hinges and slides that the first keyframe starts outside their range."""
+    """The limited hinges and slides (`reference.limited_dofs`) that the first keyframe starts outside their range."""
     if not model.nkey:
         return []
-    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-    out = []
-    for j in range(model.njnt):
-        lo, hi = model.jnt_range[j]
-        at = model.key_qpos[0][int(model.jnt_qposadr[j])]
-        if int(model.jnt_type[j]) in scalar and model.jnt_limited[j] and not lo <= at <= hi:
-            out.append(j)
-    return out
+    start = model.key_qpos[0]
+    return [j for j, adr, lo, hi in limited_dofs(model) if not lo <= start[adr] <= hi]
 
 
 def _light_link_started_past_its_end(result, model: mujoco.MjModel) -> bool:
