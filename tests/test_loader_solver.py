@@ -198,3 +198,45 @@ def test_a_force_limit_edited_into_a_law_holds_under_tgs():
         worst = max(worst, float(np.abs(articulation.get_qf()).max()))
         result.scene.step()
     assert worst == pytest.approx(limit, rel=1e-6)
+
+
+def _tgs_states(share: bool) -> tuple[np.ndarray, int]:
+    """Menagerie-free: folding_servo_arm under TGS for 200 steps with contacts on (so the rows solve every step);
+    the final state, and the steps whose drives read the rows' forward pass (`share` False: none may)."""
+    from loader.runtime.drive_forces import DriveForces
+    from loader.runtime.rows import RowTerm
+
+    path = FIXTURES / "folding_servo_arm.xml"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    result = MJCFLoader().set_scene(_tgs_scene(model)).load(str(path))
+    shared = 0
+    rows, writer = result.controller.term("rows"), result.controller.term("drives")
+    assert isinstance(rows, RowTerm) and isinstance(writer, DriveForces)
+    contribute, dynamics = rows.contribute, writer.dynamics
+
+    def rows_contribute(step):
+        contribute(step)
+        if not share:
+            step.forwarded = None
+
+    def counted(step):
+        nonlocal shared
+        shared += step.forwarded is not None
+        return dynamics(step)
+
+    rows.contribute, writer.dynamics = rows_contribute, counted
+    result.reset(0)
+    for step in range(200):
+        result.set_ctrl(model.key_ctrl[0] + 0.8 * np.sin(2 * np.pi * 0.002 * step * np.arange(1, model.nu + 1)))
+        result.scene.step()
+    q, v = result.get_state()
+    return np.concatenate([q, v]), shared
+
+
+def test_under_tgs_the_drives_read_the_rows_forward_pass():
+    """Where the rows ran MuJoCo's forward pass at the step's state, the drives read its M and bias instead of
+    running MuJoCo's passes again: every step, and bit for bit what their own passes give."""
+    own, none = _tgs_states(share=False)
+    shared, steps = _tgs_states(share=True)
+    assert none == 0 and steps == 200
+    np.testing.assert_array_equal(shared, own)

@@ -95,6 +95,9 @@ class Step:
     # limit and implicit extra are every such step's (with the same explicit_kv), what is derived from them reused
     regular: bool = True
     state: tuple | None = field(default=None, repr=False)  # `mujoco_state`, converted once
+    # rows: MuJoCo's data of the runtime's model at this step's start state, its forward pass run (M, bias and
+    # passive forces computed), for a later stage to read instead of running MuJoCo's passes again (`drives`)
+    forwarded: mujoco.MjData | None = field(default=None, repr=False)
 
     def mujoco_state(self, mapping) -> tuple[np.ndarray, np.ndarray]:
         """The step's start state in MuJoCo's layout (qpos, qvel), converted once for every term that reads it."""

@@ -24,7 +24,7 @@ from ..model.drive import DofDrive
 from ..model.mapping import Mapping
 from .dof_step import DofKey, Step
 from .drive_writer import DriveWriter
-from .term import Compilation, Handover
+from .term import Compilation, Handover, Term
 
 
 class DriveForces(DriveWriter):
@@ -46,6 +46,8 @@ class DriveForces(DriveWriter):
         for (a, d), dof in dofs.items():
             self.dof_of_flat[layout.starts[a] + d] = dof
         self.dof_of_drive = self.dof_of_flat[layout.flat]
+        known = self.dof_of_flat >= 0  # each a DoF of its own: one joint position per MuJoCo DoF
+        self.known_flat, self.known_dofs = known.nonzero()[0], self.dof_of_flat[known]
         self.zeroed = False
 
     def contribute(self, step: Step) -> None:
@@ -62,14 +64,17 @@ class DriveForces(DriveWriter):
             self.zeroed = True
         self.write_qf(step)
 
+    def batch(self, step: Step, steps: list[Step], terms: list[Term]) -> bool:
+        """Never for every copy at once: each copy's drive law is solved with its own M at its own state
+        (tests/test_loader_batch.py::test_a_batch_under_tgs_steps_each_copy_as_its_own_set_ctrl)."""
+        return False
+
     def solve(self, step: Step, law: np.ndarray, implicit: np.ndarray, limit: np.ndarray) -> np.ndarray:
         """Each drive's force a - d v1 at the end of the step, held within its force limit (a limit that binds
         leaves the others as solved with it free)."""
-        qpos, qvel = step.mujoco_state(self.mapping)
-        inertia, bias = self.dynamics(qpos, qvel)
-        known = self.dof_of_flat >= 0
+        qvel, inertia, bias = self.dynamics(step)
         total = -bias
-        np.add.at(total, self.dof_of_flat[known], step.force[known])
+        total[self.known_dofs] += step.force[self.known_flat]
         drives, timestep = self.dof_of_drive, step.timestep
         v0 = qvel[drives]
         total[drives] += law - implicit * v0
@@ -77,22 +82,25 @@ class DriveForces(DriveWriter):
         v1 = v0 + timestep * np.linalg.solve(inertia, total)[drives]
         return np.clip(law - implicit * v1, -limit, limit)
 
-    def dynamics(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """MuJoCo's M (armature included) and bias at the state, the bias less gravity compensation and fluid."""
-        model, data = self.model, self.data
-        data.qpos[:], data.qvel[:] = qpos, qvel
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        mujoco.mj_crb(model, data)
-        mujoco.mj_comVel(model, data)
-        bias = np.zeros(model.nv)
-        mujoco.mj_rne(model, data, 0, bias)
-        if self.link_forces:
-            mujoco.mj_tendon(model, data)
-            mujoco.mj_passive(model, data)
-            bias -= data.qfrc_gravcomp + data.qfrc_fluid
+    def dynamics(self, step: Step) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """MuJoCo's qvel, M (armature included) and bias at the step's state, the bias less gravity compensation
+        and fluid: read from the forward pass the rows ran at this state (`Step.forwarded`), else from this term's
+        own passes (tests/test_loader_solver.py::test_under_tgs_the_drives_read_the_rows_forward_pass)."""
+        model, data = self.model, step.forwarded
+        if data is None:
+            data = self.data
+            data.qpos[:], data.qvel[:] = step.mujoco_state(self.mapping)
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            mujoco.mj_crb(model, data)
+            mujoco.mj_comVel(model, data)
+            mujoco.mj_rne(model, data, 0, data.qfrc_bias)
+            if self.link_forces:
+                mujoco.mj_tendon(model, data)
+                mujoco.mj_passive(model, data)
+        bias = data.qfrc_bias - (data.qfrc_gravcomp + data.qfrc_fluid) if self.link_forces else data.qfrc_bias
         mujoco.mj_fullM(model, data, self.inertia_matrix)
-        return self.inertia_matrix, bias
+        return data.qvel, self.inertia_matrix, bias
 
     def release(self, handover: Handover) -> None:
         super().release(handover)

@@ -262,6 +262,8 @@ class RowTerm(Term):
             self.mirror_state(step)
             solve(model, self.data, self.with_contacts, step.timestep, self.depenetration, not self.mujocos)
             force = self.joint_rows()
+        if not self.lent.copied:  # the runtime's model itself, at the step's state: its passes can be shared
+            step.forwarded = self.data
         step.force[self.flat] += force[self.mujoco_dofs]
         for dof, flat in zip(self.ball_dofs, self.ball_flat):  # a ball joint's angle rates take E^T tau
             if force[dof : dof + 3].any():  # its frictionloss, MuJoCo's contacts
