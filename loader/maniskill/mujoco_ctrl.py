@@ -1,5 +1,6 @@
 """The `mujoco_ctrl` control mode: the action is MuJoCo's `ctrl` vector, applied before every physics step exactly as
-`LoadResult.set_ctrl` applies it, so a MuJoCo policy drives the robot unchanged (CPU only: the per-step terms read
+`LoadResult.set_ctrl` applies it (its joint forces from MuJoCo's own step where the model allows:
+`Controller.use_mujoco_step`), so a MuJoCo policy drives the robot unchanged (CPU only: the per-step terms read
 the state on the host). Gravity stays on, as in MuJoCo
 (tests/test_maniskill.py::test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl)."""
 
@@ -31,6 +32,7 @@ class MujocoCtrlController(BaseController):
             link.disable_gravity = False
         for result in self.config.results:
             result.release()  # forget drive writes made by another mode, then own the drives again
+            result.controller.use_mujoco_step(self.config.mujoco_step)
             result.set_ctrl(self.ctrl, advance=False)
 
     def reset(self):
@@ -52,5 +54,7 @@ class MujocoCtrlConfig(ControllerConfig):
     low: list[float] = field(default_factory=list)  # ctrlrange (or -inf) per actuator
     high: list[float] = field(default_factory=list)
     results: list = field(default_factory=list)  # one LoadResult per sub-scene
+    # the joint forces from MuJoCo's own step where the model allows (`Controller.use_mujoco_step`), else the terms
+    mujoco_step: bool = True
     normalize_action: bool = False
     controller_cls = MujocoCtrlController

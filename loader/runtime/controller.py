@@ -34,6 +34,7 @@ from .fluid import plan_fluid
 from .gravcomp import map_gravcomp
 from .integrated import RootPush
 from .momentum import plan_momentum
+from .mujoco_step import MujocoStep, eligible
 from .rows import plan_rows
 from .slides import SlideTerm, map_slides
 from .stiffness import StiffnessTerm
@@ -93,6 +94,9 @@ class Controller:
         self.compilations = 0  # `compile` calls: a `Batch` compares its copies' plans again after one
         self.timings: dict[str, float] | None = None  # seconds per stage while timed (`timed`)
         self.pushed = RootPush(model, mapping)  # the caller's qfrc_applied on the floating roots, as wrenches
+        self.mujoco_step = False  # asked for MuJoCo's own step as the joint forces (`use_mujoco_step`)
+        self.edited = False  # a term or a law was handed out to change: MuJoCo's step would not see the change
+        self.whole: MujocoStep | None = None  # `compile`'s: MuJoCo's step in place of the running terms
 
     @property
     def timestep(self) -> float:
@@ -127,7 +131,7 @@ class Controller:
     def edit(self, name: str) -> Term | None:
         """The named term (on or off) for the caller to change its plan; the next `set_ctrl` compiles every term
         again, so the change takes effect there."""
-        self.stale = True
+        self.stale = self.edited = True
         return self.term(name)
 
     def planned(self) -> list[Term]:
@@ -146,7 +150,7 @@ class Controller:
 
     def edit_laws(self) -> dict[DofKey, DofDrive]:
         """`drive_laws` for the caller to change; the next `set_ctrl` compiles them."""
-        self.stale = True
+        self.stale = self.edited = True
         return self.drive_laws()
 
     def drive_weights(self) -> dict[DofKey, float]:
@@ -175,8 +179,42 @@ class Controller:
         self.base = np.concatenate([laws, np.zeros((3, laws.shape[1]))])
         self.running = [term for term in self.terms if not term.idle]
         self.claimer = next((term for term in self.running if term.name == "rows" and term.own is not None), None)
+        self.whole = self.whole_step() if self.mujoco_step else None
         self.stale = False
         self.compilations += 1
+
+    def use_mujoco_step(self, on: bool = True) -> str | None:
+        """`set_ctrl`'s joint forces from MuJoCo's own step at SAPIEN's state (`mujoco_step.py`) in place of the
+        terms, from the next call on, or the terms again (`on` False). Returns why the terms run all the same: the
+        model is not one MuJoCo's step can drive in SAPIEN's coordinates, a term other than the actuators is switched
+        off or added, a term or law was handed out to change (`edit`, `edit_laws`) or the rows' copy taken
+        (`mirror`); None where MuJoCo's step runs."""
+        self.mujoco_step, self.stale = on, True
+        if not on:
+            return "switched off"
+        self.compile()
+        return None if self.whole is not None else self.why_not_whole()
+
+    def why_not_whole(self) -> str:
+        rows = self.term("rows")
+        reason = eligible(self.model, rows, {term.name for term in self.planned()})
+        if reason is not None:
+            return reason
+        if self.edited or rows.lent.copied:
+            return "a term, a law or the rows' copy was handed out to change"
+        return "a term is switched off or added"
+
+    def whole_step(self) -> MujocoStep | None:
+        """MuJoCo's step in place of the running terms, where it holds their law (see `use_mujoco_step`)."""
+        rows, writer = self.term("rows", on=True), self.term("drives", on=True)
+        planned = {term.name for term in self.planned()}
+        if rows is None or writer is None or eligible(self.model, rows, planned) is not None:
+            return None
+        if self.edited or rows.lent.copied or set(self.off) - {"actuators"} or len(self.stages) != len(STAGES):
+            return None
+        if self.whole is not None and self.whole.rows is rows:
+            return self.whole
+        return MujocoStep(self.model, rows, writer)
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
@@ -213,7 +251,8 @@ class Controller:
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         if advance:
             self.push(qfrc_applied)
-        refresh_link_velocities(self.velocity_readers())
+        if self.whole is None:
+            refresh_link_velocities(self.velocity_readers())
         return Step(
             articulations,
             self.joints,
@@ -241,7 +280,14 @@ class Controller:
             self.pushed.at_roots(qfrc_applied, self.articulations, self.layout.links)
 
     def run(self, step: Step) -> None:
-        """The running terms' laws on the step, in stage order."""
+        """The running terms' laws on the step, in stage order; or MuJoCo's step in their place."""
+        whole = self.whole
+        if whole is not None and not whole.rows.lent.copied:
+            if self.timings is None:
+                whole.contribute(step)
+            else:
+                self.time("mujoco_step", whole.contribute, step)
+            return
         if self.timings is None:
             for term in self.running:
                 term.contribute(step)
@@ -316,6 +362,8 @@ class Controller:
         handover = Handover(self.joints, self.articulations, self.timestep)
         for term in self.planned():
             term.release(handover)
+        if self.whole is not None:
+            self.whole.release(handover)
 
     def set_equality_active(self, equality: int, active: bool) -> None:
         """MuJoCo's `data.eq_active[equality] = active`: for every term (MuJoCo's rows) and the equality's D6 joint."""

@@ -1,0 +1,98 @@
+"""MuJoCo's own step as the joint forces: `set_ctrl` with `Controller.mujoco_step` on.
+
+The per-step terms rebuild MuJoCo's law piece by piece in Python and leave its implicit part to PhysX's drives.
+MuJoCo computes the same law in one forward pass and one integrator call: at SAPIEN's state (the constraint rows'
+copy of the model, `rows.py`), with the step's clamped ctrl, activation and applied force, its step ends at the
+velocity v1, and PhysX, stepping `qf` explicitly with the same joint-space inertia M and bias c, ends there too when
+
+    qf = M (v1 - v0) / dt + c.
+
+v1 comes from MuJoCo's own integrator (implicit damping, actuator kv, the implicitfast and implicit derivatives), its
+constraint force replaced by the rows SAPIEN takes (the contacts PhysX applies left out); Euler without implicit
+damping integrates the solver's acceleration, and there `qf` is the forces themselves. PhysX's drives hold nothing,
+its limits stand out of the rows' way. The law is MuJoCo's wherever SAPIEN's coordinates are MuJoCo's: every joint a
+hinge or slide, each SAPIEN DoF one MuJoCo DoF (`eligible` says where it is not, and the terms run instead)
+(tests/test_loader_mujoco_step.py).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .dof_step import Step
+from .drive_forces import DriveForces
+from .rows import RowTerm, solve
+from .term import Handover
+
+INTEGRATORS = {
+    int(mujoco.mjtIntegrator.mjINT_EULER): mujoco.mj_Euler,
+    int(mujoco.mjtIntegrator.mjINT_IMPLICIT): mujoco.mj_implicit,
+    int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST): mujoco.mj_implicit,
+}
+# the terms whose law MuJoCo's step holds in joint space, or that only correct PhysX's drives, which hold nothing here
+# (`slides`: a drive's measure on a turning slide); the others act on PhysX in ways a joint force does not
+JOINT_SPACE = frozenset({"tendons", "actuators", "stiffness", "rows", "slides", "drives", "fluid", "gravcomp"})
+
+
+def eligible(model: mujoco.MjModel, rows: RowTerm | None, planned: set[str]) -> str | None:
+    """None where MuJoCo's step can give the joint forces, else why not."""
+    if rows is None:
+        return "the model has no constraint rows (no limits, friction, couplings or own contacts)"
+    if rows.scalar is None:
+        return "a joint is not a hinge or slide of its own SAPIEN DoF (a free or ball joint)"
+    if int(model.opt.integrator) not in INTEGRATORS:
+        return "RK4 integrates four stages, no one force gives its step"
+    others = sorted(planned - JOINT_SPACE)
+    if others:
+        return f"the {', '.join(others)} term acts on PhysX outside the joint forces"
+    return None
+
+
+class MujocoStep:
+    """The joint forces of MuJoCo's own step at SAPIEN's state, solved on the rows' copy (`rows`) and written as
+    `qf` by the drive writer (`writer`), whose drives it zeroes."""
+
+    def __init__(self, model: mujoco.MjModel, rows: RowTerm, writer):
+        self.rows, self.writer = rows, writer
+        self.integrate = INTEGRATORS[int(model.opt.integrator)]
+        self.inertia = np.zeros((model.nv, model.nv))
+        self.zeroed = False  # PhysX's drives hold nothing
+
+    def contribute(self, step: Step) -> None:
+        rows = self.rows
+        if not rows.soft:
+            rows.hold(step.joints, soft=True)
+        rows.clear_of(step)
+        data = rows.data
+        with rows.lent as model:
+            rows.mirror_state(step)
+            solve(model, data, rows.with_contacts, step.timestep, rows.depenetration, not rows.mujocos)
+            constraint = rows.joint_rows()
+            if rows.accelerated:  # Euler integrates the solver's qacc: the forces themselves
+                force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied + constraint
+                data.qacc_warmstart[:] = data.qacc
+            else:
+                data.qfrc_constraint[:] = constraint
+                velocity, bias = data.qvel.copy(), data.qfrc_bias.copy()
+                mujoco.mj_fullM(model, data, self.inertia)
+                self.integrate(model, data)  # v1; it keeps qacc for the next solve's warm start, as mj_step does
+                force = self.inertia @ ((data.qvel - velocity) / step.timestep) + bias
+        step.force[:] = 0.0
+        step.force[rows.scalar] = force
+        if not self.zeroed:
+            self.zero(step.layout.joints)
+        self.writer.write_qf(step)
+
+    def zero(self, joints: list) -> None:
+        """PhysX's drives hold nothing; the writer writes every setting again when the terms take over."""
+        for joint in joints:
+            joint.set_drive_properties(0.0, 0.0, 0.0, "force")
+        if self.writer.written is not None:
+            self.writer.written[:] = np.nan
+        if isinstance(self.writer, DriveForces):
+            self.writer.zeroed = True
+        self.zeroed = True
+
+    def release(self, handover: Handover) -> None:
+        self.zeroed = False
