@@ -132,6 +132,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
     sapien_s, _ = _timed(lambda: sapien_rollout(result, model, qpos0, qvel0, command))
     set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
     stages = _stage_costs(result, steps)
+    whole = _mujoco_step_cost(result, steps)
     batched = batch_costs(path, steps)
     return {
         **row,
@@ -142,6 +143,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
         "physx_step_us": 1e6 * step_s / steps,
         "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
         "set_ctrl_stages_us": stages,
+        "mujoco_step": whole,
         "batch": batched,
         "nbody": model.nbody,
         "nv": model.nv,
@@ -163,6 +165,23 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
         set_ctrl_s, step_s = set_ctrl_s + t1 - t0, step_s + time.perf_counter() - t1
     result.disable_actuators(True)
     return set_ctrl_s, step_s
+
+
+def _mujoco_step_cost(result, steps: int) -> dict:
+    """`_set_ctrl_cost` with MuJoCo's own step giving the joint forces (`Controller.use_mujoco_step`), or why it
+    cannot run on this model."""
+    why = result.controller.use_mujoco_step()
+    try:
+        if why is not None:
+            return {"not_used": why}
+        set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
+    finally:
+        result.controller.use_mujoco_step(False)
+    return {
+        "set_ctrl_us": 1e6 * set_ctrl_s / steps,
+        "physx_step_us": 1e6 * step_s / steps,
+        "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
+    }
 
 
 def batch_costs(path: str, steps: int, counts: tuple[int, ...] = COPIES) -> dict[str, dict]:
@@ -215,6 +234,12 @@ def _stage_costs(result, steps: int) -> dict[str, float]:
     return out
 
 
+def _set_ctrl_ratio(figures: list[tuple[int, dict]]) -> float | None:
+    """All of `set_ctrl`'s time over all of PhysX's, from (steps, figures per step) pairs."""
+    step_us = sum(steps * figure["physx_step_us"] for steps, figure in figures)
+    return sum(steps * figure["set_ctrl_us"] for steps, figure in figures) / step_us if step_us > 0 else None
+
+
 def totals(models: dict) -> dict:
     """Sums over the timed models (load over compile of the sums, steps per second over all steps), and the models
     whose load misses its target (`over_target`), cold and warm."""
@@ -228,9 +253,14 @@ def totals(models: dict) -> dict:
     for side in ("mujoco", "sapien"):
         seconds = sum(row["steps"] / row[f"harness_{side}_steps_per_s"] for row in rows)
         out[f"harness_{side}_steps_per_s"] = steps / seconds if seconds > 0 else None
-    set_ctrl_s = sum(row["set_ctrl_us"] * row["steps"] for row in rows)
-    step_s = sum(row["physx_step_us"] * row["steps"] for row in rows)
-    out["set_ctrl_over_step"] = set_ctrl_s / step_s if step_s > 0 else None
+    out["set_ctrl_over_step"] = _set_ctrl_ratio([(row["steps"], row) for row in rows])
+    driven = [row for row in rows if "set_ctrl_us" in row.get("mujoco_step", {})]
+    if driven:  # the models MuJoCo's step can drive: set_ctrl over PhysX's step with it, and with the terms
+        out["mujoco_step"] = {
+            "models": len(driven),
+            "set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row["mujoco_step"]) for row in driven]),
+            "terms_set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row) for row in driven]),
+        }
     batched = [row["batch"] for row in rows if "batch" in row]
     out["batch_set_ctrl_over_step"] = {
         count: sum(b[count]["set_ctrl_us_per_copy"] for b in batched)

@@ -132,7 +132,8 @@ def parser() -> argparse.ArgumentParser:
         type=_loader,
         default=None,
         help="the loader judged: ours (this project's, the "
-        "default) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)",
+        "default), mujoco_step (ours, its joint forces from MuJoCo's own step where the model allows), physx (ours "
+        "without set_ctrl) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)",
     )
     run.add_argument(
         "--compare",

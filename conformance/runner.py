@@ -14,7 +14,7 @@ from tqdm import tqdm
 
 from . import corpus, executors, summary
 from .loaders import DEFAULT as DEFAULT_LOADER
-from .loaders import DISTRIBUTIONS, SKIPS
+from .loaders import DISTRIBUTIONS, OWN, SKIPS
 from .manifest import TIER_NAMES, Expectation, ModelEntry
 from .results import ModelResult
 from .versions import versions
@@ -80,7 +80,7 @@ def foreign(entries: list[ModelEntry], loader: str) -> list[ModelEntry]:
     project's loader, so they are dropped (those tiers are expected to pass); what the model itself decides stays
     (a tier skipped for the model's reason, a load error MuJoCo gives), and the tiers the loader cannot take part
     in are expected skipped (`loaders.SKIPS`)."""
-    if loader == DEFAULT_LOADER:
+    if loader in OWN:
         return entries
     cannot = {t: Expectation(t, "skipped", why) for t, why in SKIPS.get(loader, {}).items()}
     return [

@@ -40,6 +40,8 @@ def test_bench_writes_timings_per_model(tmp_path):
             size["set_ctrl_us_per_copy"] / size["physx_step_us_per_copy"]
         )
         assert {"stiffness", "drives"} <= set(size["batched_stages"])
+    whole = row["mujoco_step"]  # the pendulum's hinges are MuJoCo's coordinates: its step can drive them
+    assert whole["set_ctrl_over_step"] == pytest.approx(whole["set_ctrl_us"] / whole["physx_step_us"])
     assert "nope.xml" in doc["models"]["missing"]["skipped"]
     assert doc["versions"]["sapien"]
     totals = doc["totals"]
@@ -48,6 +50,13 @@ def test_bench_writes_timings_per_model(tmp_path):
         assert totals[key] == pytest.approx(row[key])
     assert totals["harness_sapien_steps_per_s"] == pytest.approx(row["harness_sapien_steps_per_s"])
     assert totals["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_over_step"])
+    assert totals["mujoco_step"] == pytest.approx(
+        {
+            "models": 1,
+            "set_ctrl_over_step": whole["set_ctrl_over_step"],
+            "terms_set_ctrl_over_step": row["set_ctrl_over_step"],
+        }
+    )
     assert totals["batch_set_ctrl_over_step"] == pytest.approx({n: b["set_ctrl_over_step"] for n, b in batch.items()})
     for when, prefix in (("warm", ""), ("cold", "cold_")):
         assert totals["over_target"][when] == (["pendulum"] if over_target(row, prefix) else [])

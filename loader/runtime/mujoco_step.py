@@ -8,11 +8,15 @@ velocity v1, and PhysX, stepping `qf` explicitly with the same joint-space inert
     qf = M (v1 - v0) / dt + c.
 
 v1 comes from MuJoCo's own integrator (implicit damping, actuator kv, the implicitfast and implicit derivatives), its
-constraint force replaced by the rows SAPIEN takes (the contacts PhysX applies left out); Euler without implicit
-damping integrates the solver's acceleration, and there `qf` is the forces themselves. PhysX's drives hold nothing,
-its limits stand out of the rows' way. The law is MuJoCo's wherever SAPIEN's coordinates are MuJoCo's: every joint a
-hinge or slide, each SAPIEN DoF one MuJoCo DoF (`eligible` says where it is not, and the terms run instead)
-(tests/test_loader_mujoco_step.py).
+constraint force replaced by the rows SAPIEN takes (the contacts PhysX applies left out). A DoF MuJoCo damps
+implicitly more than its inertia holds over a step (dt D > M_ii at qpos0, as `drive_writer.py` judges) keeps that
+damping D in its PhysX drive, with v1 as the drive's velocity target: where PhysX's inertia is
+MuJoCo's the drive holds no force at v1, and where it differs a little (float32) the drive holds the joint to v1
+rather than let M's error scale a large velocity change (a light link under a heavy servo, dt D > M). Euler without
+implicit damping integrates the solver's acceleration: there `qf` is the forces themselves and the drives hold
+nothing. PhysX's limits stand out of the rows' way. The law is MuJoCo's wherever SAPIEN's coordinates are
+MuJoCo's: every joint a hinge or slide, each SAPIEN DoF one MuJoCo DoF (`eligible` says where it is not, and the
+terms run instead) (tests/test_loader_mujoco_step.py).
 """
 
 from __future__ import annotations
@@ -53,11 +57,14 @@ class MujocoStep:
     """The joint forces of MuJoCo's own step at SAPIEN's state, solved on the rows' copy (`rows`) and written as
     `qf` by the drive writer (`writer`), whose drives it zeroes."""
 
-    def __init__(self, model: mujoco.MjModel, rows: RowTerm, writer):
+    def __init__(self, model: mujoco.MjModel, rows: RowTerm, writer, damping: np.ndarray):
         self.rows, self.writer = rows, writer
         self.integrate = INTEGRATORS[int(model.opt.integrator)]
         self.inertia = np.zeros((model.nv, model.nv))
-        self.zeroed = False  # PhysX's drives hold nothing
+        # per drive DoF, the damping MuJoCo's integrator holds implicitly (none where it integrates the forces)
+        self.damping = np.zeros_like(damping) if rows.accelerated else damping
+        self.damped = self.damping.nonzero()[0]
+        self.zeroed = False  # PhysX's drives hold only `damping` (`zero`)
 
     def contribute(self, step: Step) -> None:
         rows = self.rows
@@ -82,12 +89,19 @@ class MujocoStep:
         step.force[rows.scalar] = force
         if not self.zeroed:
             self.zero(step.layout.joints)
+        if self.damped.size:
+            ends = step.v.copy()
+            ends[rows.scalar] = data.qvel  # v1, end to end
+            joints, ends = step.layout.joints, ends[step.layout.flat]
+            for i in self.damped.tolist():
+                joints[i].set_drive_velocity_target(float(ends[i]))
         self.writer.write_qf(step)
 
     def zero(self, joints: list) -> None:
-        """PhysX's drives hold nothing; the writer writes every setting again when the terms take over."""
-        for joint in joints:
-            joint.set_drive_properties(0.0, 0.0, 0.0, "force")
+        """PhysX's drives hold only the implicit damping (no stiffness, no target yet); the writer writes every
+        setting again when the terms take over."""
+        for joint, damping in zip(joints, self.damping.tolist()):
+            joint.set_drive_properties(0.0, damping, np.inf if damping else 0.0, "force")
         if self.writer.written is not None:
             self.writer.written[:] = np.nan
         if isinstance(self.writer, DriveForces):
