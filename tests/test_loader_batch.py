@@ -8,7 +8,7 @@ import pytest
 
 from conformance.session import quiet_load
 from loader import Batch, ControlError
-from tests.support.corpus import menagerie_root, mjcf_file, suite_path
+from tests.support.corpus import FIXTURES, menagerie_root, mjcf_file, suite_path
 
 COPIES = 3
 STEPS = 60
@@ -153,6 +153,25 @@ def test_a_batch_under_tgs_steps_each_copy_as_its_own_set_ctrl(monkeypatch):
     assert _tgs_batch_against_lone_copies() == 0.0
     monkeypatch.setattr(DriveForces, "batch", DriveWriter.batch)
     assert _tgs_batch_against_lone_copies() > 1e-3
+
+
+def test_a_batch_of_copies_on_mujocos_own_step_steps_each_as_its_own_set_ctrl():
+    """Copies whose joint forces come from MuJoCo's own step (`use_mujoco_step`) step in a batch exactly as alone.
+    Mutation: the batch running the terms' stages on them instead (1.0e-7 rad apart after 60 steps)."""
+    path = FIXTURES / "folding_servo_arm.xml"
+    batch_results, lone = copies(path, COPIES), copies(path, COPIES)
+    for result in (*batch_results, *lone):
+        assert result.controller.use_mujoco_step() is None
+    batch, model, rng = Batch(batch_results), lone[0].model, np.random.default_rng(3)
+    for _ in range(STEPS):
+        ctrl = rng.uniform(-1.0, 1.0, size=(COPIES, model.nu))
+        batch.step(ctrl)
+        for k, result in enumerate(lone):
+            result.set_ctrl(ctrl[k])
+            result.scene.step()
+    for a, b in zip(batch_results, lone):
+        np.testing.assert_array_equal(a.get_state()[0], b.get_state()[0])
+    assert batch.batched == []
 
 
 def test_a_batch_refuses_a_command_per_copy_of_the_wrong_shape(tmp_path):

@@ -70,7 +70,8 @@ class Batch:
             self.seen, self.alike = compilations, self.plans_alike()
         running = [c.running for c in self.controllers]
         kept = [k for k, step in enumerate(steps) if step is not None]
-        if len(kept) < len(self) or not self.alike:  # a copy not finite, or edited apart from the others
+        whole = any(c.whole is not None for c in self.controllers)  # MuJoCo's own step: one call per copy anyway
+        if len(kept) < len(self) or not self.alike or whole:  # a copy not finite, or edited apart from the others
             self.batched = []
             for k in kept:
                 self.controllers[k].run(steps[k])
