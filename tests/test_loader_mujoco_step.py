@@ -201,8 +201,8 @@ def test_a_heavy_servo_on_a_light_link_is_held_to_mujocos_velocity(path, monkeyp
     assert one_step_qvel() < limit
     init = mujoco_step.MujocoStep.__init__
 
-    def undamped(self, model, rows, writer, damping):
-        init(self, model, rows, writer, np.zeros_like(damping))
+    def undamped(self, model, rows, writer, damping, layout):
+        init(self, model, rows, writer, np.zeros_like(damping), layout)
 
     monkeypatch.setattr(mujoco_step.MujocoStep, "__init__", undamped)
     assert one_step_qvel() > limit

@@ -217,7 +217,7 @@ class Controller:
         laws, inertia = self.drive_laws(), dof_inertia(self.model, self.mapping)
         damping = np.array([laws[key].damping for key in self.layout.keys])
         heavy = self.timestep * damping > np.array([inertia[key] for key in self.layout.keys])
-        return MujocoStep(self.model, rows, writer, np.where(heavy, damping, 0.0))
+        return MujocoStep(self.model, rows, writer, np.where(heavy, damping, 0.0), self.layout)
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;
@@ -328,8 +328,11 @@ class Controller:
 
     def settle(self) -> None:
         """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
+        settlers = [term for term in self.terms if type(term).settle is not Term.settle]
+        if not settlers:
+            return
         wrenches = self.wrenches()
-        for term in self.terms:
+        for term in settlers:
             if self.timings is None:
                 term.settle(self.articulations, wrenches)
             else:

@@ -26,14 +26,14 @@ def accelerated(model: mujoco.MjModel) -> bool:
     return integrator == RK4 or (integrator == EULER and (mj.explicit_damping(model) or not np.any(model.dof_damping)))
 
 
-def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray, qacc: bool) -> np.ndarray:
-    """The generalized force of the constraint rows `rows` (a mask over data's rows) that MuJoCo's step integrates
-    (`qacc`: it integrates the solver's qacc). The other rows are contacts, solved with them while SAPIEN has
-    contacts, which PhysX applies."""
+def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray | None, qacc: bool) -> np.ndarray:
+    """The generalized force of the constraint rows `rows` (a mask over data's rows; None: all) that MuJoCo's step
+    integrates (`qacc`: it integrates the solver's qacc). The other rows are contacts, solved with them while SAPIEN
+    has contacts, which PhysX applies."""
     force = np.zeros(model.nv)
     if not data.nefc:
         return force
-    whole = rows.all()
+    whole = rows is None or bool(rows.all())
     if not qacc:
         if whole:
             return data.qfrc_constraint

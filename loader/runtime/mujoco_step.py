@@ -24,7 +24,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .dof_step import Step
+from .dof_step import DofLayout, Step
 from .drive_forces import DriveForces
 from .rows import RowTerm, solve
 from .term import Handover
@@ -57,13 +57,17 @@ class MujocoStep:
     """The joint forces of MuJoCo's own step at SAPIEN's state, solved on the rows' copy (`rows`) and written as
     `qf` by the drive writer (`writer`), whose drives it zeroes."""
 
-    def __init__(self, model: mujoco.MjModel, rows: RowTerm, writer, damping: np.ndarray):
+    def __init__(self, model: mujoco.MjModel, rows: RowTerm, writer, damping: np.ndarray, layout: DofLayout):
         self.rows, self.writer = rows, writer
         self.integrate = INTEGRATORS[int(model.opt.integrator)]
         self.inertia = np.zeros((model.nv, model.nv))
         # per drive DoF, the damping MuJoCo's integrator holds implicitly (none where it integrates the forces)
         self.damping = np.zeros_like(damping) if rows.accelerated else damping
-        self.damped = self.damping.nonzero()[0]
+        damped = self.damping.nonzero()[0]
+        dof_of_flat = np.zeros(layout.size, dtype=int)
+        dof_of_flat[rows.scalar] = np.arange(rows.scalar.size)
+        self.damped_dofs = dof_of_flat[layout.flat[damped]]  # their MuJoCo DoFs, and their PhysX joints
+        self.damped_joints = [layout.joints[i] for i in damped.tolist()]
         self.zeroed = False  # PhysX's drives hold only `damping` (`zero`)
 
     def contribute(self, step: Step) -> None:
@@ -89,12 +93,9 @@ class MujocoStep:
         step.force[rows.scalar] = force
         if not self.zeroed:
             self.zero(step.layout.joints)
-        if self.damped.size:
-            ends = step.v.copy()
-            ends[rows.scalar] = data.qvel  # v1, end to end
-            joints, ends = step.layout.joints, ends[step.layout.flat]
-            for i in self.damped.tolist():
-                joints[i].set_drive_velocity_target(float(ends[i]))
+        if self.damped_joints:
+            for joint, velocity in zip(self.damped_joints, data.qvel[self.damped_dofs].tolist()):
+                joint.set_drive_velocity_target(velocity)
         self.writer.write_qf(step)
 
     def zero(self, joints: list) -> None:

@@ -288,9 +288,7 @@ class RowTerm(Term):
         """The force of the rows SAPIEN takes from MuJoCo, as MuJoCo's step integrates it (`integrated.py`): every
         row where the model's own contacts are MuJoCo's, else the joint-space rows alone (the contact rows, solved
         with them, are PhysX's to apply)."""
-        rows = JOINT_ROW[self.data.efc_type[: self.data.nefc]]
-        if self.mujocos:
-            rows = np.ones_like(rows)
+        rows = None if self.mujocos else JOINT_ROW[self.data.efc_type[: self.data.nefc]]
         return integrated_force(self.lent.model, self.data, rows, self.accelerated)
 
     def mirror_state(self, step: Step) -> None:
