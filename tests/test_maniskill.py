@@ -168,9 +168,11 @@ def test_an_arm_holds_its_keyframe_under_zero_delta_actions_as_in_mujoco(agents)
     assert worst < HOLD_TOLERANCE
 
 
-def _follow(agent_class, sim_freq: int, tgs: bool) -> float:
+def _follow(agent_class, sim_freq: int, tgs: bool, mujoco_step: bool = True) -> tuple[float, bool]:
     """The largest |ManiSkill - MuJoCo| joint position over 1 s of `mujoco_ctrl` (a sine on the joint actuators'
-    ctrl around the first keyframe), MuJoCo stepped with the same ctrl at the scene's timestep."""
+    ctrl around the first keyframe), MuJoCo stepped with the same ctrl at the scene's timestep; the joint forces
+    from MuJoCo's own step (the mode's default, where the robot allows) or from the per-step terms; and whether MuJoCo's
+    step gave them."""
     model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
     file_timestep = model.opt.timestep
     model.opt.timestep = 1.0 / sim_freq
@@ -188,6 +190,8 @@ def _follow(agent_class, sim_freq: int, tgs: bool) -> float:
     try:
         env.reset(seed=0)
         (result,) = env.unwrapped.agent.results
+        if not mujoco_step:
+            result.controller.use_mujoco_step(False)
         result.reset(key)
         around = model.key_ctrl[0] if key is not None else np.zeros(model.nu)
         joint_actuators = model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT
@@ -199,24 +203,31 @@ def _follow(agent_class, sim_freq: int, tgs: bool) -> float:
             for _ in range(sim_freq // 100):
                 mujoco.mj_step(model, data)
             worst = max(worst, float(np.abs(result.get_state()[0] - data.qpos).max()))
+        whole = result.controller.whole is not None
     finally:
         env.close()
-    return worst
+    return worst, whole
 
 
 @pytest.mark.parametrize(("robot", "sim_freq"), [("panda", 500), ("panda", 100), ("acrobot", 100)])
 def test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl(agents, robot, sim_freq):
-    assert _follow(agents[robot], sim_freq, tgs=False) < FOLLOW_TOLERANCE
+    worst, whole = _follow(agents[robot], sim_freq, tgs=False)
+    assert worst < FOLLOW_TOLERANCE
+    assert whole == (robot == "panda")  # the acrobot's RK4 keeps the terms
 
 
+@pytest.mark.parametrize("mujoco_step", [True, False], ids=["mujoco_step", "terms"])
 @pytest.mark.parametrize("sim_freq", [500, 100])
-def test_mujoco_ctrl_follows_mujoco_under_maniskills_default_solver(agents, sim_freq, monkeypatch):
-    """README's example as written: ManiSkill's default scene configuration steps with TGS, under which the drives
-    are written as joint forces (loader/runtime/drive_forces.py); with TGS left to step them, the panda does not
+def test_mujoco_ctrl_follows_mujoco_under_maniskills_default_solver(agents, sim_freq, mujoco_step, monkeypatch):
+    """README's example as written: ManiSkill's default scene configuration steps with TGS. The mode's joint forces
+    come from MuJoCo's own step (loader/runtime/mujoco_step.py), or from the terms, which write the drives as joint
+    forces under TGS (loader/runtime/drive_forces.py); with TGS left to step the terms' drives, the panda does not
     follow."""
-    assert _follow(agents["panda"], sim_freq, tgs=True) < TGS_FOLLOW_TOLERANCE
-    monkeypatch.setattr(physx_settings, "uses_tgs", lambda scene: False)
-    assert _follow(agents["panda"], sim_freq, tgs=True) > 10 * TGS_FOLLOW_TOLERANCE
+    worst, whole = _follow(agents["panda"], sim_freq, tgs=True, mujoco_step=mujoco_step)
+    assert worst < TGS_FOLLOW_TOLERANCE and whole == mujoco_step
+    if not mujoco_step:
+        monkeypatch.setattr(physx_settings, "uses_tgs", lambda scene: False)
+        assert _follow(agents["panda"], sim_freq, tgs=True, mujoco_step=False)[0] > 10 * TGS_FOLLOW_TOLERANCE
 
 
 def _pd_walk(agent_class, sim_freq: int = 500) -> float:

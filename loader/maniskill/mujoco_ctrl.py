@@ -13,6 +13,8 @@ from gymnasium import spaces
 from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
 from mani_skill.utils import common
 
+from ..errors import command_vector
+
 
 class MujocoCtrlController(BaseController):
     """Holds the last action as `ctrl`; `set_ctrl` on each sub-scene's `LoadResult` before every physics step."""
@@ -41,12 +43,16 @@ class MujocoCtrlController(BaseController):
             result.set_act(None)
 
     def set_action(self, action):
+        """The action as MuJoCo's ctrl, checked once here (`ControlError` for a non-finite entry) rather than in
+        each of the physics steps it is held over."""
         action = common.to_numpy(self._preprocess_action(action))
-        self.ctrl = np.asarray(action, np.float64).reshape(-1, len(self.config.low))[0]
+        ctrl = np.asarray(action, np.float64).reshape(-1, len(self.config.low))[0]
+        result = self.config.results[0]
+        self.ctrl = command_vector(result.path, "ctrl", ctrl, len(self.config.low), "actuators (nu)")
 
     def before_simulation_step(self):
         for result in self.config.results:
-            result.set_ctrl(self.ctrl)
+            result.controller.set_ctrl(self.ctrl)
 
 
 @dataclass

@@ -137,6 +137,10 @@ class DriveWriter(Term):
     @staticmethod
     def write_qf(step: Step) -> None:
         """The gathered generalized forces, per articulation, as PhysX's `qf`."""
+        if len(step.articulations) == 1:
+            if step.articulations[0].dof:
+                step.articulations[0].set_qf(step.force.astype(np.float32))
+            return
         for articulation, qf in zip(step.articulations, step.layout.split(step.force)):
             if articulation.dof:
                 articulation.set_qf(qf.astype(np.float32))

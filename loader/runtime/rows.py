@@ -38,6 +38,7 @@ JOINT_ROWS = tuple(
     int(getattr(mujoco.mjtConstraint, f"mjCNSTR_{name}"))
     for name in ("LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON", "EQUALITY")
 )  # the copy's equality rows: joint and tendon couplings
+ACTUATION_OFF, CONTACT_OFF = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION), int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
 JOINT_ROW = np.isin(np.arange(len(mujoco.mjtConstraint.__members__)), JOINT_ROWS)  # per row type: a joint-space row
 
 
@@ -295,9 +296,8 @@ class RowTerm(Term):
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
         and actuation off while the loader's actuators are."""
         data, model = self.data, self.lent.model
-        actuation = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
-        flags = (self.flags | actuation) if not step.actuated else self.flags
-        model.opt.disableflags = flags if self.with_contacts else flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        flags = (self.flags | ACTUATION_OFF) if not step.actuated else self.flags
+        model.opt.disableflags = flags if self.with_contacts else flags | CONTACT_OFF
         if self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
             data.qpos[:], data.qvel[:] = step.q[self.scalar], step.v[self.scalar]
         else:
@@ -367,9 +367,9 @@ def solve(
     while one is too deep for PhysX's push (`deep_contact`)."""
     mujoco.mj_forward(mirror, data)
     if contacts and physx and deep_contact(data, timestep, depenetration):
-        mirror.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        mirror.opt.disableflags |= CONTACT_OFF
         mujoco.mj_forward(mirror, data)
-        mirror.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        mirror.opt.disableflags &= ~CONTACT_OFF
 
 
 def scalar_state(model: mujoco.MjModel, mapping: Mapping, layout) -> np.ndarray | None:
