@@ -245,3 +245,17 @@ def test_mujocos_implicit_integrator_is_its_own_under_mujoco_step():
     step integrates with its own derivatives (2.5e-7, mujoco 3.17.0, sapien 3.0.3)."""
     assert _implicit_cheetah(whole=True) < TOLERANCE
     assert _implicit_cheetah(whole=False) > 10 * TOLERANCE
+
+
+# rad, Menagerie panda under PGS over 0.5 s (its fingers slide on the turning hand): measured 7.2e-7 with those slides
+# undriven, 2.3e-5 with their damping in a drive toward v1 (mujoco 3.17.0, sapien 3.0.3)
+TURNING_SLIDE_TOLERANCE = 5e-6
+
+
+@pytest.mark.parametrize("path", [_menagerie("franka_emika_panda/panda.xml", "panda")])
+def test_a_slide_on_a_turning_link_keeps_no_drive(path, monkeypatch):
+    """PhysX's drive measures a slide's velocity on a turning link short of the centripetal term, so a drive toward
+    MuJoCo's v1 there pulls the fingers off it. Mutation: the slides driven like every other damped DoF."""
+    assert _rollout(path, tgs=False) < TURNING_SLIDE_TOLERANCE
+    monkeypatch.setattr("loader.runtime.controller.map_slides", lambda articulations: [])
+    assert _rollout(path, tgs=False) > TURNING_SLIDE_TOLERANCE

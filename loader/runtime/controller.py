@@ -214,10 +214,10 @@ class Controller:
             return None
         if self.whole is not None and self.whole.rows is rows:
             return self.whole
-        laws, inertia = self.drive_laws(), dof_inertia(self.model, self.mapping)
-        damping = np.array([laws[key].damping for key in self.layout.keys])
-        heavy = self.timestep * damping > np.array([inertia[key] for key in self.layout.keys])
-        return MujocoStep(self.model, rows, writer, np.where(heavy, damping, 0.0), self.layout)
+        laws = self.drive_laws()
+        turning = {(slide.articulation, slide.dof) for slide in map_slides(self.articulations)}
+        damping = [0.0 if key in turning else laws[key].damping for key in self.layout.keys]
+        return MujocoStep(self.model, rows, writer, np.array(damping), self.layout)
 
     def set_ctrl(self, ctrl, qfrc_applied: np.ndarray | None = None, advance: bool = True) -> None:
         """One step's drives and `qf` for MuJoCo's `ctrl` (None: zeros) and `qfrc_applied` (MuJoCo's layout, nv;

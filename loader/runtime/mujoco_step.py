@@ -7,14 +7,14 @@ velocity v1, and PhysX, stepping `qf` explicitly with the same joint-space inert
 
     qf = M (v1 - v0) / dt + c.
 
-v1 comes from MuJoCo's own integrator (implicit damping, actuator kv, the implicitfast and implicit derivatives), its
-constraint force replaced by the rows SAPIEN takes (the contacts PhysX applies left out). A DoF MuJoCo damps
-implicitly more than its inertia holds over a step (dt D > M_ii at qpos0, as `drive_writer.py` judges) keeps that
-damping D in its PhysX drive, with v1 as the drive's velocity target: where PhysX's inertia is
-MuJoCo's the drive holds no force at v1, and where it differs a little (float32) the drive holds the joint to v1
-rather than let M's error scale a large velocity change (a light link under a heavy servo, dt D > M). Euler without
-implicit damping integrates the solver's acceleration: there `qf` is the forces themselves and the drives hold
-nothing. PhysX's limits stand out of the rows' way. The law is MuJoCo's wherever SAPIEN's coordinates are
+v1 comes from MuJoCo's own integrator (implicit damping, actuator kv, the implicitfast and implicit derivatives),
+its constraint force replaced by the rows SAPIEN takes (the contacts PhysX applies left out). A damped DoF keeps its
+damping D in its PhysX drive, with v1 as the drive's velocity target: where PhysX's inertia is MuJoCo's the drive
+holds no force at v1, and where float32 makes them differ a little the drive holds the joint to v1, where `qf` alone
+would let M's error scale the step's velocity change (a light link under a heavy servo, dt D > M). A slide on a
+turning link keeps no drive: PhysX's drive measures its velocity short of the centripetal term (`slides.py`). Euler
+without implicit damping integrates the solver's acceleration: there `qf` is the forces themselves and the drives
+hold nothing. PhysX's limits stand out of the rows' way. The law is MuJoCo's wherever SAPIEN's coordinates are
 MuJoCo's: every joint a hinge or slide, each SAPIEN DoF one MuJoCo DoF (`eligible` says where it is not, and the
 terms run instead) (tests/test_loader_mujoco_step.py).
 """
@@ -61,7 +61,7 @@ class MujocoStep:
         self.rows, self.writer = rows, writer
         self.integrate = INTEGRATORS[int(model.opt.integrator)]
         self.inertia = np.zeros((model.nv, model.nv))
-        # per drive DoF, the damping MuJoCo's integrator holds implicitly (none where it integrates the forces)
+        # per drive DoF, the damping its PhysX drive holds toward v1 (none where MuJoCo integrates the forces)
         self.damping = np.zeros_like(damping) if rows.accelerated else damping
         damped = self.damping.nonzero()[0]
         dof_of_flat = np.zeros(layout.size, dtype=int)
