@@ -92,7 +92,7 @@ def _without_bias(monkeypatch):
 
 
 def _without_rows(monkeypatch):
-    monkeypatch.setattr(RowTerm, "joint_rows", lambda self: np.zeros(self.lent.model.nv))
+    monkeypatch.setattr(RowTerm, "joint_rows", lambda self, accelerated=None: np.zeros(self.lent.model.nv))
 
 
 def _explicit(monkeypatch):
@@ -116,23 +116,43 @@ def test_a_mistake_in_the_law_leaves_mujoco(mistake, path, monkeypatch):
 
 RK4 = """
 <mujoco>
-  <option integrator="RK4"/>
+  <option integrator="RK4"><flag contact="disable"/></option>
   <worldbody>
-    <body><joint name="h" axis="0 1 0" range="-1 1"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
+    <body><joint name="h" axis="0 1 0" damping=".5"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/></body>
   </worldbody>
   <actuator><motor joint="h"/></actuator>
 </mujoco>
 """
 
 
-def test_where_mujoco_step_cannot_drive_the_terms_run(tmp_path):
+def test_a_model_without_rows_on_rk4_is_stepped_by_mujocos_euler(tmp_path):
+    """A damped pendulum with no constraint row (no limit, contacts off) on RK4: MuJoCo's step runs on a copy made
+    for it and, as the terms do, takes RK4 as Euler, whose run it follows. Mutation: Euler's implicit damping taken as
+    explicit (its solver's qacc integrated): 5.4e-3 rad, against 3.7e-7."""
+    path = mjcf_file(tmp_path, RK4)
+    result = _load(path)
+    assert result.controller.use_mujoco_step() is None
+    model = result.model
+    euler = mujoco.MjModel.from_xml_path(str(path))
+    euler.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+
+    def worst(result) -> float:
+        return float(replay(result, model, lambda step, data: np.sin(0.05 * step), 0.5, reference=euler).max())
+
+    assert worst(result) < TOLERANCE
+    mistaken = _load(path)
+    mistaken.controller.use_mujoco_step()
+    mistaken.set_ctrl(None)
+    whole = mistaken.controller.whole  # as if Euler integrated the solver's qacc here: damping explicit, no drive
+    whole.accelerated, whole.damped_joints, whole.zeroed = True, [], False
+    whole.damping[:] = 0.0
+    assert worst(mistaken) > 10 * TOLERANCE
+
+
+def test_where_mujoco_step_cannot_drive_the_terms_run():
     """Each reason the terms run all the same, and MuJoCo's step back once the reason is gone."""
     floating = _load(suite_path("humanoid")).controller
     assert "free or ball" in floating.use_mujoco_step()
-    assert "RK4" in _load(mjcf_file(tmp_path, RK4)).controller.use_mujoco_step()
-    unlimited = RK4.replace('range="-1 1"', "").replace('integrator="RK4"/>', '><flag contact="disable"/></option>')
-    rowless = mjcf_file(tmp_path, unlimited, "rowless.xml")
-    assert "no constraint rows" in _load(rowless).controller.use_mujoco_step()
     result = _load(FIXTURES / "folding_servo_arm.xml")
     controller = result.controller
     assert controller.use_mujoco_step() is None
@@ -259,3 +279,27 @@ def test_a_slide_on_a_turning_link_keeps_no_drive(path, monkeypatch):
     assert _rollout(path, tgs=False) < TURNING_SLIDE_TOLERANCE
     monkeypatch.setattr("loader.runtime.controller.map_slides", lambda articulations: [])
     assert _rollout(path, tgs=False) > TURNING_SLIDE_TOLERANCE
+
+
+# the dynamics tier's one-step qacc on the Menagerie panda with its actuators off (its servos' kv out of MuJoCo's
+# implicit damping): measured 3.8e-4 with the passive damping in the drives, 8.2e-4 with the servos' kv left in (the
+# terms: 2.3e-4; the tier's tolerance 2e-3) (mujoco 3.17.0, sapien 3.0.3)
+ACTUATORS_OFF_QACC = 6e-4
+
+
+@pytest.mark.parametrize("path", [_menagerie("franka_emika_panda/panda.xml", "panda")])
+def test_the_drives_hold_the_damping_mujoco_holds_implicitly(path, monkeypatch):
+    """With the actuators off MuJoCo's step damps implicitly only the joints' own damping, and so do the drives
+    toward v1. Mutation: the servos' kv left in the drives."""
+    from conformance import tolerances
+    from conformance.loaders import open_with
+    from conformance.tiers.dynamics import dynamics
+
+    def one_step_qacc() -> float:
+        session = open_with("mujoco_step", str(path))
+        report = dynamics(session.result, session.model, 0, tolerances.load())
+        return next(metric.max for metric in report.metrics if metric.name == "one_step_qacc")
+
+    assert one_step_qacc() < ACTUATORS_OFF_QACC
+    monkeypatch.setattr("loader.runtime.controller.Controller.implicit_laws", lambda self: self.drive_laws())
+    assert one_step_qacc() > ACTUATORS_OFF_QACC

@@ -97,6 +97,8 @@ class Controller:
         self.mujoco_step = False  # asked for MuJoCo's own step as the joint forces (`use_mujoco_step`)
         self.edited = False  # a term or a law was handed out to change: MuJoCo's step would not see the change
         self.whole: MujocoStep | None = None  # `compile`'s: MuJoCo's step in place of the running terms
+        self.copy_for_step = None  # () -> a rows term to run MuJoCo's step on where the model has none (`plan`)
+        self.stepped_copy: Term | None = None  # that term, made at first use
 
     @property
     def timestep(self) -> float:
@@ -174,6 +176,7 @@ class Controller:
         laws = law_arrays([self.passive[key] for key in self.layout.keys])
         every = self.planned()
         compilation = Compilation(self.layout, laws, frozenset(term.name for term in every))
+        self.compilation = compilation
         for term in every:
             term.compile(compilation)
         self.base = np.concatenate([laws, np.zeros((3, laws.shape[1]))])
@@ -195,8 +198,30 @@ class Controller:
         self.compile()
         return None if self.whole is not None else self.why_not_whole()
 
+    def implicit_laws(self) -> dict[DofKey, DofDrive]:
+        """The laws whose damping MuJoCo's integrator holds implicitly this step, as the terms' drives hold it: the
+        passive laws where kv is explicit (Euler) or the actuators are off, else the drive laws with their kv
+        (tests/test_loader_mujoco_step.py::test_the_drives_hold_the_damping_mujoco_holds_implicitly)."""
+        if "actuators" in self.off or not self.options.implicit:
+            return self.passive
+        return self.drive_laws()
+
+    def rows_for_step(self):
+        """The rows term MuJoCo's step runs on: the model's own (None while switched off), or a copy made for it
+        where the model has no row."""
+        if "rows" in self.off:
+            return None
+        rows = self.term("rows", on=True)
+        if rows is None and self.copy_for_step is not None:
+            if self.stepped_copy is None:
+                self.stepped_copy = self.copy_for_step()
+                self.stepped_copy.with_contacts = False  # no row to solve with them: PhysX's alone
+            rows = self.stepped_copy
+            rows.compile(self.compilation)
+        return rows
+
     def why_not_whole(self) -> str:
-        rows = self.term("rows")
+        rows = self.term("rows") or self.rows_for_step()
         reason = eligible(self.model, rows, {term.name for term in self.planned()})
         if reason is not None:
             return reason
@@ -206,15 +231,13 @@ class Controller:
 
     def whole_step(self) -> MujocoStep | None:
         """MuJoCo's step in place of the running terms, where it holds their law (see `use_mujoco_step`)."""
-        rows, writer = self.term("rows", on=True), self.term("drives", on=True)
+        rows, writer = self.rows_for_step(), self.term("drives", on=True)
         planned = {term.name for term in self.planned()}
         if rows is None or writer is None or eligible(self.model, rows, planned) is not None:
             return None
         if self.edited or rows.lent.copied or set(self.off) - {"actuators"} or len(self.stages) != len(STAGES):
             return None
-        if self.whole is not None and self.whole.rows is rows:
-            return self.whole
-        laws = self.drive_laws()
+        laws = self.implicit_laws()
         turning = {(slide.articulation, slide.dof) for slide in map_slides(self.articulations)}
         damping = [0.0 if key in turning else laws[key].damping for key in self.layout.keys]
         return MujocoStep(self.model, rows, writer, np.array(damping), self.layout)
@@ -465,4 +488,9 @@ def plan(
     terms += [EqualityTerm(connects)] if connects else []
     momentum = plan_momentum(model, mapping, articulations, timestep, notes, scene)
     terms += [momentum] if momentum is not None else []
-    return Controller(model, options, mapping, articulations, passive, terms, activation, soft)
+    controller = Controller(model, options, mapping, articulations, passive, terms, activation, soft)
+    if rows is None:  # MuJoCo's own step needs the copy all the same
+        controller.copy_for_step = lambda: plan_rows(
+            model, mapping, unmapped, rowed, notes, standby, timestep, None, shapeless, needed=True
+        )
+    return controller

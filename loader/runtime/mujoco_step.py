@@ -24,13 +24,16 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from ..model import mj
 from .dof_step import DofLayout, Step
 from .drive_forces import DriveForces
 from .rows import RowTerm, solve
 from .term import Handover
 
-INTEGRATORS = {
-    int(mujoco.mjtIntegrator.mjINT_EULER): mujoco.mj_Euler,
+EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
+INTEGRATORS = {  # RK4 as Euler, as the loader simulates it (listed at load)
+    EULER: mujoco.mj_Euler,
+    RK4: mujoco.mj_Euler,
     int(mujoco.mjtIntegrator.mjINT_IMPLICIT): mujoco.mj_implicit,
     int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST): mujoco.mj_implicit,
 }
@@ -42,11 +45,9 @@ JOINT_SPACE = frozenset({"tendons", "actuators", "stiffness", "rows", "slides", 
 def eligible(model: mujoco.MjModel, rows: RowTerm | None, planned: set[str]) -> str | None:
     """None where MuJoCo's step can give the joint forces, else why not."""
     if rows is None:
-        return "the model has no constraint rows (no limits, friction, couplings or own contacts)"
+        return "no copy of the model for MuJoCo's step (a controller not made by `plan`)"
     if rows.scalar is None:
         return "a joint is not a hinge or slide of its own SAPIEN DoF (a free or ball joint)"
-    if int(model.opt.integrator) not in INTEGRATORS:
-        return "RK4 integrates four stages, no one force gives its step"
     others = sorted(planned - JOINT_SPACE)
     if others:
         return f"the {', '.join(others)} term acts on PhysX outside the joint forces"
@@ -60,9 +61,13 @@ class MujocoStep:
     def __init__(self, model: mujoco.MjModel, rows: RowTerm, writer, damping: np.ndarray, layout: DofLayout):
         self.rows, self.writer = rows, writer
         self.integrate = INTEGRATORS[int(model.opt.integrator)]
+        # Euler without implicit damping integrates the solver's acceleration, not one solved from the forces
+        self.accelerated = int(model.opt.integrator) in (EULER, RK4) and (
+            mj.disabled(model, "eulerdamp") or not np.any(model.dof_damping)
+        )
         self.inertia = np.zeros((model.nv, model.nv))
         # per drive DoF, the damping its PhysX drive holds toward v1 (none where MuJoCo integrates the forces)
-        self.damping = np.zeros_like(damping) if rows.accelerated else damping
+        self.damping = np.zeros_like(damping) if self.accelerated else damping
         damped = self.damping.nonzero()[0]
         dof_of_flat = np.zeros(layout.size, dtype=int)
         dof_of_flat[rows.scalar] = np.arange(rows.scalar.size)
@@ -79,8 +84,8 @@ class MujocoStep:
         with rows.lent as model:
             rows.mirror_state(step)
             solve(model, data, rows.with_contacts, step.timestep, rows.depenetration, not rows.mujocos)
-            constraint = rows.joint_rows()
-            if rows.accelerated:  # Euler integrates the solver's qacc: the forces themselves
+            constraint = rows.joint_rows(self.accelerated)
+            if self.accelerated:  # Euler integrates the solver's qacc: the forces themselves
                 force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied + constraint
                 data.qacc_warmstart[:] = data.qacc
             else:

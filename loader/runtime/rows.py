@@ -285,12 +285,14 @@ class RowTerm(Term):
         lower, upper, margin = self.distances
         return bool(((q - lower >= margin) & (upper - q >= margin)).all())
 
-    def joint_rows(self) -> np.ndarray:
-        """The force of the rows SAPIEN takes from MuJoCo, as MuJoCo's step integrates it (`integrated.py`): every
-        row where the model's own contacts are MuJoCo's, else the joint-space rows alone (the contact rows, solved
-        with them, are PhysX's to apply)."""
+    def joint_rows(self, accelerated: bool | None = None) -> np.ndarray:
+        """The force of the rows SAPIEN takes from MuJoCo, as MuJoCo's step integrates it (`integrated.py`;
+        `accelerated`: whether that step integrates the solver's qacc, by default as the model's integrator does):
+        every row where the model's own contacts are MuJoCo's, else the joint-space rows alone (the contact rows,
+        solved with them, are PhysX's to apply)."""
         rows = None if self.mujocos else JOINT_ROW[self.data.efc_type[: self.data.nefc]]
-        return integrated_force(self.lent.model, self.data, rows, self.accelerated)
+        accelerated = self.accelerated if accelerated is None else accelerated
+        return integrated_force(self.lent.model, self.data, rows, accelerated)
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
@@ -418,6 +420,7 @@ def plan_rows(
     timestep: float | None = None,
     own: OwnContacts | None = None,
     shapeless: list[int] | None = None,
+    needed: bool = False,
 ) -> RowTerm | None:
     """The row term for a model with limited or frictional hinge/slide joints or equalities MuJoCo's copy solves
     (`couplings`, equality ids: joint and tendon couplings, connects and welds that move only hinges, slides and free
@@ -425,8 +428,9 @@ def plan_rows(
     any). The copy MuJoCo solves keeps only those rows and its contacts (solved while SAPIEN has contacts, applied
     where `own` holds them, else PhysX's); other equalities are D6 joints, and what the loader does not map
     (unmapped actuators, ball and free joint rows, rows of tendons that move a ball or free joint, `shapeless` geoms)
-    is taken out so both sides see the same forces."""
-    if mj.disabled(model, "constraint"):
+    is taken out so both sides see the same forces. `needed`: the copy even where it has no row (MuJoCo's own step
+    runs on it: `mujoco_step.py`)."""
+    if mj.disabled(model, "constraint") and not needed:
         return None
     limited = [
         j
@@ -449,7 +453,7 @@ def plan_rows(
     ]
     touching = own is not None and not mj.disabled(model, "contact")
     joint_rows = bool(limited or frictional or couplings or tendons)
-    if not joint_rows and not touching:
+    if not joint_rows and not touching and not needed:
         return None
     edits: dict[str, dict[int, float]] = {}  # what MuJoCo's copy changes: per array, flat index -> value
 
