@@ -9,6 +9,7 @@ import pytest
 from conformance.session import quiet_load
 from loader import Batch, ControlError
 from tests.support.corpus import FIXTURES, menagerie_root, mjcf_file, suite_path
+from tests.support.lockstep import solver_scene
 
 COPIES = 3
 STEPS = 60
@@ -109,22 +110,11 @@ def test_a_batch_steps_each_copy_as_its_own_set_ctrl(path, stages, tmp_path):
 def _tgs_copies(path, count: int) -> list:
     """`count` loads of `path` under PhysX's TGS solver, each in a scene of its own."""
     import mujoco
-    import sapien
 
     from loader import MJCFLoader
 
     model = mujoco.MjModel.from_xml_path(str(path))
-    results = []
-    for _ in range(count):
-        previous = sapien.physx.get_scene_config()
-        sapien.physx.set_scene_config(gravity=model.opt.gravity, enable_tgs=True)
-        try:
-            scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
-        finally:
-            sapien.physx.set_scene_config(previous)
-        scene.timestep = float(model.opt.timestep)
-        results.append(MJCFLoader().set_scene(scene).load(str(path)))
-    return results
+    return [MJCFLoader().set_scene(solver_scene(model, tgs=True)).load(str(path)) for _ in range(count)]
 
 
 def _tgs_batch_against_lone_copies() -> float:

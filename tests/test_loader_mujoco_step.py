@@ -10,9 +10,8 @@ import warnings
 import mujoco
 import numpy as np
 import pytest
-import sapien
 from support.corpus import FIXTURES, menagerie_root, mjcf_file, suite_path
-from support.lockstep import replay
+from support.lockstep import replay, solver_scene
 
 from loader import MJCFLoader
 from loader.runtime import mujoco_step
@@ -25,22 +24,11 @@ from loader.runtime.rows import RowTerm
 TOLERANCE = 1e-4
 
 
-def _scene(model: mujoco.MjModel, tgs: bool):
-    previous = sapien.physx.get_scene_config()
-    sapien.physx.set_scene_config(gravity=model.opt.gravity, enable_tgs=tgs)
-    try:
-        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
-    finally:
-        sapien.physx.set_scene_config(previous)
-    scene.timestep = float(model.opt.timestep)
-    return scene
-
-
 def _load(path, tgs: bool = False):
     model = mujoco.MjModel.from_xml_path(str(path))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return MJCFLoader().set_scene(_scene(model, tgs)).load(str(path))
+        return MJCFLoader().set_scene(solver_scene(model, tgs)).load(str(path))
 
 
 def _rollout(path, tgs: bool) -> float:

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 from support.corpus import FIXTURES, suite_path
-from support.lockstep import contact_free, replay
+from support.lockstep import contact_free, replay, solver_scene
 
 from loader import MJCFLoader
 from loader.plan import physx_settings
@@ -147,22 +147,9 @@ def test_the_radii_run_on_one_blas_thread(monkeypatch):
 TGS_TOLERANCE = 1e-4
 
 
-def _tgs_scene(model: mujoco.MjModel):
-    import sapien
-
-    previous = sapien.physx.get_scene_config()
-    sapien.physx.set_scene_config(gravity=model.opt.gravity, enable_tgs=True)
-    try:
-        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
-    finally:
-        sapien.physx.set_scene_config(previous)
-    scene.timestep = float(model.opt.timestep)
-    return scene
-
-
 def _tgs_rollout(path) -> float:
     model = mujoco.MjModel.from_xml_path(str(path))
-    loader = MJCFLoader().set_scene(_tgs_scene(model))
+    loader = MJCFLoader().set_scene(solver_scene(model, tgs=True))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = loader.load(str(path))
@@ -187,7 +174,7 @@ def test_a_force_limit_edited_into_a_law_holds_under_tgs():
     """A drive law's force limit holds where TGS has no drive to clamp: no joint force passes it, and it binds."""
     path = FIXTURES / "folding_servo_arm.xml"
     model = mujoco.MjModel.from_xml_path(str(path))
-    result = MJCFLoader().set_scene(_tgs_scene(model)).load(str(path))
+    result = MJCFLoader().set_scene(solver_scene(model, tgs=True)).load(str(path))
     limit = 30.0
     for law in result.controller.edit_laws().values():
         law.force_limit = limit
@@ -208,7 +195,7 @@ def _tgs_states(share: bool) -> tuple[np.ndarray, int]:
 
     path = FIXTURES / "folding_servo_arm.xml"
     model = mujoco.MjModel.from_xml_path(str(path))
-    result = MJCFLoader().set_scene(_tgs_scene(model)).load(str(path))
+    result = MJCFLoader().set_scene(solver_scene(model, tgs=True)).load(str(path))
     shared = 0
     rows, writer = result.controller.term("rows"), result.controller.term("drives")
     assert isinstance(rows, RowTerm) and isinstance(writer, DriveForces)

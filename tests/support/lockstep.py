@@ -33,6 +33,21 @@ class Paired:
     mujoco_speed: np.ndarray
 
 
+def solver_scene(model: mujoco.MjModel, tgs: bool):
+    """A CPU scene matched to `model` (gravity, timestep) on PhysX's TGS solver (`tgs`) or PGS; PhysX's global
+    configuration is left as it was."""
+    import sapien
+
+    previous = sapien.physx.get_scene_config()
+    sapien.physx.set_scene_config(gravity=model.opt.gravity, enable_tgs=tgs)
+    try:
+        scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    finally:
+        sapien.physx.set_scene_config(previous)
+    scene.timestep = float(model.opt.timestep)
+    return scene
+
+
 def contact_free(path: str | Path, mutate: Callable | None = None):
     """Load `path` with contacts off on both sides and MuJoCo on implicitfast (the integrator the drive mapping
     assumes); `mutate(result)` edits the loaded result (a deliberate mistake). Returns (result, model)."""
