@@ -213,7 +213,7 @@ def _follow(agent_class, sim_freq: int, tgs: bool, mujoco_step: bool = True) -> 
 def test_mujoco_ctrl_follows_mujoco_stepping_the_same_ctrl(agents, robot, sim_freq):
     worst, whole = _follow(agents[robot], sim_freq, tgs=False)
     assert worst < FOLLOW_TOLERANCE
-    assert whole == (robot == "panda")  # the acrobot's RK4 keeps the terms
+    assert whole  # the acrobot too: no rows (a copy made for the step), RK4 run as Euler
 
 
 @pytest.mark.parametrize("mujoco_step", [True, False], ids=["mujoco_step", "terms"])
