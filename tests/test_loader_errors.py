@@ -267,3 +267,14 @@ def test_a_state_that_is_no_longer_finite_is_refused_naming_the_dof_and_the_step
     result.disable_actuators(False)
     articulation.set_qvel(np.zeros(2, np.float32))
     result.step(np.zeros(result.model.nu))  # finite again, it steps on
+
+
+def test_the_finiteness_check_reads_a_huge_state_entry_by_entry():
+    """`set_ctrl`'s check sums the state's squares first: a finite state whose squares overflow is read entry by
+    entry and passes, and an inf or a NaN anywhere fails. Mutation: the sum alone would call 1e200 diverged."""
+    from loader.runtime.controller import finite
+
+    calm, huge = np.array([0.5, -2.0]), np.array([1e200, -1e200])
+    assert finite(calm, calm) and finite(huge, calm) and finite(calm, huge)
+    for bad in (np.inf, -np.inf, np.nan):
+        assert not finite(np.array([0.5, bad]), calm) and not finite(calm, np.array([bad, 0.5]))

@@ -427,7 +427,7 @@ def _started_past_its_end(frictionless_copy: bool = False) -> tuple[float, float
         result = MJCFLoader().load(mujoco.MjSpec.from_string(STARTED_PAST))
         if frictionless_copy:
             nv = result.model.nv
-            result.controller.term("rows").lent.overrides.append(("dof_frictionloss", np.arange(nv), np.zeros(nv)))
+            result.controller.term("rows").lent.override("dof_frictionloss", np.arange(nv), np.zeros(nv))
         return result
 
     model = mujoco.MjModel.from_xml_string(STARTED_PAST)
@@ -466,7 +466,7 @@ def _fold_into_its_ends(armature_in_the_copy: bool = True) -> float:
     data = mujoco.MjData(model)
     result = MJCFLoader().load(mujoco.MjSpec.from_string(FOLDING_INTO_ITS_ENDS))
     if not armature_in_the_copy:
-        result.controller.term("rows").lent.overrides.append(("dof_armature", np.arange(4), np.zeros(4)))
+        result.controller.term("rows").lent.override("dof_armature", np.arange(4), np.zeros(4))
     result.set_state(data.qpos, data.qvel)
     worst = float(paired_rollout(result, model, data, round(0.5 / model.opt.timestep)).qpos.max())
     limits = data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)

@@ -11,6 +11,7 @@ isolation use); `release()` hands the joints to a caller that drives them itself
 
 from __future__ import annotations
 
+import math
 import time
 from contextlib import contextmanager
 
@@ -89,6 +90,7 @@ class Controller:
         self.stale = True  # the terms' arrays need compiling (`compile`)
         self.base: np.ndarray | None = None  # the step's starting law (`compile`)
         self.running: list[Term] = []  # the terms with work (`compile`)
+        self.settlers: list[Term] = []  # the terms with a `settle` (`compile`)
         self.readers: list | None = None  # the articulations whose link velocities the terms read
         self.steps = 0  # physics steps begun by `set_ctrl` (its advancing calls)
         self.compilations = 0  # `compile` calls: a `Batch` compares its copies' plans again after one
@@ -181,6 +183,7 @@ class Controller:
             term.compile(compilation)
         self.base = np.concatenate([laws, np.zeros((3, laws.shape[1]))])
         self.running = [term for term in self.terms if not term.idle]
+        self.settlers = settling(self.terms)
         self.claimer = next((term for term in self.running if term.name == "rows" and term.own is not None), None)
         self.whole = self.whole_step() if self.mujoco_step else None
         self.stale = False
@@ -259,7 +262,7 @@ class Controller:
             self.compile()
         articulations, layout = self.articulations, self.layout
         q, v = layout.read(articulations)
-        if not (np.isfinite(q).all() and np.isfinite(v).all()):
+        if not finite(q, v):
             if advance:
                 raise DivergenceError(self.diverged(q, v))
             for articulation in articulations:
@@ -277,7 +280,8 @@ class Controller:
             force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         if advance:
             self.push(qfrc_applied)
-        if self.whole is None:
+        whole = self.stepping()
+        if whole is None:
             refresh_link_velocities(self.velocity_readers())
         return Step(
             articulations,
@@ -286,7 +290,7 @@ class Controller:
             q,
             v,
             force,
-            self.base.copy(),
+            self.base.copy() if whole is None else self.base,  # MuJoCo's step writes no drive law
             inputs,
             ctrl,
             act,
@@ -305,10 +309,15 @@ class Controller:
         else:
             self.pushed.at_roots(qfrc_applied, self.articulations, self.layout.links)
 
+    def stepping(self) -> MujocoStep | None:
+        """MuJoCo's step where it runs in place of the terms this step (not where the rows' copy was taken since)."""
+        whole = self.whole
+        return whole if whole is not None and not whole.rows.lent.copied else None
+
     def run(self, step: Step) -> None:
         """The running terms' laws on the step, in stage order; or MuJoCo's step in their place."""
-        whole = self.whole
-        if whole is not None and not whole.rows.lent.copied:
+        whole = self.stepping()
+        if whole is not None:
             if self.timings is None:
                 whole.contribute(step)
             else:
@@ -351,7 +360,7 @@ class Controller:
 
     def settle(self) -> None:
         """After a physics step: each term's `settle` (floating roots' velocities as MuJoCo's step leaves them)."""
-        settlers = [term for term in self.terms if type(term).settle is not Term.settle]
+        settlers = self.settlers if not self.stale else settling(self.terms)
         if not settlers:
             return
         wrenches = self.wrenches()
@@ -494,3 +503,14 @@ def plan(
             model, mapping, unmapped, rowed, notes, standby, timestep, None, shapeless, needed=True
         )
     return controller
+
+
+def settling(terms: list[Term]) -> list[Term]:
+    """The terms whose `settle` does something after a physics step."""
+    return [term for term in terms if type(term).settle is not Term.settle]
+
+
+def finite(q: np.ndarray, v: np.ndarray) -> bool:
+    """Whether every position and velocity is finite: one sum of squares where it is (a state of finite but huge
+    numbers, whose squares overflow, is checked entry by entry)."""
+    return math.isfinite(q.dot(q) + v.dot(v)) or bool(np.isfinite(q).all() and np.isfinite(v).all())

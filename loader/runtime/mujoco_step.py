@@ -65,7 +65,7 @@ class MujocoStep:
         self.accelerated = int(model.opt.integrator) in (EULER, RK4) and (
             mj.disabled(model, "eulerdamp") or not np.any(model.dof_damping)
         )
-        self.inertia = np.zeros((model.nv, model.nv))
+        self.change, self.force = np.zeros(model.nv), np.zeros(model.nv)
         # per drive DoF, the damping its PhysX drive holds toward v1 (none where MuJoCo integrates the forces)
         self.damping = np.zeros_like(damping) if self.accelerated else damping
         damped = self.damping.nonzero()[0]
@@ -84,24 +84,37 @@ class MujocoStep:
         with rows.lent as model:
             rows.mirror_state(step)
             solve(model, data, rows.with_contacts, step.timestep, rows.depenetration, not rows.mujocos)
-            constraint = rows.joint_rows(self.accelerated)
             if self.accelerated:  # Euler integrates the solver's qacc: the forces themselves
+                constraint = rows.joint_rows(True)
                 force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied + constraint
                 data.qacc_warmstart[:] = data.qacc
             else:
-                data.qfrc_constraint[:] = constraint
-                velocity, bias = data.qvel.copy(), data.qfrc_bias.copy()
-                mujoco.mj_fullM(model, data, self.inertia)
-                self.integrate(model, data)  # v1; it keeps qacc for the next solve's warm start, as mj_step does
-                force = self.inertia @ ((data.qvel - velocity) / step.timestep) + bias
-        step.force[:] = 0.0
-        step.force[rows.scalar] = force
+                if data.nefc and not rows.mujocos:  # the contact rows left to PhysX
+                    data.qfrc_constraint[:] = rows.joint_rows(False)
+                force = self.force_to_v1(model, data, step)
+        if force is not step.force:
+            step.force[:] = 0.0
+            step.force[rows.scalar] = force
         if not self.zeroed:
             self.zero(step.layout.joints)
         if self.damped_joints:
             for joint, velocity in zip(self.damped_joints, data.qvel[self.damped_dofs].tolist()):
                 joint.set_drive_velocity_target(velocity)
         self.writer.write_qf(step)
+
+    def force_to_v1(self, model: mujoco.MjModel, data: mujoco.MjData, step: Step) -> np.ndarray:
+        """M (v1 - v0) / dt + c, into `step.force` where SAPIEN's DoFs are MuJoCo's in order: MuJoCo's integrator
+        takes `data` to v1 (and keeps qacc for the next solve's warm start, as mj_step does); M and c stay those of
+        the start state, which it leaves as they were."""
+        in_order, change = self.rows.in_order, self.change
+        start = step.v if in_order else data.qvel.copy()
+        self.integrate(model, data)
+        np.subtract(data.qvel, start, out=change)
+        change *= 1.0 / step.timestep
+        force = step.force if in_order else self.force
+        mujoco.mj_mulM(model, data, force, change)
+        force += data.qfrc_bias
+        return force
 
     def zero(self, joints: list) -> None:
         """PhysX's drives hold only the implicit damping (no stiffness, no target yet); the writer writes every

@@ -82,30 +82,38 @@ class LentModel:
     on: a caller that edits it changes the rows alone)."""
 
     def __init__(self, model: mujoco.MjModel, overrides: list[tuple[str, np.ndarray, np.ndarray]], timestep: float):
-        self.model = model
         self.overrides = overrides
         self.timestep = timestep
         self.copied = False
+        self.lend(model)
+
+    def lend(self, model: mujoco.MjModel) -> None:
+        """`model` as the one lent, with its options and the overridden arrays as flat views, read once: a binding's
+        attribute costs as much as the arithmetic of a step's small arrays."""
+        self.model, self.opt = model, model.opt
+        self.views = [(getattr(model, field).reshape(-1), index, values) for field, index, values in self.overrides]
+
+    def override(self, field: str, index: np.ndarray, values: np.ndarray) -> None:
+        """One more array where the copy differs from the lent model (`values` at flat `index` of `field`)."""
+        self.overrides.append((field, index, values))
+        self.lend(self.model)
 
     def __enter__(self) -> mujoco.MjModel:
-        model = self.model
-        self.saved = (
-            model.opt.disableflags,
-            model.opt.timestep,
-            [self._swap(model, field, index, values) for field, index, values in self.overrides],
-        )
-        model.opt.timestep = self.timestep
-        return model
+        opt = self.opt
+        own = [self._swap(array, index, values) for array, index, values in self.views]
+        self.saved = (opt.disableflags, opt.timestep, own)
+        opt.timestep = self.timestep
+        return self.model
 
     def __exit__(self, *exc) -> None:
-        model = self.model
-        model.opt.disableflags, model.opt.timestep, own = self.saved
-        for (field, index, _), values in zip(self.overrides, own):
-            self._swap(model, field, index, values)
+        opt = self.opt
+        opt.disableflags, opt.timestep, own = self.saved
+        for (array, index, _), values in zip(self.views, own):
+            self._swap(array, index, values)
 
     @staticmethod
-    def _swap(model: mujoco.MjModel, field: str, index: np.ndarray, values: np.ndarray) -> np.ndarray:
-        array = getattr(model, field).reshape(-1)  # a view: writing it writes the model
+    def _swap(array: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """`values` written at `index` of `array` (a view: writing it writes the model); what was there returned."""
         before = array[index]
         array[index] = values
         return before
@@ -114,9 +122,10 @@ class LentModel:
         if not self.copied:
             copied = copy.deepcopy(self.model)
             for field, index, values in self.overrides:
-                self._swap(copied, field, index, values)
+                self._swap(getattr(copied, field).reshape(-1), index, values)
             copied.opt.timestep = self.timestep
-            self.model, self.overrides, self.copied = copied, [], True
+            self.overrides, self.copied = [], True
+            self.lend(copied)
         return self.model
 
 
@@ -194,6 +203,7 @@ class RowTerm(Term):
 
     def _keep(self, data: mujoco.MjData) -> None:
         self._data = data
+        self.applying = True  # its qfrc_applied may hold a force (`mirror_state` zeroes it)
         self.reset_active()
 
     def claim(self) -> None:
@@ -232,6 +242,7 @@ class RowTerm(Term):
         self.ball_flat = [layout.flat_of(keys) for keys in self.ball_keys]
         self.limit_flat = layout.flat_of(self.limit_keys)
         self.scalar = scalar_state(self.lent.model, self.mapping, layout)
+        self.in_order = self.scalar is not None and bool((self.scalar == np.arange(layout.size)).all())
 
     def set_limits(self, limits: list[HardLimit]) -> None:
         """The limited DoFs whose PhysX limit the term moves out of the rows' way."""
@@ -297,17 +308,24 @@ class RowTerm(Term):
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
         and actuation off while the loader's actuators are."""
-        data, model = self.data, self.lent.model
+        data = self.data
         flags = (self.flags | ACTUATION_OFF) if not step.actuated else self.flags
-        model.opt.disableflags = flags if self.with_contacts else flags | CONTACT_OFF
-        if self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
+        self.lent.opt.disableflags = flags if self.with_contacts else flags | CONTACT_OFF
+        if self.in_order:  # SAPIEN's DoFs are MuJoCo's hinges and slides, in order
+            data.qpos[:], data.qvel[:] = step.q, step.v
+        elif self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
             data.qpos[:], data.qvel[:] = step.q[self.scalar], step.v[self.scalar]
         else:
             data.qpos[:], data.qvel[:] = step.mujoco_state(self.mapping)
         data.ctrl[:] = step.ctrl
         if step.act is not None:
             data.act[:] = step.act
-        data.qfrc_applied[:] = 0.0 if step.qfrc_applied is None else step.qfrc_applied
+        if step.qfrc_applied is not None:
+            data.qfrc_applied[:] = step.qfrc_applied
+            self.applying = True
+        elif self.applying:  # zero since the last step that applied a force
+            data.qfrc_applied[:] = 0.0
+            self.applying = False
 
     def forget(self) -> None:  # a state set from outside: the next solve starts cold, as in a new MjData
         self.data.qacc_warmstart[:] = 0.0
@@ -327,10 +345,14 @@ class RowTerm(Term):
         if not self.limits:
             return
         q = step.q[self.limit_flat]
-        if self.near is None:
-            self.near = (self.physx[:, 0] + 0.5 * self.margins, self.physx[:, 1] - 0.5 * self.margins)
-        near = ((q < self.near[0]) | (q > self.near[1])).nonzero()[0]
-        for i in near.tolist():
+        if self.near is None:  # the middle of the band that is clear, and its half width
+            low, high = self.physx[:, 0] + 0.5 * self.margins, self.physx[:, 1] - 0.5 * self.margins
+            self.near = (0.5 * (low + high), 0.5 * (high - low))
+        middle, half = self.near
+        off = np.abs(q - middle)
+        if not (off > half).any():
+            return
+        for i in (off > half).nonzero()[0].tolist():
             art, dof = self.limits[i].key
             self.physx[i] = self.limits[i].widened(float(q[i]))
             step.joints[art][dof].set_limit(np.array([self.physx[i]], np.float32))
