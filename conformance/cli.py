@@ -203,7 +203,7 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=defaults,
     )
     throughput.add_argument("--out", default=str(Path("reports") / "maniskill_bench.json"), help="JSON report")
-    throughput.add_argument("--steps", type=int, default=100, help="control steps per robot and mode")
+    throughput.add_argument("--steps", type=int, default=100, help="control steps per robot and mode, over the rounds")
     made = sub.add_parser(
         "table",
         help="README's results table from runs (their folders or summary.json files; a row each, named after the "
