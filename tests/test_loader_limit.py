@@ -526,3 +526,33 @@ def test_a_joint_clear_of_its_limits_skips_the_solve():
     assert every == SWING_STEPS
     np.testing.assert_array_equal(errors, always)
     assert _swing_into_margin("ends")[0].max() > 100 * SWING_TOLERANCE
+
+
+BANDS = """<mujoco><option timestep="0.002" gravity="0 0 0"/>
+  <default><geom type="capsule" size=".03" contype="0" conaffinity="0"/></default>
+  <worldbody><body><joint name="hinge" axis="0 1 0" range="-30 30"/><geom fromto="0 0 0 .3 0 0" mass=".5"/>
+  <body pos=".3 0 0"><joint name="slide" type="slide" axis="1 0 0" range="2 3"/><geom fromto="0 0 0 .2 0 0" mass=".3"/>
+  </body></body></worldbody></mujoco>"""
+
+
+def test_a_joint_in_the_band_of_physx_limit_moves_it(monkeypatch):
+    """While the rows run, PhysX's limit sits a margin beyond MuJoCo's end (10 m for a slide), and a joint that
+    comes within half of it moves it a margin beyond itself. The slide of range 2..3 m at -3.5 m is past its band's
+    edge (-3 m) though the state is short (3.5): its PhysX limit moves to -13.5 m, the hinge's stays. Mutation: the
+    quick test's radius without the band's offset from zero (5.5 m, not 3) passes the state as clear."""
+
+    def lower_ends(radius_mistake: bool) -> tuple[float, float]:
+        result = MJCFLoader().load(mujoco.MjSpec.from_string(BANDS))
+        result.set_ctrl(None)
+        rows = result.controller.term("rows")
+        if radius_mistake:
+            middle, half, _ = rows.near
+            rows.near = (middle, half, float(half.min()) ** 2)
+        result.set_state(np.array([0.0, -3.5]), np.zeros(2))
+        result.set_ctrl(None)
+        hinge, slide = result.articulations[0].active_joints
+        return float(np.asarray(hinge.limit)[0, 0]), float(np.asarray(slide.limit)[0, 0])
+
+    hinge, slide = lower_ends(False)
+    assert slide == pytest.approx(-13.5) and hinge == pytest.approx(np.radians(-30) - 20 * np.pi, rel=1e-6)
+    assert lower_ends(True)[1] == pytest.approx(-8.0)
