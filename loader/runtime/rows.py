@@ -356,10 +356,10 @@ class RowTerm(Term):
         if q.dot(q) <= inside:  # every |q_i| within the radius: every limited DoF inside its band
             return
         q = q[self.limit_flat]
-        off = np.abs(q - middle)
-        if not (off > half).any():
+        near = np.abs(q - middle) > half
+        if not near.any():
             return
-        for i in (off > half).nonzero()[0].tolist():
+        for i in near.nonzero()[0].tolist():
             art, dof = self.limits[i].key
             self.physx[i] = self.limits[i].widened(float(q[i]))
             step.joints[art][dof].set_limit(np.array([self.physx[i]], np.float32))
