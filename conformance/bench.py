@@ -132,7 +132,8 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
     sapien_s, _ = _timed(lambda: sapien_rollout(result, model, qpos0, qvel0, command))
     set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
     stages = _stage_costs(result, steps)
-    whole = _mujoco_step_cost(result, steps)
+    law = "mujoco_step" if result.controller.stepping() is not None else result.controller.why_not_whole()
+    terms = _terms_cost(result, steps) if law == "mujoco_step" else None
     batched = batch_costs(path, steps)
     return {
         **row,
@@ -143,7 +144,8 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
         "physx_step_us": 1e6 * step_s / steps,
         "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
         "set_ctrl_stages_us": stages,
-        "mujoco_step": whole,
+        "law": law,
+        **({"terms": terms} if terms is not None else {}),
         "batch": batched,
         "nbody": model.nbody,
         "nv": model.nv,
@@ -167,26 +169,27 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
     return set_ctrl_s, step_s
 
 
-def _mujoco_step_cost(result, steps: int) -> dict:
-    """`_set_ctrl_cost` with MuJoCo's own step giving the joint forces (`Controller.use_mujoco_step`), or why it
-    cannot run on this model."""
-    why = result.controller.use_mujoco_step()
+def _terms_cost(result, steps: int) -> dict:
+    """`_set_ctrl_cost` and `_stage_costs` with the per-step terms giving the joint forces, on a model whose
+    default is MuJoCo's own step (`Controller.use_mujoco_step`): what the step saves over the terms."""
+    result.controller.use_mujoco_step(False)
     try:
-        if why is not None:
-            return {"not_used": why}
         set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
+        stages = _stage_costs(result, steps)
     finally:
-        result.controller.use_mujoco_step(False)
+        result.controller.use_mujoco_step()
     return {
         "set_ctrl_us": 1e6 * set_ctrl_s / steps,
         "physx_step_us": 1e6 * step_s / steps,
         "set_ctrl_over_step": set_ctrl_s / step_s if step_s > 0 else None,
+        "set_ctrl_stages_us": stages,
     }
 
 
-def batch_costs(path: str, steps: int, counts: tuple[int, ...] = COPIES) -> dict[str, dict]:
+def batch_costs(path: str, steps: int, counts: tuple[int, ...] = COPIES, terms: bool = False) -> dict[str, dict]:
     """Per batch size N: microseconds per copy per step in one `Batch.set_ctrl` of N copies (each in its own scene,
-    contacts off, zero ctrl) and in the N PhysX steps, their ratio, and the stages that ran once for every copy."""
+    contacts off, zero ctrl, the loader's default law or, `terms`, the per-step terms) and in the N PhysX steps,
+    their ratio, and the stages that ran once for every copy."""
     from loader import Batch
 
     from .session import quiet_load
@@ -194,6 +197,8 @@ def batch_costs(path: str, steps: int, counts: tuple[int, ...] = COPIES) -> dict
     results = [quiet_load(path) for _ in range(max(counts))]
     for result in results:
         result.set_contacts(False)
+        if terms:
+            result.controller.use_mujoco_step(False)
     out = {}
     for count in counts:
         batch = Batch(results[:count])
@@ -254,12 +259,12 @@ def totals(models: dict) -> dict:
         seconds = sum(row["steps"] / row[f"harness_{side}_steps_per_s"] for row in rows)
         out[f"harness_{side}_steps_per_s"] = steps / seconds if seconds > 0 else None
     out["set_ctrl_over_step"] = _set_ctrl_ratio([(row["steps"], row) for row in rows])
-    driven = [row for row in rows if "set_ctrl_us" in row.get("mujoco_step", {})]
-    if driven:  # the models MuJoCo's step can drive: set_ctrl over PhysX's step with it, and with the terms
+    driven = [row for row in rows if "terms" in row]
+    if driven:  # the models MuJoCo's step drives: set_ctrl over PhysX's step with it, and with the terms
         out["mujoco_step"] = {
             "models": len(driven),
-            "set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row["mujoco_step"]) for row in driven]),
-            "terms_set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row) for row in driven]),
+            "set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row) for row in driven]),
+            "terms_set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row["terms"]) for row in driven]),
         }
     batched = [row["batch"] for row in rows if "batch" in row]
     out["batch_set_ctrl_over_step"] = {

@@ -132,8 +132,9 @@ def parser() -> argparse.ArgumentParser:
         type=_loader,
         default=None,
         help="the loader judged: ours (this project's, the "
-        "default), mujoco_step (ours, its joint forces from MuJoCo's own step where the model allows), physx (ours "
-        "without set_ctrl) or maniskill (ManiSkill's own MJCF loader; the maniskill extra)",
+        "default: its joint forces from MuJoCo's own step where the model allows), terms (ours, its per-step terms "
+        "on every model), physx (ours without set_ctrl) or maniskill (ManiSkill's own MJCF loader; the maniskill "
+        "extra)",
     )
     run.add_argument(
         "--compare",

@@ -4,10 +4,10 @@ tiers the loader cannot take part in, with why; the worker reports those as skip
 
 from __future__ import annotations
 
-from .session import Session
+from .session import OWN_LOADERS, Session
 
 DEFAULT = "ours"
-OWN = ("ours", "mujoco_step")  # this project's loader, whichever gives set_ctrl's forces: the manifest's expectations
+OWN = OWN_LOADERS  # this project's loader, whichever gives set_ctrl's forces: the manifest's expectations
 # per loader, the tiers it cannot take part in on any model, and why (expected: skipped)
 SKIPS = {
     "maniskill": {
@@ -23,7 +23,8 @@ SKIPS = {
 
 
 def ours(path: str) -> Session:
-    """This project's loader (`loader.MJCFLoader`), as every run has judged it."""
+    """This project's loader (`loader.MJCFLoader`) as it loads by default: `set_ctrl`'s joint forces from MuJoCo's
+    own step where the model allows, the per-step terms elsewhere."""
     from .session import open_session
 
     return open_session(path)
@@ -60,18 +61,18 @@ def physx(path: str) -> Session:
     return session
 
 
-def mujoco_step(path: str) -> Session:
-    """This project's loader with `set_ctrl`'s joint forces from MuJoCo's own step where the model allows
-    (`Controller.use_mujoco_step`; the terms elsewhere, as `ours`)."""
+def terms(path: str) -> Session:
+    """This project's loader with `set_ctrl`'s joint forces from the per-step terms on every model
+    (`MJCFLoader.set_ctrl_law = "terms"`), where `ours` runs MuJoCo's own step wherever the model allows."""
     from .session import open_session
 
     session = open_session(path)
-    session.result.controller.use_mujoco_step()
-    session.loader = "mujoco_step"
+    session.result.controller.use_mujoco_step(False)
+    session.loader = "terms"
     return session
 
 
-LOADERS = {"ours": ours, "maniskill": maniskill, "physx": physx, "mujoco_step": mujoco_step}
+LOADERS = {"ours": ours, "maniskill": maniskill, "physx": physx, "terms": terms}
 EXTRAS = {"maniskill": ("mani_skill", "the maniskill extra")}  # what a loader needs beyond the harness
 DISTRIBUTIONS = {"maniskill": ("mani-skill",)}  # whose versions its reports record
 

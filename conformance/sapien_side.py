@@ -153,8 +153,13 @@ def clear_command(result, nv: int) -> None:
     """After a run: no command left in `qf` (set_qf persists). No physics step follows, so the call does not begin
     one (`advance=False`): link forces it added would wait in PhysX for the next run's first step, on top of that
     step's own (tests/test_tiers_mutations.py::test_a_run_after_another_starts_with_no_link_force_left); after a run
-    that ended diverged it only clears `qf`."""
+    that ended diverged it only clears `qf`. Then `qf` is zeroed: MuJoCo's own step writes the zero command's
+    whole law there (gravity's share among it), which no later tier asks for
+    (tests/test_tiers_actuated.py::test_the_scene_is_left_as_the_other_tiers_expect)."""
     result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
+    for articulation in result.articulations:
+        if articulation.dof:
+            articulation.set_qf(np.zeros(articulation.dof, np.float32))
 
 
 def contacts_enabled(result) -> bool:

@@ -10,6 +10,8 @@ import mujoco
 
 from .reference import settings as reference_settings
 
+OWN_LOADERS = ("ours", "terms")  # this project's loader, by the law that gives set_ctrl's forces (`loaders.py`)
+
 
 @dataclass
 class Session:
@@ -27,6 +29,7 @@ class Session:
         res = self.result
         return {
             **({"loader": self.loader} if self.loader != "ours" else {}),
+            **({"set_ctrl_law": res.controller.law()} if self.loader in OWN_LOADERS else {}),
             "load_seconds": round(self.load_seconds, 4),
             "mujoco_compile_seconds": round(self.compile_seconds, 4),
             "fix_root_link": self.fix_root_link,

@@ -38,6 +38,7 @@ from .runtime.controller import Controller
 from .runtime.controller import plan as runtime_plan
 
 CONTACTS = ("mujoco", "physx")  # whose the contacts between the model's own shapes are (`MJCFLoader.contacts`)
+SET_CTRL_LAWS = ("mujoco_step", "terms")  # what gives `set_ctrl`'s joint forces (`MJCFLoader.set_ctrl_law`)
 
 
 @dataclass
@@ -68,6 +69,9 @@ class MJCFLoader:
     `contacts`: "mujoco" (default): while `set_ctrl` runs, the contacts between the model's own shapes are MuJoCo's,
     solved by MuJoCo at SAPIEN's state and applied as forces, PhysX's between them off (shapes of other loads and
     objects still touch the model through PhysX); "physx": PhysX's rigid contacts (docs/mapping.md#contacts-as-rows).
+    `set_ctrl_law`: "mujoco_step" (default): `set_ctrl`'s joint forces come from MuJoCo's own step at SAPIEN's
+    state wherever every joint is a hinge or slide (`Controller.use_mujoco_step`), the per-step terms elsewhere;
+    "terms": the terms everywhere (docs/architecture.md#mujocos-own-step).
     """
 
     def __init__(self, ignore_classes: list[str] | None = None, visual_groups: list[int] | None = None):
@@ -80,6 +84,7 @@ class MJCFLoader:
         self.warn_approximations = False
         self.maniskill_dialect = False
         self.contacts = "mujoco"
+        self.set_ctrl_law = "mujoco_step"
 
     def set_scene(self, scene: sapien.Scene) -> MJCFLoader:
         self.scene = scene
@@ -111,6 +116,7 @@ class MJCFLoader:
             warn_approximations=self.warn_approximations,
             contacts=self.contacts,
             sole=True,
+            set_ctrl_law=self.set_ctrl_law,
         )
 
     def new_articulation_builder(self) -> MJCFArticulationBuilder:
@@ -230,14 +236,18 @@ def finish(
     warn_approximations: bool = False,
     contacts: str = "mujoco",
     sole: bool = False,
+    set_ctrl_law: str = "mujoco_step",
 ) -> LoadResult:
     """The mapping and the per-step terms of built articulations (one per tree, in order) in `scene`: the
     `LoadResult`, reset to qpos0. The notes are warned `stacklevel` frames up (default: `load`'s caller): what was
     dropped, and the approximations where `warn_approximations`; `contacts`: whose the model's own contacts are
     (`MJCFLoader`). `sole`: this is the parse's only build (not one sub-scene's of several), so the terms may keep
-    its forward pass at qpos0 once the build has read it (`Controller.spare`)."""
+    its forward pass at qpos0 once the build has read it (`Controller.spare`); `set_ctrl_law`: what gives
+    `set_ctrl`'s joint forces (`MJCFLoader`)."""
     if contacts not in CONTACTS:
         raise ControlError(f"contacts={contacts!r}: one of {', '.join(map(repr, CONTACTS))}")
+    if set_ctrl_law not in SET_CTRL_LAWS:
+        raise ControlError(f"set_ctrl_law={set_ctrl_law!r}: one of {', '.join(map(repr, SET_CTRL_LAWS))}")
     model = parsed.compiled.model
     mapping = _mapping(model, parsed, articulations)
     with mj.sharing_qpos0(model, parsed.compiled.at_qpos0):
@@ -249,6 +259,7 @@ def finish(
             tune_iterations(articulations, model, controller.drive_weights(), connects, mapping, parsed.notes)
     if sole:
         controller.spare(model, parsed.compiled.at_qpos0)
+    controller.mujoco_step = set_ctrl_law == "mujoco_step"
     result = LoadResult(
         path=str(parsed.compiled.path),
         spec=parsed.compiled.spec,
@@ -320,6 +331,7 @@ def replan(result: LoadResult, model: mujoco.MjModel) -> tuple[list, Controller]
         notes,
         result.contacts,
     )
+    controller.mujoco_step = result.controller.mujoco_step  # the law the caller last chose
     return [entry for entry, _ in maps], controller
 
 

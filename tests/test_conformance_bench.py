@@ -7,7 +7,16 @@ from pathlib import Path
 
 import pytest
 
-from conformance.bench import COPIES, TARGET, TINY_BEYOND_S, TINY_COMPILE_S, bench, cold_seconds, over_target
+from conformance.bench import (
+    COPIES,
+    TARGET,
+    TINY_BEYOND_S,
+    TINY_COMPILE_S,
+    batch_costs,
+    bench,
+    cold_seconds,
+    over_target,
+)
 from conformance.manifest import ModelEntry
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,19 +38,23 @@ def test_bench_writes_timings_per_model(tmp_path):
         assert row[f"{when}beyond_compile_s"] == row[f"{when}loader_load_s"] - row[f"{when}mujoco_compile_s"]
     assert row["steps"] == 50 and row["harness_sapien_steps_per_s"] > 0 and row["harness_mujoco_steps_per_s"] > 0
     assert row["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_us"] / row["physx_step_us"])
-    stages = row["set_ctrl_stages_us"]  # the pendulum's limits are MuJoCo's rows; its drives always run
+    # the pendulum's hinges are MuJoCo's coordinates: its step drives them by default, the terms beside it
+    assert row["law"] == "mujoco_step" and set(row["set_ctrl_stages_us"]) == {"mujoco_step", "controller"}
+    terms = row["terms"]
+    assert terms["set_ctrl_over_step"] == pytest.approx(terms["set_ctrl_us"] / terms["physx_step_us"])
+    stages = terms["set_ctrl_stages_us"]  # the pendulum's limits are MuJoCo's rows; its drives always run
     assert {"rows", "drives", "controller"} <= set(stages) and all(stages[s] > 0 for s in ("rows", "drives"))
     assert list(stages)[:-1] == sorted(list(stages)[:-1], key=lambda s: -stages[s])  # costliest first
-    batch = row["batch"]  # per copy at each batch size; the pendulum's stiffness and drives run once for all
+    batch = row["batch"]  # per copy at each batch size, MuJoCo's step per copy
     assert list(batch) == [str(n) for n in COPIES]
     for size in batch.values():
         assert size["set_ctrl_us_per_copy"] > 0 and size["physx_step_us_per_copy"] > 0
         assert size["set_ctrl_over_step"] == pytest.approx(
             size["set_ctrl_us_per_copy"] / size["physx_step_us_per_copy"]
         )
+    # under the terms, the pendulum's stiffness and drives run once for all copies
+    for size in batch_costs(str(ROOT / "corpus/fixtures/pendulum.xml"), 5, (1, 2), terms=True).values():
         assert {"stiffness", "drives"} <= set(size["batched_stages"])
-    whole = row["mujoco_step"]  # the pendulum's hinges are MuJoCo's coordinates: its step can drive them
-    assert whole["set_ctrl_over_step"] == pytest.approx(whole["set_ctrl_us"] / whole["physx_step_us"])
     assert "nope.xml" in doc["models"]["missing"]["skipped"]
     assert doc["versions"]["sapien"]
     totals = doc["totals"]
@@ -53,8 +66,8 @@ def test_bench_writes_timings_per_model(tmp_path):
     assert totals["mujoco_step"] == pytest.approx(
         {
             "models": 1,
-            "set_ctrl_over_step": whole["set_ctrl_over_step"],
-            "terms_set_ctrl_over_step": row["set_ctrl_over_step"],
+            "set_ctrl_over_step": row["set_ctrl_over_step"],
+            "terms_set_ctrl_over_step": terms["set_ctrl_over_step"],
         }
     )
     assert totals["batch_set_ctrl_over_step"] == pytest.approx({n: b["set_ctrl_over_step"] for n, b in batch.items()})

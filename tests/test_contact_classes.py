@@ -447,6 +447,7 @@ def _hand_walk(
     return fastest[0], fastest[1], apart
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("tgs", [False, True], ids=["pgs", "tgs"])
 def test_a_hand_under_a_ctrl_walk_at_100_hz_holds_its_fingers_apart(tgs, monkeypatch):
     """The LEAP hand's fingers are 1.5 cm apart: PhysX makes a contact between two shapes within the sum of their

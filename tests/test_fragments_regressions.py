@@ -6,20 +6,28 @@ from __future__ import annotations
 import pytest
 
 from conformance.fragments import check_path
-from conformance.fragments.regressions import REGRESSIONS, known_bugs, regression_files
+from conformance.fragments.regressions import REGRESSIONS, known_bugs, regression_files, terms_bugs
 
 KNOWN = known_bugs(REGRESSIONS)
+TERMS = terms_bugs(REGRESSIONS)
 
 
 def _params():
+    """Each file under the loader's default law; a bug of the terms' law alone, under the terms too (`terms`)."""
     for path in regression_files(REGRESSIONS):
         reason = KNOWN.get(path.name)
-        marks = [pytest.mark.xfail(strict=True, reason=" ".join(reason.split()))] if reason else []
-        yield pytest.param(path, id=path.stem, marks=marks)
+        xfail = [pytest.mark.xfail(strict=True, reason=" ".join(reason.split()))] if reason else []
+        if path.name in TERMS:
+            yield pytest.param(path, "default", id=path.stem)
+            yield pytest.param(path, "terms", id=f"{path.stem}-terms", marks=xfail)
+        else:
+            yield pytest.param(path, "default", id=path.stem, marks=xfail)
 
 
-@pytest.mark.parametrize("path", list(_params()))
-def test_regression_replays_clean(path):
+@pytest.mark.parametrize("path, law", list(_params()))
+def test_regression_replays_clean(path, law, request):
+    if law == "terms":
+        request.getfixturevalue("terms")
     outcome = check_path(path, strict=True)
     assert not outcome.failures, "\n".join(outcome.failures)
 
@@ -99,3 +107,27 @@ def test_a_known_bug_excuses_a_divergence_only_where_its_finds_diverge(monkeypat
     monkeypatch.setattr(known_bugs, "KNOWN_BUGS", unmarked)
     _, failures, _, _, _ = check_tiers(load(path), model, tiers=())
     assert any("actuated tier diverged" in f for f in failures), failures
+
+
+def test_a_terms_bug_is_no_excuse_where_mujocos_own_step_runs():
+    """robot_classes-290ddd7193.xml replays clean under MuJoCo's own step (its default law) and fails under the
+    terms: its known bug excuses a failure only where the terms run (`KnownBug.terms_only`), so a failure of
+    MuJoCo's step on a model of that class is never filed under it. Mutation: the mark dropped."""
+    import dataclasses
+
+    import mujoco
+
+    from conformance.fragments import known_bugs
+    from conformance.fragments.properties import load
+
+    path = REGRESSIONS / "robot_classes-290ddd7193.xml"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    stepped, terms = load(path), load(path)
+    terms.controller.use_mujoco_step(False)
+    assert stepped.controller.law() == "mujoco_step" and terms.controller.law().startswith("terms")
+    assert known_bugs.known_bug("actuated", terms, model) == path.name
+    assert known_bugs.known_bug("actuated", stepped, model) is None
+    unmarked = [dataclasses.replace(bug, terms_only=False) for bug in known_bugs.KNOWN_BUGS]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(known_bugs, "KNOWN_BUGS", unmarked)
+        assert known_bugs.known_bug("actuated", stepped, model) == path.name

@@ -96,6 +96,7 @@ def _clamping_ctrl(step, data):
     ],
     ids=["actuator forcerange", "joint actuatorfrcrange"],
 )
+@pytest.mark.usefixtures("terms")
 def test_clamped_actuator_forces_match_mujoco(tmp_path, limits, monkeypatch):
     """Servos driven far into their force limits (forcerange, or the joint's actuatorfrcrange): MuJoCo clamps the
     explicit actuator force and drops a saturated actuator's kv from its implicit step; the loader applies the
@@ -134,6 +135,7 @@ TENDON_SERVO = """<mujoco><option timestep="0.002" gravity="0 0 -9.81" integrato
 </mujoco>"""
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("forcerange", ["", 'forcerange="-0.15 0.15"'], ids=["free", "saturating"])
 def test_a_tendon_servo_matches_mujoco(tmp_path, monkeypatch, forcerange):
     """A position-like servo on a fixed tendon (the panda's finger "split"): its kv is implicit in MuJoCo through
@@ -217,6 +219,7 @@ ACTIVATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
 </mujoco>"""
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
 def test_activation_dynamics_match_mujoco(tmp_path, monkeypatch, integrator):
     """filter, filterexact with actearly, a limited integrator and a filtered position servo: the loader steps the

@@ -70,6 +70,7 @@ def model_paths() -> list:
     ]
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize(("path", "stages"), model_paths())
 def test_a_batch_steps_each_copy_as_its_own_set_ctrl(path, stages, tmp_path):
     path = mjcf_file(tmp_path, path) if isinstance(path, str) else path
@@ -133,6 +134,7 @@ def _tgs_batch_against_lone_copies() -> float:
     return max(float(np.abs(a.get_state()[0] - b.get_state()[0]).max()) for a, b in zip(batch_results, lone))
 
 
+@pytest.mark.usefixtures("terms")
 def test_a_batch_under_tgs_steps_each_copy_as_its_own_set_ctrl(monkeypatch):
     """Under TGS each copy's drive law is a joint force solved with its own M (`DriveForces`), never PhysX drive
     targets written for every copy at once. Mutation: the drive writer's batch stage (targets) under TGS, which TGS

@@ -28,6 +28,7 @@ def _never_rewritten(monkeypatch) -> None:
     monkeypatch.setattr(DriveWriter, "write", first_only)
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("writes", ["changed", "mistake_never_rewritten"])
 def test_a_changed_target_or_gain_reaches_physx_after_a_cached_step(monkeypatch, writes):
     """A position servo (kp 10, kv 1 on 0.1 passive damping; dt 0.002): target ctrl, stiffness kp, damping

@@ -514,6 +514,7 @@ def _swing_into_margin(skip: str = "planned") -> tuple[np.ndarray, int]:
     return errors, solves[0]
 
 
+@pytest.mark.usefixtures("terms")
 def test_a_joint_clear_of_its_limits_skips_the_solve():
     """Where no limit is within its margin and the copy makes no contacts, MuJoCo's copy would have no row: the
     step skips its solve (most of this swing's steps), and the rollout is the one that solves every step, bit for

@@ -208,19 +208,19 @@ def test_mujoco_step_zeroes_the_drives_again_after_release():
 
 
 def test_the_harness_judges_mujoco_step_with_the_actuated_tier(monkeypatch):
-    """`run --loader mujoco_step`: the actuated tier passes on the stiff servo arm with MuJoCo's step driving it, and
-    fails with the bias left out of the law."""
+    """`run` (the loader's default law): the actuated tier passes on the stiff servo arm with MuJoCo's step driving
+    it, and fails with the bias left out of the law."""
     from conformance import tolerances
     from conformance.loaders import open_with
     from conformance.tiers.actuated import actuated
 
     tol = tolerances.load()
-    session = open_with("mujoco_step", str(FIXTURES / "folding_servo_arm.xml"))
-    assert session.load_info()["loader"] == "mujoco_step"
+    session = open_with("ours", str(FIXTURES / "folding_servo_arm.xml"))
+    assert session.load_info()["set_ctrl_law"] == "mujoco_step"
     assert actuated(session.result, session.model, 0, tol).status == "pass"
     assert session.result.controller.whole is not None
     _without_bias(monkeypatch)
-    session = open_with("mujoco_step", str(FIXTURES / "folding_servo_arm.xml"))
+    session = open_with("ours", str(FIXTURES / "folding_servo_arm.xml"))
     assert actuated(session.result, session.model, 0, tol).status == "fail"
 
 
@@ -237,7 +237,7 @@ def test_a_heavy_servo_on_a_light_link_is_held_to_mujocos_velocity(path, monkeyp
     hand, tol = str(path), tolerances.load()
 
     def one_step_qvel() -> float:
-        session = open_with("mujoco_step", hand)
+        session = open_with("ours", hand)
         report = actuated(session.result, session.model, 0, tol)
         return next(metric.max for metric in report.metrics if metric.name == "one_step_qvel")
 
@@ -252,15 +252,15 @@ def test_a_heavy_servo_on_a_light_link_is_held_to_mujocos_velocity(path, monkeyp
     assert one_step_qvel() > limit
 
 
-def test_mujoco_step_is_judged_against_the_manifests_expectations():
-    """`--loader mujoco_step` is this project's loader: the manifest's expectations (a chaotic box stack, a known
-    failure) hold for it as for `ours`, where another loader keeps only what the model itself decides."""
+def test_the_terms_are_judged_against_the_manifests_expectations():
+    """`--loader terms` is this project's loader: the manifest's expectations (a chaotic box stack, a known failure)
+    hold for it as for `ours`, where another loader keeps only what the model itself decides."""
     from conformance import manifest
     from conformance.cli import DEFAULT_MANIFEST
     from conformance.runner import foreign
 
     entries = manifest.load(DEFAULT_MANIFEST).models
-    assert foreign(entries, "mujoco_step") == entries
+    assert foreign(entries, "terms") == entries
     stacker = next(entry for entry in entries if entry.id == "stacker")
     assert stacker.expect["contact"].outcome == "chaotic"
     (other,) = foreign([stacker], "physx")
@@ -276,8 +276,7 @@ def _implicit_cheetah(whole: bool) -> float:
         warnings.simplefilter("ignore")
         result = MJCFLoader().load(spec)
     result.set_contacts(False)
-    if whole:
-        assert result.controller.use_mujoco_step() is None
+    assert result.controller.use_mujoco_step(whole) == (None if whole else "switched off")
     model = result.model
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     rates = 2 * np.pi * model.opt.timestep * np.arange(1, model.nu + 1)
@@ -320,7 +319,7 @@ def test_the_drives_hold_the_damping_mujoco_holds_implicitly(path, monkeypatch):
     from conformance.tiers.dynamics import dynamics
 
     def one_step_qacc() -> float:
-        session = open_with("mujoco_step", str(path))
+        session = open_with("ours", str(path))
         report = dynamics(session.result, session.model, 0, tolerances.load())
         return next(metric.max for metric in report.metrics if metric.name == "one_step_qacc")
 

@@ -29,6 +29,7 @@ PASSIVE_TENDON = """<mujoco><option timestep="0.002" gravity="0 0 0" integrator=
 TENDON_TOLERANCE = 1e-5  # rad over 1 s, measured 4.2e-7 (implicitfast), 4.0e-7 (Euler); the mutations 2.3e-3
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
 def test_a_passive_fixed_tendon_matches_mujoco(tmp_path, monkeypatch, integrator):
     """A tendon spring-damper over three hinges (coefficients 1, -0.5, 0.5): Euler takes the damper explicitly,
@@ -90,6 +91,7 @@ GRAVCOMP = """<mujoco><option timestep="0.002"/>
 </mujoco>"""
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("upper, lower", [(1, 1), (0.5, 1), (1, 1.5)], ids=["full", "half", "over"])
 def test_gravity_compensation_matches_mujoco(tmp_path, monkeypatch, upper, lower):
     """An arm whose links compensate gravity fully (PhysX gravity off for the link), partly or more than fully
@@ -105,6 +107,7 @@ def test_gravity_compensation_matches_mujoco(tmp_path, monkeypatch, upper, lower
     assert replay(ignored, ignored.model, no_ctrl, 1.0).max() > 10 * SERVO_TOLERANCE
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("flags", ['spring="disable"', 'damper="disable"', 'spring="disable" damper="disable"'])
 def test_spring_and_damper_flags_are_honoured(tmp_path, monkeypatch, flags):
     """<flag spring/damper="disable"/> turns joint and tendon springs/dampers off in MuJoCo; the loader too.

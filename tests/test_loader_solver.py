@@ -51,6 +51,7 @@ def test_finger_drives_converge_with_the_iterations_the_loader_picks():
     assert errors.max() < ROLLOUT_TOLERANCE, errors.max()
 
 
+@pytest.mark.usefixtures("terms")
 def test_sapiens_default_iterations_leave_the_finger_unconverged():
     """The mutation: the same replay at SAPIEN's 10 iterations fails the tolerance."""
     result, model = _finger(10)
@@ -95,6 +96,7 @@ def _arm_ctrl(step, data):
     )
 
 
+@pytest.mark.usefixtures("terms")
 def test_the_iterations_cover_the_keyframes_where_the_drives_couple_more_than_at_qpos0():
     """Measured from the stretched keyframe over 1 s: 4.8e-7 rad at the keyframe's 41 sweeps, 4.0e-5 at qpos0's 16
     (the mutation: the rule at qpos0 alone)."""
@@ -161,6 +163,7 @@ def _tgs_rollout(path) -> float:
     return float(replay(result, model, lambda step, data: base + 0.5 * np.sin(rates * step), 0.5).max())
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("path", [FIXTURES / "folding_servo_arm.xml", suite_path("humanoid"), suite_path("cheetah")])
 def test_under_tgs_the_drives_are_written_as_forces_and_follow_mujoco(path, monkeypatch):
     """Stiff position servos (folding_servo_arm), a floating humanoid's motors and joint springs and dampers: under
@@ -220,6 +223,7 @@ def _tgs_states(share: bool) -> tuple[np.ndarray, int]:
     return np.concatenate([q, v]), shared
 
 
+@pytest.mark.usefixtures("terms")
 def test_under_tgs_the_drives_read_the_rows_forward_pass():
     """Where the rows ran MuJoCo's forward pass at the step's state, the drives read its M and bias instead of
     running MuJoCo's passes again: every step, and bit for bit what their own passes give."""

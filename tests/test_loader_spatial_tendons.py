@@ -55,6 +55,7 @@ def test_a_spatial_tendon_spring_matches_mujoco(tmp_path):
     assert replay(result, model, no_ctrl, 1.0).max() > 100 * SPATIAL_TOLERANCE
 
 
+@pytest.mark.usefixtures("terms")
 def test_a_spatial_tendon_damper_under_euler_is_explicit(tmp_path, monkeypatch):
     """Euler takes a tendon damper explicitly, so the step is exact. Mutation: its diagonal made implicit."""
     result, model = load(tmp_path, "Euler", damping=0.05)
@@ -160,6 +161,7 @@ def servo_ctrl(step, data):
     "integrator, kv, tolerance",
     [("Euler", 2.0, SPATIAL_TOLERANCE), ("implicitfast", IMPLICIT_DAMPING, IMPLICIT_TOLERANCE)],
 )
+@pytest.mark.usefixtures("terms")
 def test_a_spatial_tendon_servo_matches_mujoco(tmp_path, monkeypatch, integrator, kv, tolerance):
     """A position servo (with kv and a forcerange) on the extensor's length: MuJoCo's law along the path at every
     step, kv explicit under Euler; under implicitfast the drives hold kv's diagonal (noted). Measured 4.7e-7 (Euler)

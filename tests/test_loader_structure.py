@@ -579,6 +579,7 @@ def test_replan_keeps_contacts_off_where_they_were_turned_off():
     assert result.controller.term("rows").with_contacts
 
 
+@pytest.mark.usefixtures("terms")
 def test_a_timed_controller_sums_each_stages_seconds_and_stops_when_asked():
     result = MJCFLoader().load(str(FIXTURES.parent.parent / "corpus" / "fixtures" / "pendulum.xml"))
     controller = result.controller

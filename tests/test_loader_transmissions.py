@@ -64,6 +64,7 @@ def _sine(step: int, data) -> np.ndarray:
     [ARM.format(integrator="Euler", actuator=SITE_MOTOR), ARM.format(integrator="Euler", actuator=SITE_SERVO), SLIDER],
     ids=["site", "refsite", "slidercrank"],
 )
+@pytest.mark.usefixtures("terms")
 def test_a_site_or_slider_crank_actuator_follows_mujoco(tmp_path, monkeypatch, document):
     result = MJCFLoader().load(mjcf_file(tmp_path, document, "m.xml"))
     assert all(a.mapped and a.moment for a in result.actuators) and not result.unsupported
@@ -157,6 +158,7 @@ def _one_step_with_activations(result) -> float:
     return worst
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
 def test_muscles_follow_mujoco(tmp_path, monkeypatch, integrator):
     """MuJoCo's muscles on spatial tendons and on a joint: their activation dynamics and force-length-velocity
@@ -228,6 +230,7 @@ def _adhesion_error(tmp_path, name: str) -> float:
     return float(replay(result, result.model, _pull, 0.5).max())
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize("name", list(ADHESIONS))
 def test_an_adhesion_actuator_pulls_along_its_contacts_as_mujoco(tmp_path, monkeypatch, name):
     """MuJoCo's body transmission at SAPIEN's pose: its collision and constraint rows, then its moment (the mean
@@ -244,6 +247,7 @@ def test_an_adhesion_actuator_pulls_along_its_contacts_as_mujoco(tmp_path, monke
     assert _adhesion_error(tmp_path, name) > 1000 * ADHESION_TOLERANCE
 
 
+@pytest.mark.usefixtures("terms")
 def test_an_adhesion_actuator_without_contacts_does_nothing(tmp_path, monkeypatch):
     """Without contacts MuJoCo's adhesion has no moment: the pad raised out of reach of the floor, or SAPIEN's
     contacts switched off (and MuJoCo's with them) with the pad in the gap band. Mutation: the switch not passed

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import sapien
 
-from conformance import sapien_side, tolerances
+from conformance import loaders, sapien_side, tolerances
 from conformance.corpus import dm_control_suite_dir
 from conformance.session import open_session
 from conformance.tiers import TIERS
@@ -29,10 +29,12 @@ def _path(name: str) -> Path:
     return suite / f"{name}.xml"
 
 
-def _session(name: str):
+def _session(name: str, terms: bool = False):
+    """The model's harness session, its joint forces from the loader's default law or, `terms`, the per-step
+    terms."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return open_session(str(_path(name)))
+        return (loaders.terms if terms else open_session)(str(_path(name)))
 
 
 def _tier(session, tier: str):
@@ -203,16 +205,15 @@ def test_the_maniskill_tier_catches_a_robot_built_there_without_armature(monkeyp
 
 
 def test_a_run_after_another_starts_with_no_link_force_left(monkeypatch):
-    """The swimmer's fluid drag is a link force, which PhysX keeps until the next step. The dynamics tier's
-    rollouts follow its one-step pass, whose last call only clears the command: they pass. Mutation: that call
-    begins a physics step (`advance=True`), so its drag waits in PhysX and doubles the rollout's first."""
-    from conformance import sapien_side
-
-    assert _tier(_session("swimmer"), "dynamics").status == "pass"
+    """Under the per-step terms the swimmer's fluid drag is a link force, which PhysX keeps until the next step
+    (MuJoCo's own step, the default, gives it as joint forces). The dynamics tier's rollouts follow its one-step
+    pass, whose last call only clears the command: they pass. Mutation: that call begins a physics step
+    (`advance=True`), so its drag waits in PhysX and doubles the rollout's first."""
+    assert _tier(_session("swimmer", terms=True), "dynamics").status == "pass"
     monkeypatch.setattr(
         sapien_side, "clear_command", lambda result, nv: result.set_ctrl(None, qfrc_applied=np.zeros(nv))
     )
-    assert _tier(_session("swimmer"), "dynamics").status == "fail"
+    assert _tier(_session("swimmer", terms=True), "dynamics").status == "fail"
 
 
 PAIRED = """<mujoco><worldbody><geom name="floor" type="plane" size="2 2 .1"/>

@@ -126,7 +126,20 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     implicit under implicit/implicitfast and explicit under Euler and RK4, damping implicit, kp and springs
     explicit; a drive is implicit in what it holds, so a DoF whose implicit damping cannot absorb its stiffness
     (kp, spring) times dt keeps the stiffness out of its drive (explicit force), and a frictional DoF's drive holds
-    only its friction row."""
+    only its friction row. Those are the per-step terms' drives: where MuJoCo's own step gives the joint forces (the
+    loader's default where the model allows), its drives hold the implicit damping alone and the tiers judge its
+    law, so the terms run for this check and the loader's law runs again after it."""
+    controller = result.controller
+    whole = controller.mujoco_step
+    controller.use_mujoco_step(False)
+    try:
+        return _terms_drive_mismatches(result, model)
+    finally:
+        if whole:
+            controller.use_mujoco_step()
+
+
+def _terms_drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     for art in result.articulations:
         art.set_qpos(np.zeros(art.dof, np.float32))
         art.set_qvel(np.zeros(art.dof, np.float32))

@@ -60,10 +60,17 @@ def regression_files(folder: Path | None = None) -> list[Path]:
     return sorted(folder.glob("*.xml")) if folder.is_dir() else []
 
 
+def _bugs(folder: Path | None) -> dict[str, dict]:
+    path = Path(folder or regression_dir()) / KNOWN_BUGS
+    return tomllib.loads(path.read_text()).get("bug", {}) if path.is_file() else {}
+
+
 def known_bugs(folder: Path | None = None) -> dict[str, str]:
     """File name -> reason, for regressions that reproduce a known, still open loader bug."""
-    path = Path(folder or regression_dir()) / KNOWN_BUGS
-    if not path.is_file():
-        return {}
-    data = tomllib.loads(path.read_text())
-    return {name: str(entry["reason"]) for name, entry in data.get("bug", {}).items()}
+    return {name: str(entry["reason"]) for name, entry in _bugs(folder).items()}
+
+
+def terms_bugs(folder: Path | None = None) -> set[str]:
+    """The known bugs that live in the per-step terms' law alone (`law = "terms"`): their files replay clean where
+    MuJoCo's own step gives the joint forces (the loader's default), and fail where the terms do."""
+    return {name for name, entry in _bugs(folder).items() if entry.get("law") == "terms"}

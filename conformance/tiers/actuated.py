@@ -91,9 +91,10 @@ def reference_model(result, model: mujoco.MjModel, contact: bool) -> tuple[mujoc
 
 @contextmanager
 def actuated_scene(result, qpos0, qvel0, contacts: bool):
-    """SAPIEN actuators on (and contacts off unless asked) inside; on exit actuators off and the start state
-    restored. Contacts stay off after a contact-free run, as after `dynamics`: turning collision groups back on
-    once PhysX has stepped without them crashes PhysX (segmentation fault on the next step, manipulator)."""
+    """SAPIEN actuators on (and contacts off unless asked) inside; on exit actuators off, the start state
+    restored and no command left in `qf` (`sapien_side.clear_command`). Contacts stay off after a contact-free run,
+    as after `dynamics`: turning collision groups back on once PhysX has stepped without them crashes PhysX
+    (segmentation fault on the next step, manipulator)."""
     result.disable_actuators(False)
     if not contacts:
         disable_contacts(result)
@@ -102,6 +103,7 @@ def actuated_scene(result, qpos0, qvel0, contacts: bool):
     finally:
         result.disable_actuators(True)
         sapien_side.set_state(result, qpos0, qvel0)
+        sapien_side.clear_command(result, result.model.nv)
 
 
 class ForceLaw:

@@ -95,6 +95,7 @@ class MJCFLoader(CoreLoader):
                 self.warn_each_note,
                 stacklevel=6,  # the caller of the builder's build()
                 warn_approximations=self.warn_approximations,
+                set_ctrl_law=self.set_ctrl_law,
             )
             for sub_scene, articulation in built.built
         ]

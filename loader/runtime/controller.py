@@ -201,6 +201,14 @@ class Controller:
         self.compile()
         return None if self.whole is not None else self.why_not_whole()
 
+    def law(self) -> str:
+        """What gives `set_ctrl`'s joint forces now: "mujoco_step", or "terms" with why MuJoCo's step does not."""
+        if self.stale:
+            self.compile()
+        if self.stepping() is not None:
+            return "mujoco_step"
+        return f"terms: {self.why_not_whole() if self.mujoco_step else 'asked for (set_ctrl_law)'}"
+
     def implicit_laws(self) -> dict[DofKey, DofDrive]:
         """The laws whose damping MuJoCo's integrator holds implicitly this step, as the terms' drives hold it: the
         passive laws where kv is explicit (Euler) or the actuators are off, else the drive laws with their kv
