@@ -8,6 +8,7 @@ from pathlib import Path
 import tomllib
 
 from .isolation import GAPS, ISOLATED_TIERS
+from .session import OWN_LOADERS
 
 TIER_NAMES = (
     "structure",
@@ -52,6 +53,9 @@ class Expectation:
     seen_high: float = 0.0
     # the seeds the expectation holds at (empty: every seed); at the others the tier is expected to pass
     seeds: tuple[int, ...] = ()
+    # the one of this project's loaders it holds for (`session.OWN_LOADERS`; empty: each), where the other passes:
+    # "terms" for a gap of the per-step terms that MuJoCo's own step, the default's law on the model, does not have
+    loader: str = ""
 
     @property
     def band(self) -> tuple[float, float]:
@@ -191,6 +195,12 @@ def _expectation(exp: dict, model_id: object, where: str) -> Expectation:
     seeds = exp.get("seeds", [])
     if not (isinstance(seeds, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in seeds)):
         raise ValueError(f"{where}: model {model_id!r} tier {tier!r}: seeds is a list of integers, not {seeds!r}")
+    loader = exp.get("loader", "")
+    if loader and loader not in OWN_LOADERS:
+        raise ValueError(
+            f"{where}: model {model_id!r} tier {tier!r}: loader {loader!r} is one of {list(OWN_LOADERS)} (this "
+            "project's loader by its set_ctrl law), or left out for both"
+        )
     return Expectation(
         tier,
         outcome,
@@ -200,6 +210,7 @@ def _expectation(exp: dict, model_id: object, where: str) -> Expectation:
         float(seen[0] or 0.0),
         float(seen[1] or 0.0),
         tuple(seeds),
+        loader,
     )
 
 

@@ -79,9 +79,15 @@ def foreign(entries: list[ModelEntry], loader: str) -> list[ModelEntry]:
     """The entries as another loader than this project's is judged: the manifest's expected failures describe this
     project's loader, so they are dropped (those tiers are expected to pass); what the model itself decides stays
     (a tier skipped for the model's reason, a load error MuJoCo gives), and the tiers the loader cannot take part
-    in are expected skipped (`loaders.SKIPS`)."""
+    in are expected skipped (`loaders.SKIPS`). One of this project's loaders keeps every expectation but those
+    written for the other (`Expectation.loader`)."""
     if loader in OWN:
-        return entries
+        return [
+            replace(e, expect={t: x for t, x in e.expect.items() if x.loader in ("", loader)})
+            if any(x.loader not in ("", loader) for x in e.expect.values())
+            else e
+            for e in entries
+        ]
     cannot = {t: Expectation(t, "skipped", why) for t, why in SKIPS.get(loader, {}).items()}
     return [
         replace(e, expect={**{t: x for t, x in e.expect.items() if x.outcome in ("skipped", "error")}, **cannot})

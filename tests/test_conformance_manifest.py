@@ -93,6 +93,13 @@ def _write(tmp_path: Path, text: str) -> Path:
             'id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "load"\noutcome = "skipped"\nreason = "r"',
             "load error",
         ),
+        (
+            (
+                'id = "a"\nsource = "x.xml"\n[[model.expect]]\ntier = "dynamics"\noutcome = "skipped"\n'
+                'reason = "r"\nloader = "physx"'
+            ),
+            "loader 'physx' is one of",
+        ),
     ],
 )
 def test_bad_entries_are_rejected_with_the_file_named(tmp_path, body, message):
@@ -100,6 +107,21 @@ def test_bad_entries_are_rejected_with_the_file_named(tmp_path, body, message):
     with pytest.raises(ValueError, match=message) as err:
         manifest.load(path)
     assert str(path) in str(err.value)
+
+
+def test_an_expectation_of_one_law_holds_for_that_loader_alone(tmp_path):
+    """gr_fetch's dynamics failure is the per-step terms' (`loader = "terms"`): `--loader terms` expects it, the
+    default (MuJoCo's own step on that model) expects a pass; an expectation without a loader holds for both, and
+    another project's loader keeps neither failure. Mutation: the loader field ignored."""
+    from conformance.runner import foreign
+
+    entries = manifest.load(ROOT / "corpus" / "full.toml").models
+    fetch = next(e for e in entries if e.id == "gr_fetch")
+    assert fetch.expect["dynamics"].loader == "terms" and fetch.expect["actuated"].loader == ""
+    (ours,), (terms,), (physx,) = (foreign([fetch], loader) for loader in ("ours", "terms", "physx"))
+    assert "dynamics" not in ours.expect and ours.expect["actuated"].outcome == "skipped"
+    assert terms.expect == fetch.expect
+    assert "dynamics" not in physx.expect
 
 
 def test_duplicate_ids_are_rejected(tmp_path):
