@@ -173,6 +173,24 @@ def test_a_force_applied_for_a_while_then_none_is_mujocos_too(monkeypatch):
     assert _pushed_then_let_go(path) > 10 * TOLERANCE
 
 
+@pytest.mark.parametrize("upper, lower", [(1, 1), (0.5, 1), (1, 1.5)], ids=["full", "half", "over"])
+def test_a_compensated_arm_follows_mujoco_under_its_step(tmp_path, monkeypatch, upper, lower):
+    """PhysX's gravity is off on a fully compensated link (`gravcomp.py`), where MuJoCo's bias keeps it and its
+    gravcomp force cancels it: the step's joint forces add its J^T m g back (`MujocoStep.gravity_physx_lacks`). A
+    link compensated partly or more than fully keeps PhysX's gravity: 1.5e-15, 9.3e-7 and 1.6e-6 rad over 1 s
+    (mujoco 3.17.0, sapien 3.0.3). Mutation: that gravity left out (the fully compensated arm flies up: 2.7 rad)."""
+    from support.lockstep import no_ctrl
+    from test_loader_passive import GRAVCOMP
+
+    path = mjcf_file(tmp_path, GRAVCOMP.format(upper=upper, lower=lower), "gravcomp.xml")
+    result = _load(path)
+    assert result.controller.law() == "mujoco_step"
+    assert replay(result, result.model, no_ctrl, 1.0).max() < TOLERANCE
+    monkeypatch.setattr(mujoco_step, "unpulled", lambda *args: [])
+    mistaken = _load(path)
+    assert replay(mistaken, mistaken.model, no_ctrl, 1.0).max() > 10 * TOLERANCE
+
+
 def test_where_mujoco_step_cannot_drive_the_terms_run():
     """Each reason the terms run all the same, and MuJoCo's step back once the reason is gone."""
     floating = _load(suite_path("humanoid")).controller

@@ -14,7 +14,8 @@ holds no force at v1, and where float32 makes them differ a little the drive hol
 would let M's error scale the step's velocity change (a light link under a heavy servo, dt D > M). A slide on a
 turning link keeps no drive: PhysX's drive measures its velocity short of the centripetal term (`slides.py`). Euler
 without implicit damping integrates the solver's acceleration: there `qf` is the forces themselves and the drives
-hold nothing. PhysX's limits stand out of the rows' way. The law is MuJoCo's wherever SAPIEN's coordinates are
+hold nothing. PhysX's limits stand out of the rows' way. PhysX's gravity is off on a fully compensated link, which
+MuJoCo's bias keeps: the step adds it back. The law is MuJoCo's wherever SAPIEN's coordinates are
 MuJoCo's: every joint a hinge or slide, each SAPIEN DoF one MuJoCo DoF (`eligible` says where it is not, and the
 terms run instead) (tests/test_loader_mujoco_step.py).
 """
@@ -54,6 +55,21 @@ def eligible(model: mujoco.MjModel, rows: RowTerm | None, planned: set[str]) -> 
     return None
 
 
+def unpulled(model: mujoco.MjModel, mapping, layout: DofLayout) -> list[tuple[int, np.ndarray]]:
+    """(body, m g) of each body whose link PhysX's gravity does not pull, where MuJoCo's gravity does."""
+    gravity = np.asarray(model.opt.gravity, np.float64)
+    if mj.disabled(model, "gravity") or not gravity.any():
+        return []
+    return [
+        (body, float(model.body_mass[body]) * gravity)
+        for body, target in enumerate(mapping.bodies)
+        if body
+        and target is not None
+        and target.articulation is not None
+        and layout.links[target.articulation][target.link].disable_gravity
+    ]
+
+
 class MujocoStep:
     """The joint forces of MuJoCo's own step at SAPIEN's state, solved on the rows' copy (`rows`) and written as
     `qf` by the drive writer (`writer`), whose drives it zeroes."""
@@ -74,6 +90,8 @@ class MujocoStep:
         self.damped_dofs = dof_of_flat[layout.flat[damped]]  # their MuJoCo DoFs, and their PhysX joints
         self.damped_joints = [layout.joints[i] for i in damped.tolist()]
         self.zeroed = False  # PhysX's drives hold only `damping` (`zero`)
+        self.unpulled = unpulled(model, rows.mapping, layout)
+        self.pulled = np.zeros(model.nv)
 
     def contribute(self, step: Step) -> None:
         rows = self.rows
@@ -92,6 +110,8 @@ class MujocoStep:
                 if data.nefc and not rows.mujocos:  # the contact rows left to PhysX
                     data.qfrc_constraint[:] = rows.joint_rows(False)
                 force = self.force_to_v1(model, data, step)
+            if self.unpulled:
+                force += self.gravity_physx_lacks(model, data)
         if force is not step.force:
             step.force[:] = 0.0
             step.force[rows.scalar] = force
@@ -101,6 +121,16 @@ class MujocoStep:
             for joint, velocity in zip(self.damped_joints, data.qvel[self.damped_dofs].tolist()):
                 joint.set_drive_velocity_target(velocity)
         self.writer.write_qf(step)
+
+    def gravity_physx_lacks(self, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+        """The joint forces of the gravity MuJoCo's bias holds and PhysX does not apply: on the links whose gravity
+        is off (a body compensated fully, `gravcomp.py`), J^T m g at their centres of mass, with `data` at the step's
+        start (tests/test_loader_mujoco_step.py::test_a_compensated_arm_follows_mujoco_under_its_step)."""
+        pulled, zero = self.pulled, np.zeros(3)
+        pulled[:] = 0.0
+        for body, weight in self.unpulled:
+            mujoco.mj_applyFT(model, data, weight, zero, data.xipos[body], body, pulled)
+        return pulled
 
     def force_to_v1(self, model: mujoco.MjModel, data: mujoco.MjData, step: Step) -> np.ndarray:
         """M (v1 - v0) / dt + c, into `step.force` where SAPIEN's DoFs are MuJoCo's in order: MuJoCo's integrator
