@@ -132,7 +132,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
     sapien_s, _ = _timed(lambda: sapien_rollout(result, model, qpos0, qvel0, command))
     set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
     stages = _stage_costs(result, steps)
-    law = "mujoco_step" if result.controller.stepping() is not None else result.controller.why_not_whole()
+    law = result.controller.law()
     terms = _terms_cost(result, steps) if law == "mujoco_step" else None
     batched = batch_costs(path, steps)
     return {
@@ -172,12 +172,9 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
 def _terms_cost(result, steps: int) -> dict:
     """`_set_ctrl_cost` and `_stage_costs` with the per-step terms giving the joint forces, on a model whose
     default is MuJoCo's own step (`Controller.use_mujoco_step`): what the step saves over the terms."""
-    result.controller.use_mujoco_step(False)
-    try:
+    with result.controller.on_terms():
         set_ctrl_s, step_s = _set_ctrl_cost(result, steps)
         stages = _stage_costs(result, steps)
-    finally:
-        result.controller.use_mujoco_step()
     return {
         "set_ctrl_us": 1e6 * set_ctrl_s / steps,
         "physx_step_us": 1e6 * step_s / steps,

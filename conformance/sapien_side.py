@@ -156,10 +156,10 @@ def clear_command(result, nv: int) -> None:
     that ended diverged it only clears `qf`. Then `qf` is zeroed: MuJoCo's own step writes the zero command's
     whole law there (gravity's share among it), which no later tier asks for
     (tests/test_tiers_actuated.py::test_the_scene_is_left_as_the_other_tiers_expect)."""
+    from loader.runtime.dof_step import clear_qf
+
     result.set_ctrl(None, qfrc_applied=np.zeros(nv), advance=False)
-    for articulation in result.articulations:
-        if articulation.dof:
-            articulation.set_qf(np.zeros(articulation.dof, np.float32))
+    clear_qf(result.articulations)
 
 
 def contacts_enabled(result) -> bool:

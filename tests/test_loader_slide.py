@@ -63,15 +63,11 @@ def _judged(result, errors: np.ndarray) -> np.ndarray:
 def test_the_sprung_slides_drive_keeps_no_damping(turning):
     # the precondition of the position-target half of the correction: stiffness x dt equals the damping (the terms'
     # drive; MuJoCo's own step, the hinged arm's default law, holds no stiffness in it)
-    controller, whole = turning.controller, turning.controller.mujoco_step
-    controller.use_mujoco_step(False)
-    turning.set_ctrl(None, advance=False)
-    sprung = next(j for a in turning.articulations for j in a.active_joints if j.name == "sprung")
-    try:
-        assert sprung.stiffness > 0 and sprung.damping == 0
-    finally:
-        controller.use_mujoco_step(whole)
+    with turning.controller.on_terms():
         turning.set_ctrl(None, advance=False)
+        sprung = next(j for a in turning.articulations for j in a.active_joints if j.name == "sprung")
+        assert sprung.stiffness > 0 and sprung.damping == 0
+    turning.set_ctrl(None, advance=False)
 
 
 def test_slides_on_a_turning_arm_match_mujoco_after_one_step(turning):

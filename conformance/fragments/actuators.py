@@ -129,14 +129,8 @@ def drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:
     only its friction row. Those are the per-step terms' drives: where MuJoCo's own step gives the joint forces (the
     loader's default where the model allows), its drives hold the implicit damping alone and the tiers judge its
     law, so the terms run for this check and the loader's law runs again after it."""
-    controller = result.controller
-    whole = controller.mujoco_step
-    controller.use_mujoco_step(False)
-    try:
+    with result.controller.on_terms():
         return _terms_drive_mismatches(result, model)
-    finally:
-        if whole:
-            controller.use_mujoco_step()
 
 
 def _terms_drive_mismatches(result, model: mujoco.MjModel) -> tuple[list[str], int]:

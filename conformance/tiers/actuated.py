@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from loader.model.mj import fixed_tendon_terms
+from loader.runtime.dof_step import clear_qf
 from loader.runtime.tendons import TendonPaths
 from loader.runtime.transmissions import MomentPaths, MuscleLaws
 
@@ -92,9 +93,9 @@ def reference_model(result, model: mujoco.MjModel, contact: bool) -> tuple[mujoc
 @contextmanager
 def actuated_scene(result, qpos0, qvel0, contacts: bool):
     """SAPIEN actuators on (and contacts off unless asked) inside; on exit actuators off, the start state
-    restored and no command left in `qf` (`sapien_side.clear_command`). Contacts stay off after a contact-free run,
-    as after `dynamics`: turning collision groups back on once PhysX has stepped without them crashes PhysX
-    (segmentation fault on the next step, manipulator)."""
+    restored and no command left in `qf` (where `disable_actuators`' last `set_ctrl` wrote MuJoCo's whole law).
+    Contacts stay off after a contact-free run, as after `dynamics`: turning collision groups back on once PhysX
+    has stepped without them crashes PhysX (segmentation fault on the next step, manipulator)."""
     result.disable_actuators(False)
     if not contacts:
         disable_contacts(result)
@@ -103,7 +104,7 @@ def actuated_scene(result, qpos0, qvel0, contacts: bool):
     finally:
         result.disable_actuators(True)
         sapien_side.set_state(result, qpos0, qvel0)
-        sapien_side.clear_command(result, result.model.nv)
+        clear_qf(result.articulations)
 
 
 class ForceLaw:

@@ -27,7 +27,7 @@ from ..model.options import Options
 from .activation import Activation, Command
 from .actuators import plan_actuators
 from .contacts import OwnContacts
-from .dof_step import DofKey, DofLayout, Step, law_arrays, passive_laws, refresh_link_velocities
+from .dof_step import DofKey, DofLayout, Step, clear_qf, law_arrays, passive_laws, refresh_link_velocities
 from .drive_forces import DriveForces
 from .drive_writer import DriveWriter, dof_inertia
 from .equalities import EqualityTerm, SoftConnect, plan_equalities
@@ -201,6 +201,18 @@ class Controller:
         self.compile()
         return None if self.whole is not None else self.why_not_whole()
 
+    @contextmanager
+    def on_terms(self):
+        """The per-step terms give `set_ctrl`'s joint forces inside; MuJoCo's own step again after, where it ran
+        before."""
+        whole = self.mujoco_step
+        self.use_mujoco_step(False)
+        try:
+            yield self
+        finally:
+            if whole:
+                self.use_mujoco_step()
+
     def law(self) -> str:
         """What gives `set_ctrl`'s joint forces now: "mujoco_step", or "terms" with why MuJoCo's step does not."""
         if self.stale:
@@ -273,9 +285,7 @@ class Controller:
         if not finite(q, v):
             if advance:
                 raise DivergenceError(self.diverged(q, v))
-            for articulation in articulations:
-                if articulation.dof:
-                    articulation.set_qf(np.zeros(articulation.dof, np.float32))
+            clear_qf(articulations)
             return None
         self.steps += advance
         if advance and self.claimer is not None:

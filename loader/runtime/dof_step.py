@@ -148,6 +148,13 @@ def passive_laws(model: mujoco.MjModel, mapping: Mapping) -> dict[DofKey, DofDri
     return laws
 
 
+def clear_qf(articulations) -> None:
+    """No joint force left in PhysX (`set_qf` persists until written again)."""
+    for articulation in articulations:
+        if articulation.dof:
+            articulation.set_qf(np.zeros(articulation.dof, np.float32))
+
+
 def refresh_link_velocities(articulations) -> None:
     """Make a fixed-base articulation's link velocities the ones its joint velocities imply.
 

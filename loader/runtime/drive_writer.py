@@ -13,7 +13,7 @@ import numpy as np
 
 from ..model import drive, mj
 from ..model.drive import DofDrive
-from .dof_step import DofKey, Step
+from .dof_step import DofKey, Step, clear_qf
 from .term import Compilation, Handover, Term
 
 REGIME_ROWS = [0, 1, 3, 5]  # the law's rows a regime is made of: stiffness, damping, force limit, implicit extra
@@ -164,9 +164,7 @@ class DriveWriter(Term):
         joints = handover.joints
         for (art, dof), passive in self.passive.items():
             drive.apply(joints[art][dof], passive, passive.constant, handover.timestep)
-        for articulation in handover.articulations:
-            if articulation.dof:
-                articulation.set_qf(np.zeros(articulation.dof, np.float32))
+        clear_qf(handover.articulations)
         if self.written is not None:
             self.written[:] = np.nan
 
