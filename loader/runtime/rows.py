@@ -39,6 +39,7 @@ JOINT_ROWS = tuple(
     for name in ("LIMIT_JOINT", "FRICTION_DOF", "LIMIT_TENDON", "FRICTION_TENDON", "EQUALITY")
 )  # the copy's equality rows: joint and tendon couplings
 ACTUATION_OFF, CONTACT_OFF = int(mujoco.mjtDisableBit.mjDSBL_ACTUATION), int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+NO_STAGE = int(mujoco.mjtStage.mjSTAGE_NONE)  # a forward pass from the positions on (`solve`)
 JOINT_ROW = np.isin(np.arange(len(mujoco.mjtConstraint.__members__)), JOINT_ROWS)  # per row type: a joint-space row
 
 
@@ -395,11 +396,12 @@ def solve(
     mirror: mujoco.MjModel, data: mujoco.MjData, contacts: bool, timestep: float, depenetration: float, physx: bool
 ) -> None:
     """MuJoCo's solve of the copy at `data`'s state; where PhysX applies the contacts (`physx`), again without them
-    while one is too deep for PhysX's push (`deep_contact`)."""
-    mujoco.mj_forward(mirror, data)
+    while one is too deep for PhysX's push (`deep_contact`). Its forward pass leaves the sensors out: no force reads
+    them, and a model's ray casts and touch sensors can cost more than the rest of the pass."""
+    mujoco.mj_forwardSkip(mirror, data, NO_STAGE, 1)
     if contacts and physx and deep_contact(data, timestep, depenetration):
         mirror.opt.disableflags |= CONTACT_OFF
-        mujoco.mj_forward(mirror, data)
+        mujoco.mj_forwardSkip(mirror, data, NO_STAGE, 1)
         mirror.opt.disableflags &= ~CONTACT_OFF
 
 
