@@ -134,6 +134,7 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
     stages = _stage_costs(result, steps)
     law = result.controller.law()
     terms = _terms_cost(result, steps) if law == "mujoco_step" else None
+    passes_us = _mujoco_pass_cost(result, steps) if law == "mujoco_step" else None
     batched = batch_costs(path, steps)
     return {
         **row,
@@ -146,6 +147,11 @@ def bench_model(path: str, steps: int, repeats: int = REPEATS) -> dict:
         "set_ctrl_stages_us": stages,
         "law": law,
         **({"terms": terms} if terms is not None else {}),
+        **(
+            {"mujoco_pass_us": passes_us, "mujoco_pass_over_step": passes_us * steps / (1e6 * step_s)}
+            if passes_us is not None and step_s > 0
+            else {}
+        ),
         "batch": batched,
         "nbody": model.nbody,
         "nv": model.nv,
@@ -167,6 +173,31 @@ def _set_ctrl_cost(result, steps: int) -> tuple[float, float]:
         set_ctrl_s, step_s = set_ctrl_s + t1 - t0, step_s + time.perf_counter() - t1
     result.disable_actuators(True)
     return set_ctrl_s, step_s
+
+
+def _mujoco_pass_cost(result, steps: int) -> float:
+    """Microseconds per step of MuJoCo's own calls in MuJoCo's step law, alone: one forward pass of the rows' copy
+    (as `rows.solve` runs it) and one integrator call, `steps` times at the state the last step left, on a data of
+    their own. `set_ctrl` costs this plus the Python and SAPIEN calls around it: on the CPU, no work on the loader's
+    side takes `set_ctrl` below it."""
+    from loader.runtime.rows import CONTACT_OFF, solve
+
+    whole = result.controller.whole
+    rows, timestep = whole.rows, result.controller.timestep
+    source = rows.data
+    data = mujoco.MjData(rows.lent.model)
+    for name in ("qpos", "qvel", "act", "ctrl", "qfrc_applied", "qacc_warmstart"):
+        getattr(data, name)[:] = getattr(source, name)
+    start = source.qvel.copy()
+    with rows.lent as model:
+        model.opt.disableflags = rows.flags if rows.with_contacts else rows.flags | CONTACT_OFF
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            data.qvel[:] = start  # the integrator moved it
+            solve(model, data, rows.with_contacts, timestep, rows.depenetration, not rows.mujocos)
+            whole.integrate(model, data)
+        seconds = time.perf_counter() - t0
+    return 1e6 * seconds / steps
 
 
 def _terms_cost(result, steps: int) -> dict:
@@ -236,10 +267,11 @@ def _stage_costs(result, steps: int) -> dict[str, float]:
     return out
 
 
-def _set_ctrl_ratio(figures: list[tuple[int, dict]]) -> float | None:
-    """All of `set_ctrl`'s time over all of PhysX's, from (steps, figures per step) pairs."""
+def _set_ctrl_ratio(figures: list[tuple[int, dict]], key: str = "set_ctrl_us") -> float | None:
+    """All of `set_ctrl`'s time (or of the figure `key`) over all of PhysX's, from (steps, figures per step)
+    pairs."""
     step_us = sum(steps * figure["physx_step_us"] for steps, figure in figures)
-    return sum(steps * figure["set_ctrl_us"] for steps, figure in figures) / step_us if step_us > 0 else None
+    return sum(steps * figure[key] for steps, figure in figures) / step_us if step_us > 0 else None
 
 
 def totals(models: dict) -> dict:
@@ -262,6 +294,7 @@ def totals(models: dict) -> dict:
             "models": len(driven),
             "set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row) for row in driven]),
             "terms_set_ctrl_over_step": _set_ctrl_ratio([(row["steps"], row["terms"]) for row in driven]),
+            "mujoco_pass_over_step": _set_ctrl_ratio([(row["steps"], row) for row in driven], "mujoco_pass_us"),
         }
     batched = [row["batch"] for row in rows if "batch" in row]
     out["batch_set_ctrl_over_step"] = {

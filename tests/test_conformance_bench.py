@@ -40,6 +40,9 @@ def test_bench_writes_timings_per_model(tmp_path):
     assert row["set_ctrl_over_step"] == pytest.approx(row["set_ctrl_us"] / row["physx_step_us"])
     # the pendulum's hinges are MuJoCo's coordinates: its step drives them by default, the terms beside it
     assert row["law"] == "mujoco_step" and set(row["set_ctrl_stages_us"]) == {"mujoco_step", "controller"}
+    # MuJoCo's own calls in that law, alone: the floor of set_ctrl on the CPU
+    assert row["mujoco_pass_us"] > 0
+    assert row["mujoco_pass_over_step"] == pytest.approx(row["mujoco_pass_us"] / row["physx_step_us"])
     terms = row["terms"]
     assert terms["set_ctrl_over_step"] == pytest.approx(terms["set_ctrl_us"] / terms["physx_step_us"])
     stages = terms["set_ctrl_stages_us"]  # the pendulum's limits are MuJoCo's rows; its drives always run
@@ -68,6 +71,7 @@ def test_bench_writes_timings_per_model(tmp_path):
             "models": 1,
             "set_ctrl_over_step": row["set_ctrl_over_step"],
             "terms_set_ctrl_over_step": terms["set_ctrl_over_step"],
+            "mujoco_pass_over_step": row["mujoco_pass_over_step"],
         }
     )
     assert totals["batch_set_ctrl_over_step"] == pytest.approx({n: b["set_ctrl_over_step"] for n, b in batch.items()})
