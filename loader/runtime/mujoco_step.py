@@ -107,8 +107,8 @@ class MujocoStep:
                 force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied + constraint
                 data.qacc_warmstart[:] = data.qacc
             else:
-                if data.nefc and not rows.mujocos:  # the contact rows left to PhysX
-                    data.qfrc_constraint[:] = rows.joint_rows(False)
+                if data.ncon and not rows.mujocos:  # the contact rows left to PhysX (without contacts, every row
+                    data.qfrc_constraint[:] = rows.joint_rows(False)  # is a joint-space row: the force is whole)
                 force = self.force_to_v1(model, data, step)
             if self.unpulled:
                 force += self.gravity_physx_lacks(model, data)

@@ -242,6 +242,7 @@ class RowTerm(Term):
         self.flat = layout.flat_of(self.keys)
         self.ball_flat = [layout.flat_of(keys) for keys in self.ball_keys]
         self.limit_flat = layout.flat_of(self.limit_keys)
+        self.every_limited = bool(np.array_equal(self.limit_flat, np.arange(layout.size)))  # q is theirs as it is
         self.scalar = scalar_state(self.lent.model, self.mapping, layout)
         self.in_order = self.scalar is not None and bool((self.scalar == np.arange(layout.size)).all())
 
@@ -342,8 +343,8 @@ class RowTerm(Term):
 
     def clear_of(self, step: Step) -> None:
         """Move PhysX's limit of a joint within half a margin of it further out, so that it never acts while the
-        rows run. Most joints are far from it: where the state's length is within a radius that every DoF's clear
-        band holds, one dot product says so
+        rows run. Most joints are far from it: where the limited joints' positions have a length within a radius that
+        every clear band holds, one dot product says so
         (tests/test_loader_limit.py::test_a_joint_in_the_band_of_physx_limit_moves_it)."""
         if not self.limits:
             return
@@ -353,10 +354,9 @@ class RowTerm(Term):
             radius = float((half - np.abs(middle)).min())  # every band holds [-radius, radius]
             self.near = (middle, half, radius * radius if radius > 0 else -1.0)
         middle, half, inside = self.near
-        q = step.q
+        q = step.q if self.every_limited else step.q[self.limit_flat]
         if q.dot(q) <= inside:  # every |q_i| within the radius: every limited DoF inside its band
             return
-        q = q[self.limit_flat]
         near = np.abs(q - middle) > half
         if not near.any():
             return
