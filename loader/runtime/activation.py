@@ -39,11 +39,15 @@ class Activation:
         tau = m.actuator_dynprm[a, 0].astype(float)
         self.tau = np.maximum(tau, MJMINVAL)
         self.exact = (m.actuator_dyntype[a] == int(DYN.mjDYN_FILTEREXACT)) & (tau >= MJMINVAL)
+        self.decay = 1.0 - np.exp(-self.timestep / self.tau)  # filterexact's share of the gap closed in a step
         self.early = m.actuator_actearly[a].astype(bool)
         self.any_early = bool(self.early.any())
         self.limited = m.actuator_actlimited[a].astype(bool)
         self.low = np.where(self.limited, m.actuator_actrange[a, 0], -np.inf)
         self.high = np.where(self.limited, m.actuator_actrange[a, 1], np.inf)
+        # the kinds present: a step leaves out the arithmetic of those absent (the same numbers, fewer array calls)
+        self.any_integrator, self.any_exact = bool(self.integrator.any()), bool(self.exact.any())
+        self.any_limited = bool(self.limited.any())
 
     def reset(self, act: np.ndarray | None = None) -> None:
         self.act = np.zeros(self.model.na) if act is None else np.asarray(act, dtype=np.float64).copy()
@@ -52,12 +56,15 @@ class Activation:
         """Every mapped actuator's activation after one step under `ctrl` (MuJoCo's mj_advance)."""
         act = self.act[self.adr]
         u = np.asarray(ctrl, dtype=np.float64)[self.actuators]
-        rate = np.where(self.integrator, u, (u - act) / self.tau)
+        rate = (u - act) / self.tau
+        if self.any_integrator:
+            rate = np.where(self.integrator, u, rate)
         for i, prm in zip(self.muscles.tolist(), self.muscle_prm):
             rate[i] = mujoco.mju_muscleDynamics(float(u[i]), float(act[i]), prm)
-        timestep = self.timestep
-        step = np.where(self.exact, rate * self.tau * (1.0 - np.exp(-timestep / self.tau)), timestep * rate)
-        return np.clip(act + step, self.low, self.high)
+        step = self.timestep * rate
+        if self.any_exact:
+            step = np.where(self.exact, rate * self.tau * self.decay, step)
+        return np.clip(act + step, self.low, self.high) if self.any_limited else act + step
 
     def inputs(self, ctrl: np.ndarray) -> np.ndarray:
         """What each actuator's gain multiplies this step: ctrl, or the activation (the next one with actearly)."""
