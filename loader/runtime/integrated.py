@@ -30,13 +30,13 @@ def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarra
     """The generalized force of the constraint rows `rows` (a mask over data's rows; None: all) that MuJoCo's step
     integrates (`qacc`: it integrates the solver's qacc). The other rows are contacts, solved with them while SAPIEN
     has contacts, which PhysX applies."""
-    force = np.zeros(model.nv)
     if not data.nefc:
-        return force
+        return np.zeros(model.nv)
     whole = rows is None or bool(rows.all())
+    if not qacc and whole:
+        return data.qfrc_constraint
+    force = np.zeros(model.nv)
     if not qacc:
-        if whole:
-            return data.qfrc_constraint
         if rows.any():
             mujoco.mj_mulJacTVec(model, data, force, np.where(rows, data.efc_force[: data.nefc], 0.0))
         return force

@@ -301,9 +301,10 @@ class RowTerm(Term):
     def joint_rows(self, accelerated: bool | None = None) -> np.ndarray:
         """The force of the rows SAPIEN takes from MuJoCo, as MuJoCo's step integrates it (`integrated.py`;
         `accelerated`: whether that step integrates the solver's qacc, by default as the model's integrator does):
-        every row where the model's own contacts are MuJoCo's, else the joint-space rows alone (the contact rows,
-        solved with them, are PhysX's to apply)."""
-        rows = None if self.mujocos else JOINT_ROW[self.data.efc_type[: self.data.nefc]]
+        every row where the model's own contacts are MuJoCo's or the solve made no contact, else the joint-space
+        rows alone (the contact rows, solved with them, are PhysX's to apply)."""
+        data = self.data
+        rows = None if self.mujocos or not data.ncon else JOINT_ROW[data.efc_type[: data.nefc]]
         accelerated = self.accelerated if accelerated is None else accelerated
         return integrated_force(self.lent.model, self.data, rows, accelerated)
 
