@@ -107,8 +107,9 @@ class MujocoStep:
                 force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied + constraint
                 data.qacc_warmstart[:] = data.qacc
             else:
-                if data.ncon and not rows.mujocos:  # the contact rows left to PhysX (without contacts, every row
-                    data.qfrc_constraint[:] = rows.joint_rows(False)  # is a joint-space row: the force is whole)
+                # the contact rows left to PhysX; with no contact, every row is a joint-space row
+                if data.ncon and not rows.mujocos:
+                    data.qfrc_constraint[:] = rows.joint_rows(False)
                 force = self.force_to_v1(model, data, step)
             if self.unpulled:
                 force += self.gravity_physx_lacks(model, data)
