@@ -107,8 +107,7 @@ class MujocoStep:
                 force = data.qfrc_passive + data.qfrc_actuator + data.qfrc_applied + constraint
                 data.qacc_warmstart[:] = data.qacc
             else:
-                # the contact rows left to PhysX; with no contact, every row is a joint-space row
-                if data.ncon and not rows.mujocos:
+                if rows.contact_rows:  # left to PhysX
                     data.qfrc_constraint[:] = rows.joint_rows(False)
                 force = self.force_to_v1(model, data, step)
             if self.unpulled:

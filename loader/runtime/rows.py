@@ -304,16 +304,27 @@ class RowTerm(Term):
         every row where the model's own contacts are MuJoCo's or the solve made no contact, else the joint-space
         rows alone (the contact rows, solved with them, are PhysX's to apply)."""
         data = self.data
-        rows = None if self.mujocos or not data.ncon else JOINT_ROW[data.efc_type[: data.nefc]]
+        rows = JOINT_ROW[data.efc_type[: data.nefc]] if self.contact_rows else None
         accelerated = self.accelerated if accelerated is None else accelerated
         return integrated_force(self.lent.model, self.data, rows, accelerated)
+
+    @property
+    def contact_rows(self) -> bool:
+        """Whether the copy's last solve holds contact rows that PhysX applies (the model's own contacts are not
+        MuJoCo's), which the force SAPIEN takes leaves out; without a contact, every row is a joint-space row."""
+        return bool(self.data.ncon) and not self.mujocos
+
+    def solve_flags(self, actuated: bool) -> int:
+        """The copy's disable flags for a solve: the model's own, actuation off while the loader's actuators are,
+        contacts off while SAPIEN's are."""
+        flags = self.flags if actuated else self.flags | ACTUATION_OFF
+        return flags if self.with_contacts else flags | CONTACT_OFF
 
     def mirror_state(self, step: Step) -> None:
         """MuJoCo's copy at this step's start: SAPIEN's state, the clamped ctrl, the activation, the applied force,
         and actuation off while the loader's actuators are."""
         data = self.data
-        flags = (self.flags | ACTUATION_OFF) if not step.actuated else self.flags
-        self.lent.opt.disableflags = flags if self.with_contacts else flags | CONTACT_OFF
+        self.lent.opt.disableflags = self.solve_flags(step.actuated)
         if self.in_order:  # SAPIEN's DoFs are MuJoCo's hinges and slides, in order
             data.qpos[:], data.qvel[:] = step.q, step.v
         elif self.scalar is not None:  # hinges and slides only: MuJoCo's qpos and qvel are joint positions
