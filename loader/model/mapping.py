@@ -187,9 +187,12 @@ class Mapping:
         art.set_root_linear_velocity(np.array([v + a for v, a in zip(qvel6[:3], arm)], np.float32))
         art.set_root_angular_velocity(np.array(omega_world, np.float32))
 
-    def get_state(self, articulations, q: list | None = None, v: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def get_state(
+        self, articulations, q: list | None = None, v: list | None = None, roots: bool = True
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Read SAPIEN's state back in MuJoCo's layout (qpos of size nq, qvel of size nv); `q`, `v`: the
-        articulations' joint positions and velocities when already read."""
+        articulations' joint positions and velocities when already read; `roots=False` leaves the free joints'
+        entries zero."""
         qpos = np.zeros(self.nq)
         qvel = np.zeros(self.nv)
         q = q if q is not None else [np.asarray(art.get_qpos(), np.float64) for art in articulations]
@@ -202,7 +205,7 @@ class Mapping:
             target = self.joints[j]
             a, adr, dof = target.articulation, int(self.jnt_qposadr[j]), int(self.jnt_dofadr[j])
             jtype = int(self.jnt_type[j])
-            if jtype == FREE:
+            if jtype == FREE and roots:
                 qpos[adr : adr + 7], qvel[dof : dof + 6] = root_state(
                     articulations[a], self.centres[int(self.jnt_bodyid[j])]
                 )

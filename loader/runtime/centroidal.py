@@ -48,8 +48,9 @@ class Momenta:
 @dataclass(frozen=True)
 class Ended:
     """One copy's physics step as the settle reads it back: MuJoCo's state at its start (`qpos0`, `qvel0`) and
-    PhysX's at its end (`qpos1`, `qvel1`), that velocity with the roots' part zeroed (`joints_only`), the roots
-    that stepped and SAPIEN's contacts of the step."""
+    PhysX's at its end (`qpos1`, `qvel1`; the roots' part read only where a root is not `balanced`), that velocity
+    with the roots' part zeroed (`joints_only`), the roots that stepped, SAPIEN's contacts of the step and the
+    roots that stepped whose free joint's rows give their velocity (`Momentum.root_rows`)."""
 
     qpos0: np.ndarray
     qvel0: np.ndarray
@@ -58,6 +59,12 @@ class Ended:
     joints_only: np.ndarray
     stepped: list
     contacts: list
+    balanced: list = ()
+
+    @property
+    def unbalanced(self) -> bool:
+        """Whether a root that stepped needs the momenta (`Passes.momenta`)."""
+        return len(self.balanced) < len(self.stepped)
 
 
 class Passes:

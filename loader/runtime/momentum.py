@@ -7,10 +7,15 @@ torque about it) while taking its direction from an uncorrected intermediate. Mu
 qvel: its momentum ends at A(q0) v1 = (P, L)(q0, v0) + dt (F, T) - dt (dA/dt) v0, A the centroidal momentum
 matrix. Where the links turn relative to each other within a step, the roots end with different velocities.
 
-`Momentum.settle` recovers MuJoCo's root velocity after a physics step: it solves
-A(q0) v1 = (P', L) - dt (dA/dt) v0 for the root's part of v1, with P' PhysX's end linear momentum, L the start's
-angular momentum plus dt T scaled to PhysX's end size, and the joint part PhysX's; it writes the root pose MuJoCo's
-position update gives. A tree a contact pushed in the step keeps PhysX's L: SAPIEN reports a contact's normal
+`Momentum.settle` recovers MuJoCo's root velocity after a physics step, the joint part of v1 PhysX's, and writes
+the root pose MuJoCo's position update gives. Where every force on the tree is known (no contact pushed it, no D6
+joint holds it), MuJoCo's own step on the free joint's rows gives it:
+
+    M_rr(q0) (v1_r - v0_r) = dt (tau_r - c_r(q0, v0)) - M_rj(q0) (v1_j - v0_j),
+
+tau_r the free joint's share of the link forces and of the gravity PhysX does not apply (`root_rows`). Elsewhere it
+solves A(q0) v1 = (P', L) - dt (dA/dt) v0, with P' PhysX's end linear momentum and L the start's angular momentum
+plus dt T, scaled to PhysX's end size; a tree a contact pushed keeps PhysX's L: SAPIEN reports a contact's normal
 impulse only, so the torque of friction is unknown
 (tests/test_loader_momentum.py::test_a_tree_a_contact_turns_keeps_physxs_angular_momentum).
 It acts only where the joints moved exactly as PhysX's position update moves them (position by timestep x
@@ -98,6 +103,14 @@ class Root:
     weights: np.ndarray
     damped: bool  # MuJoCo's step adds to the free joint what PhysX's does not (`FreeJointLaw`)
     weight: float  # the tree's mass gravity pulls on (the sum of `weights`)
+    held: bool = False  # a connect or weld holds a body of the tree
+    lifted: tuple = ()  # (body, -gravcomp m g) per compensated body of the tree
+
+    @property
+    def balanced(self) -> bool:
+        """Whether MuJoCo's root rows settle it where no contact pushed it (`Momentum.root_rows`): every force on
+        the tree is then known, and the free joint adds nothing to PhysX's step."""
+        return not (self.damped or self.held)
 
 
 class Momentum(Term):
@@ -121,6 +134,8 @@ class Momentum(Term):
         self.links = {root.articulation: set(articulations[root.articulation].links) for root in roots}
         damped = [root for root in roots if root.damped]
         self.law = FreeJointLaw(model, mapping, damped, timestep) if damped else None
+        self.force, self.coupled, self.change = np.zeros(model.nv), np.zeros(model.nv), np.zeros(model.nv)
+        self.dense, self.block, self.root_change = np.zeros((model.nv, model.nv)), np.zeros((6, 6)), np.zeros(6)
 
     def contribute(self, step) -> None:
         """Remember the state this physics step starts from (`set_ctrl` settles the last step before)."""
@@ -150,7 +165,7 @@ class Momentum(Term):
         link forces the loader added this step, (articulation, point, force, torque) in the world."""
         ended = self.ended(articulations)
         if ended is not None:
-            (momenta,) = self.passes.momenta([ended])
+            (momenta,) = self.passes.momenta([ended]) if ended.unbalanced else (None,)
             self.finish(ended, momenta, articulations, wrenches)
 
     def ended(self, articulations) -> Ended | None:
@@ -174,17 +189,22 @@ class Momentum(Term):
         if not stepped:
             return None
         contacts = self.scene.get_contacts() if self.sees_contacts else []
-        qpos1, qvel1 = self.mapping.get_state(articulations, q, v)
+        balanced = [r for r in stepped if r.balanced and not touching(self.links[r.articulation], contacts)]
+        # the roots' end state is read only where the momenta are (`Passes.momenta`)
+        qpos1, qvel1 = self.mapping.get_state(articulations, q, v, roots=len(balanced) < len(stepped))
         joints_only = qvel1.copy()
         joints_only[self.root_dofs] = 0.0
-        return Ended(qpos0, qvel0, qpos1, qvel1, joints_only, stepped, contacts)
+        return Ended(qpos0, qvel0, qpos1, qvel1, joints_only, stepped, contacts, balanced)
 
-    def finish(self, ended: Ended, momenta: Momenta, articulations, wrenches) -> None:
-        """The roots that stepped at MuJoCo's velocity and position after the step, from the passes' `momenta`
-        (the free joint law reads `self.data`, which must then be at the step's start)."""
-        dt, qpos0, qvel1 = self.timestep, ended.qpos0, ended.qvel1
+    def finish(self, ended: Ended, momenta: Momenta | None, articulations, wrenches) -> None:
+        """The roots that stepped at MuJoCo's velocity and position after the step: the balanced ones from their
+        rows, the others from the passes' `momenta` (the free joint law reads `self.data`, which must then be at the
+        step's start)."""
+        dt, qpos0, qvel1, balanced = self.timestep, ended.qpos0, ended.qvel1, ended.balanced
+        if balanced:
+            self.root_rows(ended, balanced, wrenches)
         for i, root in enumerate(self.roots):
-            if root not in ended.stepped:
+            if root not in ended.stepped or root in balanced:
                 continue
             kept, start = momenta.kept[i], momenta.starts[i]
             if touching(self.links[root.articulation], ended.contacts):  # friction's torque unseen: PhysX's L
@@ -207,6 +227,41 @@ class Momentum(Term):
                 qvel1[dof : dof + 6],
             )
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
+
+    def root_rows(self, ended: Ended, roots: list[Root], wrenches) -> None:
+        """`roots`' velocities in `ended.qvel1` from MuJoCo's step on their free joints' rows at q0, the joints'
+        part PhysX's: M_rr (v1_r - v0_r) = dt (tau_r - c_r) - M_rj (v1_j - v0_j), c MuJoCo's bias (gravity on every
+        body), tau the link forces the loader added (`wrenches`) and the lift of the compensated bodies, each as
+        J^T f at the root (the tree's other rows are PhysX's). `self.data` is left at the step's start
+        (tests/test_loader_momentum.py::test_the_root_rows_are_mujocos_step)."""
+        model, data, force = self.model, self.data, self.force
+        data.qpos[:], data.qvel[:] = ended.qpos0, ended.qvel0
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_crb(model, data)
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_rne(model, data, 0, force)
+        np.negative(force, out=force)
+        zero = np.zeros(3)
+        bodies = {root.articulation: root.body for root in roots}
+        for root in roots:
+            for body, lift in root.lifted:
+                mujoco.mj_applyFT(model, data, lift, zero, data.xipos[body], root.body, force)
+        for a, point, pushed, moment in wrenches:
+            if a in bodies:
+                mujoco.mj_applyFT(model, data, pushed, moment, point, bodies[a], force)
+        change = self.change
+        np.subtract(ended.joints_only, ended.qvel0, out=change)
+        change[self.root_dofs] = 0.0
+        mujoco.mj_mulM(model, data, self.coupled, change)
+        mujoco.mj_fullM(model, data, self.dense)
+        dt, block, change = self.timestep, self.block, self.root_change
+        for root in roots:
+            rows = slice(root.dofadr, root.dofadr + 6)
+            block[:] = self.dense[rows, rows]
+            mujoco.mju_cholFactor(block, 0.0)  # numpy's solve of a 6 x 6 costs several times MuJoCo's
+            mujoco.mju_cholSolve(change, block, dt * force[rows] - self.coupled[rows])
+            ended.qvel1[rows] = ended.qvel0[rows] + change
 
 
 def root_velocity(root: Root, start: Start, own: list[float], qpos0: np.ndarray) -> list[float]:
@@ -233,9 +288,23 @@ def settle_copies(terms: list[Momentum], passes: Passes, articulations: list[lis
     ended = [term.ended(arts) for term, arts in zip(terms, articulations)]
     if not any(ended):
         return
-    for term, one, momenta, arts, pushed in zip(terms, ended, passes.momenta(ended), articulations, wrenches):
+    unbalanced = [one if one is not None and one.unbalanced else None for one in ended]
+    momenta = passes.momenta(unbalanced) if any(unbalanced) else unbalanced
+    for term, one, each, arts, pushed in zip(terms, ended, momenta, articulations, wrenches):
         if one is not None:
-            term.finish(one, momenta, arts, pushed)
+            term.finish(one, each, arts, pushed)
+
+
+def held_bodies(model: mujoco.MjModel) -> set[int]:
+    """The bodies a connect or weld equality names (its sites' bodies)."""
+    held = set()
+    for e in range(model.neq):
+        if int(model.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)):
+            continue
+        for obj in (int(model.eq_obj1id[e]), int(model.eq_obj2id[e])):
+            site = int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE)
+            held.add(int(model.site_bodyid[obj]) if site and obj >= 0 else obj)
+    return held
 
 
 def plan_momentum(
@@ -246,6 +315,7 @@ def plan_momentum(
     inertia (principal moments not all equal, or the centre of mass off the origin)."""
     roots = []
     centres = mapping.centres
+    held = held_bodies(model)
     for j, target in enumerate(mapping.joints):
         if int(model.jnt_type[j]) != FREE:
             continue
@@ -267,6 +337,12 @@ def plan_momentum(
                 "joints keep PhysX's velocity where MuJoCo's couples them to the root's",
             )
         weights = model.body_mass[tree] * (1.0 - model.body_gravcomp[tree])
+        gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.asarray(model.opt.gravity, np.float64)
+        lifted = tuple(
+            (int(b), -float(model.body_gravcomp[b] * model.body_mass[b]) * gravity)
+            for b in tree
+            if model.body_gravcomp[b] and gravity.any()
+        )
         roots.append(
             Root(
                 target.articulation,
@@ -278,6 +354,8 @@ def plan_momentum(
                 weights,
                 damped,
                 float(weights.sum()),
+                bool(held & set(tree.tolist())),
+                lifted,
             )
         )
     return Momentum(model, mapping, roots, timestep, scene, articulations) if roots else None
