@@ -92,7 +92,8 @@ def _root_after_one_step(path: Path, mutate=None) -> float:
 
 
 class _Uncoupled:
-    """The deliberate mistake: MuJoCo's M (v1 - v0) read as zero, the joints' pull on the root left out."""
+    """The deliberate mistake: MuJoCo's M u read as zero (`Momentum.root_rows`), the joints' pull on the root left
+    out."""
 
     def __getattr__(self, name: str):
         return getattr(mujoco, name)

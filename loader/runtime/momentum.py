@@ -41,6 +41,7 @@ from .free_joint import FreeJointLaw, differs
 from .term import Term
 
 ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
+ZERO = np.zeros(3)  # no torque (`mj_applyFT` only reads it)
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
 
 
@@ -134,7 +135,8 @@ class Momentum(Term):
         self.links = {root.articulation: set(articulations[root.articulation].links) for root in roots}
         damped = [root for root in roots if root.damped]
         self.law = FreeJointLaw(model, mapping, damped, timestep) if damped else None
-        self.force, self.coupled, self.change = np.zeros(model.nv), np.zeros(model.nv), np.zeros(model.nv)
+        self.bias, self.force = np.zeros(model.nv), np.zeros(model.nv)
+        self.coupled, self.change = np.zeros(model.nv), np.zeros(model.nv)
         self.dense, self.block, self.root_change = np.zeros((model.nv, model.nv)), np.zeros((6, 6)), np.zeros(6)
 
     def contribute(self, step) -> None:
@@ -232,36 +234,36 @@ class Momentum(Term):
         """`roots`' velocities in `ended.qvel1` from MuJoCo's step on their free joints' rows at q0, the joints'
         part PhysX's: M_rr (v1_r - v0_r) = dt (tau_r - c_r) - M_rj (v1_j - v0_j), c MuJoCo's bias (gravity on every
         body), tau the link forces the loader added (`wrenches`) and the lift of the compensated bodies, each as
-        J^T f at the root (the tree's other rows are PhysX's). `self.data` is left at the step's start
+        J^T f at the root (the tree's other rows are PhysX's); solved as M_rr v1_r = dt (tau_r - c_r) - (M u)_r, u
+        the joints' change with -v0 on the roots. `self.data` is left at the step's start
         (tests/test_loader_momentum.py::test_the_root_rows_are_mujocos_step)."""
-        model, data, force = self.model, self.data, self.force
+        model, data, bias, pushed = self.model, self.data, self.bias, self.force
         data.qpos[:], data.qvel[:] = ended.qpos0, ended.qvel0
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_crb(model, data)
         mujoco.mj_comVel(model, data)
-        mujoco.mj_rne(model, data, 0, force)
-        np.negative(force, out=force)
-        zero = np.zeros(3)
+        mujoco.mj_rne(model, data, 0, bias)
         bodies = {root.articulation: root.body for root in roots}
-        for root in roots:
-            for body, lift in root.lifted:
-                mujoco.mj_applyFT(model, data, lift, zero, data.xipos[body], root.body, force)
-        for a, point, pushed, moment in wrenches:
-            if a in bodies:
-                mujoco.mj_applyFT(model, data, pushed, moment, point, bodies[a], force)
-        change = self.change
-        np.subtract(ended.joints_only, ended.qvel0, out=change)
-        change[self.root_dofs] = 0.0
-        mujoco.mj_mulM(model, data, self.coupled, change)
+        wrenched = [w for w in wrenches if w[0] in bodies]
+        lifted = [(lift, root) for root in roots for lift in root.lifted]
+        if wrenched or lifted:
+            pushed[:] = 0.0
+            for (body, lift), root in lifted:
+                mujoco.mj_applyFT(model, data, lift, ZERO, data.xipos[body], root.body, pushed)
+            for a, point, force, moment in wrenched:
+                mujoco.mj_applyFT(model, data, force, moment, point, bodies[a], pushed)
+            bias -= pushed
+        np.subtract(ended.joints_only, ended.qvel0, out=self.change)
+        mujoco.mj_mulM(model, data, self.coupled, self.change)
         mujoco.mj_fullM(model, data, self.dense)
-        dt, block, change = self.timestep, self.block, self.root_change
+        dt, block = self.timestep, self.block
         for root in roots:
             rows = slice(root.dofadr, root.dofadr + 6)
             block[:] = self.dense[rows, rows]
             mujoco.mju_cholFactor(block, 0.0)  # numpy's solve of a 6 x 6 costs several times MuJoCo's
-            mujoco.mju_cholSolve(change, block, dt * force[rows] - self.coupled[rows])
-            ended.qvel1[rows] = ended.qvel0[rows] + change
+            mujoco.mju_cholSolve(self.root_change, block, -dt * bias[rows] - self.coupled[rows])
+            ended.qvel1[rows] = self.root_change
 
 
 def root_velocity(root: Root, start: Start, own: list[float], qpos0: np.ndarray) -> list[float]:
