@@ -62,14 +62,17 @@ FLUID = """<mujoco><option timestep="0.002" integrator="Euler" density="{density
 </mujoco>"""
 
 
+@pytest.mark.usefixtures("terms")
 @pytest.mark.parametrize(
     "density, viscosity, wind",
     [(1000, 0, "0 0 0"), (0, 0.5, "0 0 0"), (1200, 0.1, "1 -2 0")],
     ids=["drag", "viscous", "both-with-wind"],
 )
 def test_fluid_forces_match_mujoco(tmp_path, density, viscosity, wind):
-    """A blade spinning on a hinge through MuJoCo's inertia-box fluid: the loader's per-step link forces equal
-    MuJoCo's qfrc_fluid (one step from 2 rad/s: 4e-8 rad/s on a 4e-2 change). Mutation: fluid dropped."""
+    """A blade spinning on a hinge through MuJoCo's inertia-box fluid, under the per-step terms: the fluid term's
+    link forces equal MuJoCo's qfrc_fluid (one step from 2 rad/s: 1e-8 to 5e-8 rad/s on a 4e-3 to 4e-2 change).
+    Mutation: fluid dropped. A tree of several bodies, where each body's velocity is MuJoCo's cvel moved from the
+    tree's centre of mass to its own: tests/test_loader_momentum.py::test_drag_turning_a_robot_in_a_fluid_is_carried."""
     path = mjcf_file(tmp_path, FLUID.format(density=density, viscosity=viscosity, wind=wind), "fluid.xml")
 
     def first_step(keep: bool) -> float:

@@ -91,6 +91,17 @@ def cross_floats(a, b) -> Vec3:
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
+LEVI_CIVITA = np.array(
+    [[[0, 0, 0], [0, 0, 1], [0, -1, 0]], [[0, 0, -1], [0, 0, 0], [1, 0, 0]], [[0, 1, 0], [-1, 0, 0], [0, 0, 0]]],
+    dtype=np.float64,
+)
+
+
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b row by row for (n, 3) arrays, in one call (numpy's `cross` costs several times as much)."""
+    return np.einsum("ijk,nj,nk->ni", LEVI_CIVITA, a, b)
+
+
 def cross(a, b) -> np.ndarray:
     """a x b for 3-vectors as an array (numpy's own `cross` costs several times the arithmetic, on every step)."""
     return np.array(cross_floats(a, b))

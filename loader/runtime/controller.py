@@ -406,7 +406,7 @@ class Controller:
             term.contacts(enabled)
 
     def velocity_readers(self) -> list:
-        """The articulations whose link velocities this step's terms read (slides, fluid, connect and weld ends)."""
+        """The articulations whose link velocities this step's terms read (slides, connect and weld ends)."""
         if self.readers is None:
             links = [link for term in self.terms for link in term.velocity_links(self.articulations)]
             self.readers = [art for art in self.articulations if any(link in art.links for link in links)]

@@ -1,6 +1,8 @@
 """MuJoCo's inertia-box fluid model (`<option density viscosity wind>`) as per-step link forces: viscous and
 quadratic drag and torque on each body's equivalent box, from its velocity relative to the wind at the start of
-the step, added once per step. Derivation: docs/mapping.md#fluid.
+the step, added once per step. The bodies' frames and velocities come from MuJoCo's kinematics at SAPIEN's state
+(what the joint velocities imply, as MuJoCo's own fluid reads them), not from a SAPIEN read per link.
+Derivation: docs/mapping.md#fluid.
 """
 
 from __future__ import annotations
@@ -11,8 +13,10 @@ import mujoco
 import numpy as np
 
 from ..errors import Notes
+from ..model.frames import cross_rows
 from ..model.mapping import Mapping
 from ..model.mj import MJMINVAL
+from .dof_step import Step
 from .term import Compilation, LinkForces
 
 
@@ -21,6 +25,7 @@ class FluidBody:
     articulation: int
     link: int
     box: tuple[float, float, float]  # sides of the equivalent inertia box
+    body: int = 0  # MuJoCo's
 
 
 @dataclass
@@ -31,7 +36,10 @@ class Fluid(LinkForces):
     bodies: tuple[FluidBody, ...]
     wrenches: list = field(default_factory=list)  # this step's (articulation, centre of mass, force, torque), world
     factors: np.ndarray | None = field(default=None, repr=False)  # `coefficients`, planned by `compile`
-    links: list | None = field(default=None, repr=False)  # each body's link and its centre of mass (`compile`)
+    links: list | None = field(default=None, repr=False)  # each body's link (`compile`)
+    model: mujoco.MjModel | None = field(default=None, repr=False)  # the runtime's, for MuJoCo's kinematics
+    mapping: Mapping | None = field(default=None, repr=False)
+    data: mujoco.MjData | None = field(default=None, repr=False)  # made at first use unless the load's is spared
 
     def coefficients(self) -> np.ndarray:
         """Per body (rows), the state-independent factors of `wrench`'s four terms: viscous torque, viscous force,
@@ -74,35 +82,48 @@ class Fluid(LinkForces):
 
     def compile(self, compilation: Compilation) -> None:
         self.factors = self.coefficients()
-        links = [compilation.layout.links[body.articulation][body.link] for body in self.bodies]
-        self.links = [(link, link.cmass_local_pose) for link in links]
+        self.links = [compilation.layout.links[body.articulation][body.link] for body in self.bodies]
+        self.ids = np.array([body.body for body in self.bodies], dtype=int)
+        self.centres = self.model.body_rootid[self.ids]  # where MuJoCo's cvel is taken: the tree's centre of mass
 
-    def velocity_links(self, articulations) -> list:
-        return [articulations[b.articulation].links[b.link] for b in self.bodies]
+    def spare(self, model, data) -> bool:
+        if self.data is not None or model is not self.model:
+            return False
+        self.data = data
+        return True
 
-    def apply(self, articulations) -> None:
-        """Add this step's fluid force and torque at every body's centre of mass (once per step)."""
-        pairs = self.links or [
-            (link, link.cmass_local_pose)
-            for link in (articulations[body.articulation].links[body.link] for body in self.bodies)
-        ]
-        links = [link for link, _ in pairs]
-        poses = np.array(
-            [(link.entity_pose * com).to_transformation_matrix() for link, com in pairs], dtype=np.float64
-        ).reshape(-1, 4, 4)  # each body's centre of mass and inertial frame
-        frames = poses[:, :3, :3]
-        angular = np.array([link.angular_velocity for link in links], dtype=np.float64)
-        linear = np.array([link.linear_velocity for link in links], dtype=np.float64) - self.wind
+    def contribute(self, step: Step) -> None:
+        if step.advance:
+            self.push(step)
+
+    def push(self, step: Step) -> None:
+        """Add this step's fluid force and torque at every body's centre of mass (once per step), from MuJoCo's
+        kinematics at the step's start: the rows' forward pass where it ran at this state, else this term's
+        (tests/test_loader_passive.py::test_fluid_forces_match_mujoco)."""
+        model, data = self.model, step.forwarded
+        if data is None:
+            if self.data is None:
+                self.data = mujoco.MjData(model)
+            data = self.data
+            data.qpos[:], data.qvel[:] = step.mujoco_state(self.mapping)
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            mujoco.mj_comVel(model, data)
+        ids = self.ids
+        centres = data.xipos[ids]
+        frames = data.ximat[ids].reshape(-1, 3, 3)  # each body's inertial frame in the world
+        velocity = data.cvel[ids]  # (angular, linear) at the tree's centre of mass
+        angular = velocity[:, :3]
+        linear = velocity[:, 3:] + cross_rows(angular, centres - data.subtree_com[self.centres]) - self.wind
         to_body = frames.transpose(0, 2, 1)
-        factors = self.coefficients() if self.factors is None else self.factors
         torque, force = self.wrench(
-            factors, (to_body @ angular[:, :, None])[:, :, 0], (to_body @ linear[:, :, None])[:, :, 0]
+            self.factors, (to_body @ angular[:, :, None])[:, :, 0], (to_body @ linear[:, :, None])[:, :, 0]
         )
         torque, force = (frames @ torque[:, :, None])[:, :, 0], (frames @ force[:, :, None])[:, :, 0]
-        for link, f, t in zip(links, force, torque):
+        for link, f, t in zip(self.links, force, torque):
             link.add_force_torque(f, t)
         self.wrenches.clear()
-        self.wrenches.extend(zip([body.articulation for body in self.bodies], poses[:, :3, 3], force, torque))
+        self.wrenches.extend(zip([body.articulation for body in self.bodies], centres.copy(), force, torque))
 
 
 def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid | None:
@@ -134,9 +155,14 @@ def plan_fluid(model: mujoco.MjModel, mapping: Mapping, notes: Notes) -> Fluid |
             float(np.sqrt(max(MJMINVAL, inertia[j] + inertia[k] - inertia[i]) / mass * 6.0))
             for i, j, k in ((0, 1, 2), (1, 0, 2), (2, 0, 1))
         )
-        bodies.append(FluidBody(target.articulation, target.link, box))
+        bodies.append(FluidBody(target.articulation, target.link, box, b))
     if not bodies:  # no body the fluid acts on (every one massless, welded to the world or ellipsoid-shaped)
         return None
     return Fluid(
-        float(model.opt.density), float(model.opt.viscosity), np.asarray(model.opt.wind, np.float64), tuple(bodies)
+        float(model.opt.density),
+        float(model.opt.viscosity),
+        np.asarray(model.opt.wind, np.float64),
+        tuple(bodies),
+        model=model,
+        mapping=mapping,
     )
