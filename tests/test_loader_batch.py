@@ -3,6 +3,8 @@ same copy driven by its own `set_ctrl`, and the array stages must really run onc
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -200,27 +202,37 @@ def test_a_copy_edited_apart_is_stepped_by_its_own_laws(tmp_path):
         np.testing.assert_array_equal(a.get_state()[0], b.get_state()[0])
 
 
-def _stack_and_its_numbers(path, mistake: bool = False) -> tuple[bool, float]:
+def _stack_and_its_numbers(path, mistake: str = "") -> tuple[bool, float]:
     """The stack of COPIES copies of a model's trees: whether `stack` found it exact, and the largest difference
-    between each copy's momenta from the stack's passes and from its own model's, at random states. `mistake`: one
-    body of the last copy 1e-12 kg heavier in the stack."""
+    between each copy's momenta and root rows from the stack's passes and from its own model's, at random states.
+    `mistake`: one body of the last copy 1e-12 kg heavier in the stack ("mass"), or its first root DoF's armature
+    1e-12 larger ("armature": only the root rows read M)."""
     from loader.runtime.centroidal import Ended, Passes, gives_each_copy_its_own, random_state, stack
 
     term = quiet_load(path).controller.term("momentum")
     model = term.model
     stacked = stack(model, COPIES)
     assert stacked is not None
-    if mistake:
+    if mistake == "mass":
         stacked.body_mass[-1] += 1e-12
+    elif mistake == "armature":
+        stacked.dof_armature[(COPIES - 1) * model.nv + term.roots[0].dofadr] += 1e-12
     exact = gives_each_copy_its_own(model, stacked, COPIES)
     rng = np.random.default_rng(11)
-    ended = []
+    ended, balanced = [], [root for root in term.roots if root.balanced]
     for _ in range(COPIES):
         (qpos0, qvel0), (qpos1, qvel1) = random_state(model, rng), random_state(model, rng)
-        ended.append(Ended(qpos0, qvel0, qpos1, qvel1, rng.standard_normal(model.nv), [], []))
-    together = Passes(stacked, model, term.roots, np.array(term.gravity), COPIES).momenta(ended)
+        ended.append(Ended(qpos0, qvel0, qpos1, qvel1, rng.standard_normal(model.nv), [], [], balanced))
+    stacked_passes = Passes(stacked, model, term.roots, np.array(term.gravity), COPIES)
+    together = stacked_passes.momenta(ended)
     alone = Passes(model, model, term.roots, np.array(term.gravity))
+    rows = [dataclasses.replace(one, qvel1=one.qvel1.copy()) for one in ended]
+    stacked_passes.root_rows(rows, [[]] * COPIES, 0.01)
     worst = 0.0
+    for one, joint in zip(ended, rows):
+        own = dataclasses.replace(one, qvel1=one.qvel1.copy())
+        alone.root_rows([own], [[]], 0.01)
+        worst = max(worst, float(np.abs(own.qvel1 - joint.qvel1).max()))
     for one, joint in zip(ended, together):
         (own,) = alone.momenta([one])
         for name in ("kept", "started", "joints_part", "drifts"):
@@ -241,9 +253,11 @@ def _stack_and_its_numbers(path, mistake: bool = False) -> tuple[bool, float]:
 @pytest.mark.parametrize("path", [suite_path("humanoid"), MIXED], ids=["suite/humanoid", "mixed"])
 def test_a_stack_of_copies_gives_each_copy_its_own_numbers(path, tmp_path):
     """A `Batch` runs the momentum's MuJoCo passes once for every copy, on one model holding all their trees: each
-    copy's momenta and trees come out exactly as from its own model, at random states. Mutation: one body of the
-    last copy 1e-12 kg heavier in the stack, which `stack`'s own check refuses and the momenta show."""
+    copy's momenta, trees and root rows come out exactly as from its own model, at random states. Mutations: one
+    body of the last copy 1e-12 kg heavier in the stack, or one DoF's armature, which `stack`'s own check refuses
+    and the numbers show."""
     path = mjcf_file(tmp_path, path) if isinstance(path, str) else path
     assert _stack_and_its_numbers(path) == (True, 0.0)
-    exact, worst = _stack_and_its_numbers(path, mistake=True)
-    assert not exact and worst > 0.0
+    for mistake in ("mass", "armature"):
+        exact, worst = _stack_and_its_numbers(path, mistake)
+        assert not exact and worst > 0.0, mistake

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from support.lockstep import at_keyframe, contact_free, one_step, paired_rollout
 
+import loader.runtime.centroidal
 import loader.runtime.momentum
 from loader.runtime.centroidal import random_state
 
@@ -92,7 +93,7 @@ def _root_after_one_step(path: Path, mutate=None) -> float:
 
 
 class _Uncoupled:
-    """The deliberate mistake: MuJoCo's M u read as zero (`Momentum.root_rows`), the joints' pull on the root left
+    """The deliberate mistake: MuJoCo's M u read as zero (`Passes.root_rows`), the joints' pull on the root left
     out."""
 
     def __getattr__(self, name: str):
@@ -116,7 +117,7 @@ def test_the_root_rows_are_mujocos_step(tmp_path):
 def test_the_root_rows_take_the_joints_pull_and_the_lift(tmp_path, monkeypatch):
     path = _variant(tmp_path, "tilted", *TILTED)
     assert _root_after_one_step(path, _unlifted) > 10 * ROOT_ROWS_TOLERANCE
-    monkeypatch.setattr(loader.runtime.momentum, "mujoco", _Uncoupled())
+    monkeypatch.setattr(loader.runtime.centroidal, "mujoco", _Uncoupled())
     assert _root_after_one_step(path) > 10 * ROOT_ROWS_TOLERANCE
 
 

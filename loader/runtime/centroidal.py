@@ -16,6 +16,7 @@ import numpy as np
 
 from ..model.joints import BALL, FREE
 
+ZERO = np.zeros(3)  # no torque (`mj_applyFT` only reads it)
 BODY_NUMBERS = ("body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass", "body_inertia", "body_subtreemass")
 BODY_FLAGS = ("body_sameframe", "body_simple")
 CHECKED = ("xipos", "cinert", "subtree_com", "subtree_linvel", "subtree_angmom", "cfrc_int")  # what the settle reads
@@ -50,7 +51,7 @@ class Ended:
     """One copy's physics step as the settle reads it back: MuJoCo's state at its start (`qpos0`, `qvel0`) and
     PhysX's at its end (`qpos1`, `qvel1`; the roots' part read only where a root is not `balanced`), that velocity
     with the roots' part zeroed (`joints_only`), the roots that stepped, SAPIEN's contacts of the step and the
-    roots that stepped whose free joint's rows give their velocity (`Momentum.root_rows`)."""
+    roots that stepped whose free joint's rows give their velocity (`Passes.root_rows`)."""
 
     qpos0: np.ndarray
     qvel0: np.ndarray
@@ -83,6 +84,81 @@ class Passes:
         self.weights = [root.weights for _ in shifts for root in roots]
         self.masses = np.array([single.body_subtreemass[root.body] for _ in shifts for root in roots])[:, None]
         self.rates_weight = self.masses * gravity  # per root, the weight its cfrc_int carries beside the drift
+        self.stride = stride
+        nv = model.nv  # the root rows' arrays (`root_rows`)
+        self.bias, self.pushed, self.change, self.coupled = (np.zeros(nv) for _ in range(4))
+        self.dense = np.zeros((single.nv, single.nv)) if copies == 1 else None
+        self.columns, self.unit = np.zeros((6, nv)), np.zeros(nv)
+        self.block, self.solution = np.zeros((6, 6)), np.zeros(6)
+
+    def root_rows(self, ended: list[Ended | None], wrenches: list[list], timestep: float) -> None:
+        """Per copy (None: no root of it is `balanced`), its balanced roots' velocities in its `qvel1` from MuJoCo's
+        step on their free joints' rows at the step's start, the joints' part PhysX's:
+
+            M_rr (v1_r - v0_r) = dt (tau_r - c_r) - M_rj (v1_j - v0_j),
+
+        c MuJoCo's bias (gravity on every body), tau the link forces the loader added (`wrenches`, per copy) and the
+        lift of the compensated bodies, each as J^T f at the root (the tree's other rows are PhysX's); solved as
+        M_rr v1_r = dt (tau_r - c_r) - (M u)_r, u the joints' change with -v0 on the roots. One pass of MuJoCo's
+        kinematics, mass matrix and bias serves every copy; `data` is left at the starts
+        (tests/test_loader_momentum.py::test_the_root_rows_are_mujocos_step)."""
+        model, data, bias, pushed = self.model, self.data, self.bias, self.pushed
+        data.qpos[:] = self._joined([e.qpos0 if e else None for e in ended], self.single.qpos0)
+        data.qvel[:] = self._joined([e.qvel0 if e else None for e in ended], np.zeros(self.single.nv))
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_crb(model, data)
+        mujoco.mj_comVel(model, data)
+        mujoco.mj_rne(model, data, 0, bias)
+        if self._push(ended, wrenches):
+            bias -= pushed
+        self.change[:] = self._joined([e.joints_only - e.qvel0 if e else None for e in ended], np.zeros(self.single.nv))
+        mujoco.mj_mulM(model, data, self.coupled, self.change)
+        blocks = self._root_blocks(ended)
+        nv, block, solution = self.single.nv, self.block, self.solution
+        for k, e in enumerate(ended):
+            for root in e.balanced if e else ():
+                rows = slice(root.dofadr + k * nv, root.dofadr + k * nv + 6)
+                block[:] = blocks(rows)
+                mujoco.mju_cholFactor(block, 0.0)  # numpy's solve of a 6 x 6 costs several times MuJoCo's
+                mujoco.mju_cholSolve(solution, block, -timestep * bias[rows] - self.coupled[rows])
+                e.qvel1[root.dofadr : root.dofadr + 6] = solution
+
+    def _push(self, ended: list[Ended | None], wrenches: list[list]) -> bool:
+        """The balanced trees' link forces and lifts as J^T f into `pushed`; False where there is none."""
+        model, data, pushed = self.model, self.data, self.pushed
+        acting = []
+        for k, (e, copy) in enumerate(zip(ended, wrenches)):
+            if e is None:
+                continue
+            shift = k * self.stride
+            bodies = {root.articulation: root.body + shift for root in e.balanced}
+            for root in e.balanced:
+                for body, lift in root.lifted:
+                    acting.append((lift, ZERO, data.xipos[body + shift], root.body + shift))
+            acting += [(force, moment, point, bodies[a]) for a, point, force, moment in copy if a in bodies]
+        if not acting:
+            return False
+        pushed[:] = 0.0
+        for force, moment, point, body in acting:
+            mujoco.mj_applyFT(model, data, force, moment, point, body, pushed)
+        return True
+
+    def _root_blocks(self, ended: list[Ended | None]):
+        """A function of a root's rows giving its 6 x 6 block of M: from the dense M of one copy, or, on a stack
+        (whose dense M grows with the square of its copies), from M times the roots' unit vectors, one per column:
+        the same numbers, each a product by 1."""
+        model, data = self.model, self.data
+        if self.dense is not None:
+            mujoco.mj_fullM(model, data, self.dense)
+            return lambda rows: self.dense[rows, rows]
+        nv = self.single.nv
+        starts = np.array([r.dofadr + k * nv for k, e in enumerate(ended) for r in (e.balanced if e else ())], int)
+        for i, column in enumerate(self.columns):
+            self.unit[:] = 0.0
+            self.unit[starts + i] = 1.0
+            mujoco.mj_mulM(model, data, column, self.unit)
+        return lambda rows: self.columns[:, rows]
 
     def momenta(self, ended: list[Ended | None]) -> list[Momenta | None]:
         """Per copy (None where its step did not end): its roots' momenta and trees; `data` is left at the
@@ -173,6 +249,7 @@ def stack(model: mujoco.MjModel, copies: int) -> mujoco.MjModel | None:
         for name in (*BODY_NUMBERS, *BODY_FLAGS):
             getattr(stacked, name)[bodies] = getattr(model, name)[1:]
         stacked.jnt_pos[joints], stacked.jnt_axis[joints] = model.jnt_pos, model.jnt_axis
+        stacked.dof_armature[k * model.nv : (k + 1) * model.nv] = model.dof_armature  # in M, which the root rows read
         stacked.qpos0[k * model.nq : (k + 1) * model.nq] = model.qpos0
     return stacked if gives_each_copy_its_own(model, stacked, copies) else None
 
@@ -221,21 +298,29 @@ def gives_each_copy_its_own(model: mujoco.MjModel, stacked: mujoco.MjModel, copi
     alone, together = mujoco.MjData(model), mujoco.MjData(stacked)
     together.qpos[:] = np.concatenate([q for q, _ in states])
     together.qvel[:] = np.concatenate([v for _, v in states])
-    _passes(stacked, together)
-    nb = model.nbody - 1
+    stacked_dofs = _passes(stacked, together)
+    nb, nv = model.nbody - 1, model.nv
     for k, (qpos, qvel) in enumerate(states):
         alone.qpos[:], alone.qvel[:] = qpos, qvel
-        _passes(model, alone)
+        dofs = _passes(model, alone)
         rows = slice(1 + k * nb, 1 + (k + 1) * nb)
         if any(not np.array_equal(getattr(alone, name)[1:], getattr(together, name)[rows]) for name in CHECKED):
+            return False
+        if not np.array_equal(dofs, stacked_dofs[:, k * nv : (k + 1) * nv]):
             return False
     return True
 
 
-def _passes(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+def _passes(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """The passes the settle reads; returns per DoF what the root rows read: MuJoCo's bias and M qvel."""
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
     mujoco.mj_comVel(model, data)
     mujoco.mj_subtreeVel(model, data)
     data.qacc[:] = 0.0
     mujoco.mj_rnePostConstraint(model, data)
+    mujoco.mj_crb(model, data)
+    dofs = np.zeros((2, model.nv))
+    mujoco.mj_rne(model, data, 0, dofs[0])
+    mujoco.mj_mulM(model, data, dofs[1], data.qvel)
+    return dofs

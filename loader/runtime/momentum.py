@@ -41,7 +41,6 @@ from .free_joint import FreeJointLaw, differs
 from .term import Term
 
 ISOTROPIC = 1e-9  # relative spread of a body's principal moments below which its spin never turns it
-ZERO = np.zeros(3)  # no torque (`mj_applyFT` only reads it)
 MOVED = 1e-6  # joint positions (rad, m) agree with timestep x velocity to float32 rounding (plus this, relative)
 
 
@@ -109,7 +108,7 @@ class Root:
 
     @property
     def balanced(self) -> bool:
-        """Whether MuJoCo's root rows settle it where no contact pushed it (`Momentum.root_rows`): every force on
+        """Whether MuJoCo's root rows settle it where no contact pushed it (`Passes.root_rows`): every force on
         the tree is then known, and the free joint adds nothing to PhysX's step."""
         return not (self.damped or self.held)
 
@@ -135,9 +134,6 @@ class Momentum(Term):
         self.links = {root.articulation: set(articulations[root.articulation].links) for root in roots}
         damped = [root for root in roots if root.damped]
         self.law = FreeJointLaw(model, mapping, damped, timestep) if damped else None
-        self.bias, self.force = np.zeros(model.nv), np.zeros(model.nv)
-        self.coupled, self.change = np.zeros(model.nv), np.zeros(model.nv)
-        self.dense, self.block, self.root_change = np.zeros((model.nv, model.nv)), np.zeros((6, 6)), np.zeros(6)
 
     def contribute(self, step) -> None:
         """Remember the state this physics step starts from (`set_ctrl` settles the last step before)."""
@@ -167,6 +163,8 @@ class Momentum(Term):
         link forces the loader added this step, (articulation, point, force, torque) in the world."""
         ended = self.ended(articulations)
         if ended is not None:
+            if ended.balanced:
+                self.passes.root_rows([ended], [wrenches], self.timestep)
             (momenta,) = self.passes.momenta([ended]) if ended.unbalanced else (None,)
             self.finish(ended, momenta, articulations, wrenches)
 
@@ -199,12 +197,10 @@ class Momentum(Term):
         return Ended(qpos0, qvel0, qpos1, qvel1, joints_only, stepped, contacts, balanced)
 
     def finish(self, ended: Ended, momenta: Momenta | None, articulations, wrenches) -> None:
-        """The roots that stepped at MuJoCo's velocity and position after the step: the balanced ones from their
-        rows, the others from the passes' `momenta` (the free joint law reads `self.data`, which must then be at the
-        step's start)."""
+        """The roots that stepped at MuJoCo's velocity and position after the step: the balanced ones' velocities
+        already in `ended.qvel1` (`Passes.root_rows`), the others' from the passes' `momenta` (the free joint law
+        reads `self.data`, which must then be at the step's start)."""
         dt, qpos0, qvel1, balanced = self.timestep, ended.qpos0, ended.qvel1, ended.balanced
-        if balanced:
-            self.root_rows(ended, balanced, wrenches)
         for i, root in enumerate(self.roots):
             if root not in ended.stepped or root in balanced:
                 continue
@@ -229,41 +225,6 @@ class Momentum(Term):
                 qvel1[dof : dof + 6],
             )
             articulations[root.articulation].set_qvel(articulations[root.articulation].get_qvel())  # links follow
-
-    def root_rows(self, ended: Ended, roots: list[Root], wrenches) -> None:
-        """`roots`' velocities in `ended.qvel1` from MuJoCo's step on their free joints' rows at q0, the joints'
-        part PhysX's: M_rr (v1_r - v0_r) = dt (tau_r - c_r) - M_rj (v1_j - v0_j), c MuJoCo's bias (gravity on every
-        body), tau the link forces the loader added (`wrenches`) and the lift of the compensated bodies, each as
-        J^T f at the root (the tree's other rows are PhysX's); solved as M_rr v1_r = dt (tau_r - c_r) - (M u)_r, u
-        the joints' change with -v0 on the roots. `self.data` is left at the step's start
-        (tests/test_loader_momentum.py::test_the_root_rows_are_mujocos_step)."""
-        model, data, bias, pushed = self.model, self.data, self.bias, self.force
-        data.qpos[:], data.qvel[:] = ended.qpos0, ended.qvel0
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        mujoco.mj_crb(model, data)
-        mujoco.mj_comVel(model, data)
-        mujoco.mj_rne(model, data, 0, bias)
-        bodies = {root.articulation: root.body for root in roots}
-        wrenched = [w for w in wrenches if w[0] in bodies]
-        lifted = [(lift, root) for root in roots for lift in root.lifted]
-        if wrenched or lifted:
-            pushed[:] = 0.0
-            for (body, lift), root in lifted:
-                mujoco.mj_applyFT(model, data, lift, ZERO, data.xipos[body], root.body, pushed)
-            for a, point, force, moment in wrenched:
-                mujoco.mj_applyFT(model, data, force, moment, point, bodies[a], pushed)
-            bias -= pushed
-        np.subtract(ended.joints_only, ended.qvel0, out=self.change)
-        mujoco.mj_mulM(model, data, self.coupled, self.change)
-        mujoco.mj_fullM(model, data, self.dense)
-        dt, block = self.timestep, self.block
-        for root in roots:
-            rows = slice(root.dofadr, root.dofadr + 6)
-            block[:] = self.dense[rows, rows]
-            mujoco.mju_cholFactor(block, 0.0)  # numpy's solve of a 6 x 6 costs several times MuJoCo's
-            mujoco.mju_cholSolve(self.root_change, block, -dt * bias[rows] - self.coupled[rows])
-            ended.qvel1[rows] = self.root_change
 
 
 def root_velocity(root: Root, start: Start, own: list[float], qpos0: np.ndarray) -> list[float]:
@@ -290,6 +251,9 @@ def settle_copies(terms: list[Momentum], passes: Passes, articulations: list[lis
     ended = [term.ended(arts) for term, arts in zip(terms, articulations)]
     if not any(ended):
         return
+    balanced = [one if one is not None and one.balanced else None for one in ended]
+    if any(balanced):
+        passes.root_rows(balanced, wrenches, terms[0].timestep)
     unbalanced = [one if one is not None and one.unbalanced else None for one in ended]
     momenta = passes.momenta(unbalanced) if any(unbalanced) else unbalanced
     for term, one, each, arts, pushed in zip(terms, ended, momenta, articulations, wrenches):
