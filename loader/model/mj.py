@@ -51,6 +51,11 @@ def disabled_bits(disableflags: int, *flags: str) -> bool:
     return any(disableflags & _DISABLE_BITS[flag] for flag in flags)
 
 
+def gravity(model: mujoco.MjModel) -> np.ndarray:
+    """MuJoCo's gravity, zero where `<flag gravity="disable"/>` is set (a copy)."""
+    return np.zeros(3) if disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+
+
 def explicit_damping(model: mujoco.MjModel) -> bool:
     """Whether MuJoCo takes joint damping explicitly: Euler with `eulerdamp` disabled. Euler otherwise and the
     implicit integrators take it implicitly (and RK4, which the loader simulates as Euler)."""

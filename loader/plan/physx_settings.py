@@ -35,8 +35,7 @@ def matched_config(model: mujoco.MjModel) -> sapien.physx.PhysxSceneConfig:
     """The PhysX scene configuration matched to `model`: MuJoCo's gravity (zero where disabled) and PGS, not TGS
     (TGS adds a gap of order dt to MuJoCo's semi-implicit Euler)."""
     config = sapien.physx.get_scene_config()
-    gravity = np.zeros(3) if mj.disabled(model, "gravity") else model.opt.gravity
-    config.gravity = np.asarray(gravity, np.float32)
+    config.gravity = mj.gravity(model).astype(np.float32)
     config.enable_tgs = False
     return config
 

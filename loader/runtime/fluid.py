@@ -25,7 +25,7 @@ class FluidBody:
     articulation: int
     link: int
     box: tuple[float, float, float]  # sides of the equivalent inertia box
-    body: int = 0  # MuJoCo's
+    body: int  # MuJoCo's
 
 
 @dataclass
@@ -84,7 +84,7 @@ class Fluid(LinkForces):
         self.factors = self.coefficients()
         self.links = [compilation.layout.links[body.articulation][body.link] for body in self.bodies]
         self.ids = np.array([body.body for body in self.bodies], dtype=int)
-        self.centres = self.model.body_rootid[self.ids]  # where MuJoCo's cvel is taken: the tree's centre of mass
+        self.roots = self.model.body_rootid[self.ids]  # each body's tree, at whose centre of mass MuJoCo takes cvel
 
     def spare(self, model, data) -> bool:
         if self.data is not None or model is not self.model:
@@ -114,7 +114,7 @@ class Fluid(LinkForces):
         frames = data.ximat[ids].reshape(-1, 3, 3)  # each body's inertial frame in the world
         velocity = data.cvel[ids]  # (angular, linear) at the tree's centre of mass
         angular = velocity[:, :3]
-        linear = velocity[:, 3:] + cross_rows(angular, centres - data.subtree_com[self.centres]) - self.wind
+        linear = velocity[:, 3:] + cross_rows(angular, centres - data.subtree_com[self.roots]) - self.wind
         to_body = frames.transpose(0, 2, 1)
         torque, force = self.wrench(
             self.factors, (to_body @ angular[:, :, None])[:, :, 0], (to_body @ linear[:, :, None])[:, :, 0]

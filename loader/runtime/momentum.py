@@ -124,7 +124,7 @@ class Momentum(Term):
         self.model, self.mapping, self.roots = model, mapping, roots
         self.timestep = timestep
         self.start: tuple | None = None  # at the last set_ctrl: MuJoCo's qpos and qvel, SAPIEN's joint positions
-        gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
+        gravity = mj.gravity(model)
         self.gravity = tuple(gravity.tolist())
         self.passes = Passes(model, model, roots, gravity)  # on this copy's own data
         self.data = self.passes.data
@@ -205,7 +205,8 @@ class Momentum(Term):
             if root not in ended.stepped or root in balanced:
                 continue
             kept, start = momenta.kept[i], momenta.starts[i]
-            if touching(self.links[root.articulation], ended.contacts):  # friction's torque unseen: PhysX's L
+            # a balanced root left to the momenta is one a contact pushed (`ended`), whose friction torque is unseen
+            if root.balanced or touching(self.links[root.articulation], ended.contacts):  # PhysX's L
                 k = kept
             else:
                 torque = external_torque(start, root, self.gravity, wrenches)
@@ -282,6 +283,7 @@ def plan_momentum(
     roots = []
     centres = mapping.centres
     held = held_bodies(model)
+    gravity = mj.gravity(model)
     for j, target in enumerate(mapping.joints):
         if int(model.jnt_type[j]) != FREE:
             continue
@@ -303,7 +305,6 @@ def plan_momentum(
                 "joints keep PhysX's velocity where MuJoCo's couples them to the root's",
             )
         weights = model.body_mass[tree] * (1.0 - model.body_gravcomp[tree])
-        gravity = np.zeros(3) if mj.disabled(model, "gravity") else np.asarray(model.opt.gravity, np.float64)
         lifted = tuple(
             (int(b), -float(model.body_gravcomp[b] * model.body_mass[b]) * gravity)
             for b in tree
