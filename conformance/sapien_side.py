@@ -28,9 +28,9 @@ def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.nda
     set_state(result, qpos0, qvel0)
     q, v = get_state(result)
     qpos, qvel = np.zeros((steps + 1, q.size)), np.zeros((steps + 1, v.size))
-    poses = np.zeros((steps + 1, len(links(result)), 7))
-    every = links(result)
-    qpos[0], qvel[0], poses[0] = q, v, link_poses(result, every)
+    read_poses = LinkPoses(result)
+    poses = np.zeros((steps + 1, len(read_poses.every), 7))
+    qpos[0], qvel[0], poses[0] = q, v, read_poses()
     for t in range(steps):
         if not (np.isfinite(qpos[t]).all() and np.isfinite(qvel[t]).all()):  # diverged: `set_ctrl` refuses it, and
             qpos[t + 1 :], qvel[t + 1 :], poses[t + 1 :] = np.nan, np.nan, np.nan  # PhysX would step NaN on
@@ -38,7 +38,7 @@ def rollout(result, qpos0, qvel0, steps: int, before_step: Callable[[int, np.nda
         before_step(t, qpos[t], qvel[t])
         result.scene.step()
         qpos[t + 1], qvel[t + 1] = get_state(result)
-        poses[t + 1] = link_poses(result, every)
+        poses[t + 1] = read_poses()
     return Run(qpos, qvel, poses)
 
 
@@ -78,6 +78,43 @@ def link_poses(result, every: list | None = None) -> np.ndarray:
         pose = link.entity_pose
         rows.append(pose.p.tolist() + pose.q.tolist())
     return np.array(rows, dtype=float).reshape(-1, 7)
+
+
+class LinkPoses:
+    """Every link's world pose (L, 7) in the order of `links`, read as `link_poses` reads it, from one packed read of
+    the scene: `Scene.pack_poses` gives each entity's pose in `scene.entities` order as seven float32 (qw qx qy qz,
+    x y z), the same floats as `entity_pose`, in one call where `link_poses` makes one per link. Where the packing
+    is not that layout (its size, or the first link's pose, says otherwise) or a link is not among the scene's
+    entities, every read falls back to `link_poses`
+    (tests/test_conformance_sapien_side.py::test_packed_link_poses_are_the_links_own_poses)."""
+
+    WIDTH = 7  # float32 per entity: a quaternion, then a position
+
+    def __init__(self, result, every: list | None = None):
+        self.result, self.every = result, every if every is not None else links(result)
+        self.scene, self.rows = result.scene, None
+        entities = {entity.per_scene_id: i for i, entity in enumerate(self.scene.entities)}
+        ids = [link.entity.per_scene_id for _, link in self.every]
+        if self.every and all(i in entities for i in ids):
+            self.rows = np.array([entities[i] for i in ids])
+            if not self.packed_layout(len(entities)):
+                self.rows = None
+
+    def packed_layout(self, count: int) -> bool:
+        """Whether the scene's packed poses are the layout read here: its size, and the first link's pose."""
+        packed = self.scene.pack_poses()
+        if len(packed) != 4 * self.WIDTH * count:
+            return False
+        return bool(np.array_equal(self._from(packed)[0], link_poses(self.result, self.every[:1])[0]))
+
+    def _from(self, packed: bytes) -> np.ndarray:
+        rows = np.frombuffer(packed, np.float32).reshape(-1, self.WIDTH)[self.rows]
+        return np.concatenate([rows[:, 4:], rows[:, :4]], axis=1).astype(float)
+
+    def __call__(self) -> np.ndarray:
+        if self.rows is None:
+            return link_poses(self.result, self.every)
+        return self._from(self.scene.pack_poses())
 
 
 def body_link_rows(result, nbody: int) -> np.ndarray:
