@@ -58,3 +58,35 @@ def test_a_changed_target_or_gain_reaches_physx_after_a_cached_step(monkeypatch,
     check(0.2, 20.0)
     agree = np.allclose(seen, expected, rtol=1e-6, atol=1e-7)
     assert agree == (writes == "changed"), (seen, expected)
+
+
+def _held(articulation, layout, forces, write) -> np.ndarray:
+    """The `qf` PhysX holds after `write` of each row of `forces`."""
+    step = type("Step", (), {"articulations": [articulation], "layout": layout})()
+    held = []
+    for force in forces:
+        step.force = force
+        write(step)
+        held.append(articulation.get_qf().copy())
+    return np.array(held)
+
+
+def test_qf_is_written_as_float64_and_held_as_its_float32_rounding():
+    """`write_qf` hands SAPIEN the float64 forces: PhysX holds each rounded to the nearest float32, as `astype`
+    rounds it, over magnitudes from 1e-40 (subnormal in float32) to 1e38. A writer that rounds more coarsely on
+    the way (through float16) holds other forces."""
+    from loader.runtime.dof_step import DofLayout
+
+    result = MJCFLoader().load(mujoco.MjSpec.from_string(SERVO))
+    articulation = result.articulations[0]
+    layout = DofLayout(result.articulations, [])
+    rng = np.random.default_rng(0)
+    forces = rng.standard_normal((500, articulation.dof)) * 10.0 ** rng.integers(-40, 39, (500, articulation.dof))
+    expected = forces.astype(np.float32)
+    assert np.array_equal(_held(articulation, layout, forces, DriveWriter.write_qf), expected)
+
+    def coarse(step):
+        articulation.set_qf(step.force.astype(np.float16).astype(np.float32))
+
+    with np.errstate(over="ignore"):
+        assert not np.array_equal(_held(articulation, layout, forces, coarse), expected)

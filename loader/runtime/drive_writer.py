@@ -136,14 +136,16 @@ class DriveWriter(Term):
 
     @staticmethod
     def write_qf(step: Step) -> None:
-        """The gathered generalized forces, per articulation, as PhysX's `qf`."""
+        """The gathered generalized forces, per articulation, as PhysX's `qf`: SAPIEN rounds the float64 to its
+        float32 as `astype` does, without the copy
+        (tests/test_loader_drives.py::test_qf_is_written_as_float64_and_held_as_its_float32_rounding)."""
         if len(step.articulations) == 1:
             if step.articulations[0].dof:
-                step.articulations[0].set_qf(step.force.astype(np.float32))
+                step.articulations[0].set_qf(step.force)
             return
         for articulation, qf in zip(step.articulations, step.layout.split(step.force)):
             if articulation.dof:
-                articulation.set_qf(qf.astype(np.float32))
+                articulation.set_qf(qf)
 
     def write(self, settings: np.ndarray) -> None:
         """The PhysX calls for the settings (rows as `written`) that differ from the last ones written."""
