@@ -292,16 +292,18 @@ class Controller:
             self.claimer.claim()
         actuated = "actuators" not in self.off
         ctrl, inputs, act = self.command(ctrl, actuated, advance)
-        force = np.zeros(layout.size)
-        if qfrc_applied is not None:
-            applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
-            force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         if advance:
             self.push(qfrc_applied)
         whole = self.stepping()
+        if whole is not None and whole.record is not None:
+            return whole.record.renew(q, v, inputs, ctrl, act, qfrc_applied, actuated, advance)
+        force = np.zeros(layout.size)
+        if qfrc_applied is not None and whole is None:  # MuJoCo's step reads it in MuJoCo's layout
+            applied = self.mapping.qfrc_to_sapien(qfrc_applied, articulations)
+            force += np.concatenate([np.asarray(a, np.float64) for a in applied]) if applied else 0.0
         if whole is None:
             refresh_link_velocities(self.velocity_readers())
-        return Step(
+        step = Step(
             articulations,
             self.joints,
             layout,
@@ -318,6 +320,9 @@ class Controller:
             not self.options.implicit,
             advance,
         )
+        if whole is not None:
+            whole.record = step
+        return step
 
     def push(self, qfrc_applied: np.ndarray | None) -> None:
         """A free joint's share of the caller's `qfrc_applied` as a wrench on its root link, once per physics step

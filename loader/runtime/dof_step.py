@@ -99,6 +99,14 @@ class Step:
     # passive forces computed), for a later stage to read instead of running MuJoCo's passes again (`drives`)
     forwarded: mujoco.MjData | None = field(default=None, repr=False)
 
+    def renew(self, q, v, inputs, ctrl, act, qfrc_applied, actuated: bool, advance: bool) -> Step:
+        """This record as the next step's, where MuJoCo's step writes its whole `force` and reads no drive law
+        (`MujocoStep.record`): the state and command replaced, nothing derived from the last kept."""
+        self.q, self.v, self.inputs, self.ctrl, self.act = q, v, inputs, ctrl, act
+        self.qfrc_applied, self.actuated, self.advance = qfrc_applied, actuated, advance
+        self.regular, self.state, self.forwarded = True, None, None
+        return self
+
     def mujoco_state(self, mapping) -> tuple[np.ndarray, np.ndarray]:
         """The step's start state in MuJoCo's layout (qpos, qvel), converted once for every term that reads it."""
         if self.state is None:

@@ -90,6 +90,9 @@ class MujocoStep:
         self.damped_dofs = dof_of_flat[layout.flat[damped]]  # their MuJoCo DoFs, and their PhysX joints
         self.damped_joints = [layout.joints[i] for i in damped.tolist()]
         self.zeroed = False  # PhysX's drives hold only `damping` (`zero`)
+        # the step's record, made by the first `Controller.begin` and renewed by the next: this law writes its whole
+        # `force` and reads neither the drive law nor the caller's force in SAPIEN's layout
+        self.record: Step | None = None
         self.unpulled = unpulled(model, rows.mapping, layout)
         self.pulled = np.zeros(model.nv)
 

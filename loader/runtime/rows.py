@@ -101,7 +101,7 @@ class LentModel:
 
     def __enter__(self) -> mujoco.MjModel:
         opt = self.opt
-        own = [self._swap(array, index, values) for array, index, values in self.views]
+        own = [self._swap(array, index, values) for array, index, values in self.views] if self.views else None
         self.saved = (opt.disableflags, opt.timestep, own)
         opt.timestep = self.timestep
         return self.model
@@ -109,8 +109,9 @@ class LentModel:
     def __exit__(self, *exc) -> None:
         opt = self.opt
         opt.disableflags, opt.timestep, own = self.saved
-        for (array, index, _), values in zip(self.views, own):
-            self._swap(array, index, values)
+        if own is not None:
+            for (array, index, _), values in zip(self.views, own):
+                self._swap(array, index, values)
 
     @staticmethod
     def _swap(array: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:
