@@ -1,7 +1,8 @@
 """ManiSkill robots from MJCF files: `register_agent(mjcf_path, uid)` registers a `BaseAgent` subclass whose robot is
 built by this package's loader, whose keyframes are the file's `<key>`s and whose control modes come from its actuators
 (`loader/servos.py`): `pd_joint_pos` and `pd_joint_delta_pos` from position servos, `pd_joint_vel` from velocity servos,
-`mujoco_ctrl` (CPU) for MuJoCo's ctrl vector. Docs: docs/maniskill.md."""
+`mujoco_ctrl` (CPU) for MuJoCo's ctrl vector through `set_ctrl`, and `mujoco_ctrl_tensor` (CPU and GPU) for it
+through the joint actuation law on ManiSkill's tensors. Docs: docs/maniskill.md."""
 
 from __future__ import annotations
 
@@ -20,7 +21,9 @@ from mani_skill.agents.controllers.pd_joint_vel import PDJointVelControllerConfi
 from mani_skill.utils.structs.pose import Pose
 
 from ..mjcf_loader import MJCFLoader as CoreLoader
+from ..plan.joint_actuation import JointActuation, plan_joint_actuation
 from ..servos import Motor, Servo, derive, motors
+from .joint_actuation import JointActuationConfig
 from .mujoco_ctrl import MujocoCtrlConfig
 from .scene_loader import MJCFLoader
 
@@ -34,6 +37,8 @@ class MJCFAgent(BaseAgent):
     motors: ClassVar[list[Motor]] = []
     ctrl_low: ClassVar[list[float]] = []
     ctrl_high: ClassVar[list[float]] = []
+    # `mujoco_ctrl_tensor`'s law, or why the model's actuators are outside it
+    joint_actuation: ClassVar[JointActuation | str] = "not planned"
 
     def _load_articulation(self, initial_pose=None):
         """The env's `initial_pose` places the file's world frame; the robot's root keeps its pose in it."""
@@ -86,6 +91,11 @@ class MJCFAgent(BaseAgent):
             configs["mujoco_ctrl"] = {
                 "balance_passive_force": False,
                 "ctrl": MujocoCtrlConfig(joints, list(self.ctrl_low), list(self.ctrl_high), self.results),
+            }
+        if isinstance(self.joint_actuation, JointActuation) and self.ctrl_low:
+            configs["mujoco_ctrl_tensor"] = {
+                "balance_passive_force": False,
+                "ctrl": JointActuationConfig(joints, list(self.ctrl_low), list(self.ctrl_high), self.joint_actuation),
             }
         return configs
 
@@ -149,6 +159,11 @@ def register_agent(
             qvel=np.asarray(articulation.get_qvel()),
         )
     limited = model.actuator_ctrllimited.astype(bool)
+    dof_of_joint = {
+        j: target.dofs[0]
+        for j, target in enumerate(reference.mapping.joints)
+        if target.drive_key is not None and target.articulation == 0
+    }
     attributes = {
         "uid": uid,
         "mjcf_path": path,
@@ -159,6 +174,7 @@ def register_agent(
         "motors": motors(reference),
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
+        "joint_actuation": plan_joint_actuation(model, dof_of_joint, articulation.dof),
     }
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)
     return registration.register_agent(override=override)(agent)

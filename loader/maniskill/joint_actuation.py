@@ -1,0 +1,120 @@
+"""The `mujoco_ctrl_tensor` control mode: MuJoCo's `ctrl` through the joint actuation law
+(`loader/plan/joint_actuation.py`) written over (env, DoF) tensors, read from and written to ManiSkill's state
+tensors before every physics step, with no MuJoCo call and no per-env or per-DoF Python loop. The same torch code
+runs on the CPU backend (one env) and on the GPU backend (every sub-scene at once, the state fetched and `qf`
+applied on the device); the CPU tests exercise it, and no GPU has run it yet. Its drives match MuJoCo's implicit
+damping under PGS only: under TGS the mode warns (tests/test_maniskill_joint_actuation.py)."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from gymnasium import spaces
+from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
+from mani_skill.utils import common
+
+from ..errors import SceneMismatchWarning
+from ..plan.joint_actuation import JointActuation
+from ..plan.physx_settings import uses_tgs
+
+TGS_NOTE = (
+    "mujoco_ctrl_tensor: the drives hold MuJoCo's implicit damping under PGS; TGS damps a drive over its position "
+    "iterations and moves the joints elsewhere: set sim_config's scene_config enable_tgs=False"
+)
+
+
+class Law:
+    """The plan's arrays as tensors on one device and dtype."""
+
+    def __init__(self, plan: JointActuation, device, dtype=torch.float32):
+        def tensor(array):
+            return torch.as_tensor(np.asarray(array, np.float64), dtype=dtype, device=device)
+
+        self.dof = torch.as_tensor(plan.dof, dtype=torch.long, device=device)
+        self.gear, self.gain, self.held = tensor(plan.gear), tensor(plan.gain), tensor(plan.held)
+        self.bias0, self.bias1, self.bias2 = (tensor(row) for row in plan.bias)
+        self.ctrl_low, self.ctrl_high = tensor(plan.ctrl_range[0]), tensor(plan.ctrl_range[1])
+        self.force_low, self.force_high = tensor(plan.force_range[0]), tensor(plan.force_range[1])
+        self.joint_low, self.joint_high = tensor(plan.joint_range[0]), tensor(plan.joint_range[1])
+        self.stiffness, self.spring_ref = tensor(plan.stiffness), tensor(plan.spring_ref)
+        self.explicit_damping = tensor(plan.explicit_damping)
+
+
+def joint_forces(law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """The joint forces (env, DoF) the law writes as `qf` for `ctrl` (env, nu) at the state (q, v) (env, DoF): the
+    actuators' forces, each joint's sum within its range, less the velocity term their drives hold; the springs (and
+    the dampers MuJoCo applies explicitly)."""
+    ctrl = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
+    length, rate = law.gear * q[:, law.dof], law.gear * v[:, law.dof]
+    force = law.gain * ctrl + law.bias0 + law.bias1 * length + law.bias2 * rate
+    force = torch.clamp(force, law.force_low, law.force_high)
+    actuated = torch.zeros_like(q).index_add(1, law.dof, law.gear * force)
+    qf = torch.clamp(actuated, law.joint_low, law.joint_high)
+    qf += law.stiffness * (law.spring_ref - q) - law.explicit_damping * v
+    return qf.index_add(1, law.dof, -law.gear * law.held * law.bias2 * rate)
+
+
+class JointActuationController(BaseController):
+    """Holds the last action as ctrl (env, nu); before every physics step, the law's `qf` for the robot's state."""
+
+    config: JointActuationConfig
+    sets_target_qpos = False
+    sets_target_qvel = False
+
+    def _initialize_action_space(self):
+        low, high = np.float32(self.config.low), np.float32(self.config.high)
+        self.single_action_space = spaces.Box(low, high, dtype=np.float32)
+        self.law = Law(self.config.plan, self.device)
+        self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device)
+
+    def set_drive_property(self):
+        """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo."""
+        if uses_tgs(self.scene.sub_scenes[0]):
+            warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
+        for link in self.articulation.links:
+            link.disable_gravity = False
+        indices = self.active_joint_indices.cpu().numpy()
+        for joint, damping in zip(self.joints, self.config.plan.drive_damping[indices].tolist()):
+            joint.set_drive_properties(0.0, damping, force_limit=np.inf, mode="force")
+        self.targeted = False  # the targets are zeroed before the next physics step (`zero_targets`)
+
+    def reset(self):
+        self.ctrl = torch.zeros_like(self.ctrl)
+        self.targeted = False
+
+    def zero_targets(self):
+        """Every drive's position and velocity target at zero, in every sub-scene (on the device where it runs)."""
+        zeros = torch.zeros((self.scene.num_envs, len(self.joints)), device=self.device)
+        self.articulation.set_joint_drive_targets(zeros, self.joints, self.active_joint_indices)
+        self.articulation.set_joint_drive_velocity_targets(zeros, self.joints, self.active_joint_indices)
+        if self.scene.gpu_sim_enabled:
+            self.scene.px.gpu_apply_articulation_target_position()
+            self.scene.px.gpu_apply_articulation_target_velocity()
+        self.targeted = True
+
+    def set_action(self, action):
+        self.ctrl = common.to_tensor(self._preprocess_action(action), device=self.device).to(torch.float32)
+
+    def before_simulation_step(self):
+        if not self.targeted:
+            self.zero_targets()
+        px = self.scene.px
+        if self.scene.gpu_sim_enabled:  # the state of the last physics step, on the device
+            px.gpu_fetch_articulation_qpos()
+            px.gpu_fetch_articulation_qvel()
+        q, v = self.articulation.get_qpos(), self.articulation.get_qvel()
+        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q.to(self.ctrl.dtype), v.to(self.ctrl.dtype)))
+        if self.scene.gpu_sim_enabled:
+            px.gpu_apply_articulation_qf()
+
+
+@dataclass
+class JointActuationConfig(ControllerConfig):
+    low: list[float] = field(default_factory=list)  # ctrlrange (or -inf) per actuator
+    high: list[float] = field(default_factory=list)
+    plan: JointActuation | None = None
+    normalize_action: bool = False
+    controller_cls = JointActuationController

@@ -1,0 +1,146 @@
+"""MuJoCo's joint actuators and joint springs and dampers as flat arrays, planned once from the compiled model, for a
+law over (env, DoF) that needs no MuJoCo call each step (`loader/maniskill/joint_actuation.py`, which runs it on
+ManiSkill's state tensors, on the CPU or the GPU).
+
+Per actuator on a hinge or slide (joint transmission, gear g, no activation dynamics, a fixed gain and a bias that
+is none or affine), MuJoCo's force at the state is
+
+    F = clamp(gain clamp(ctrl) + b0 + b1 L + b2 dL/dt, forcerange),   L = g q,   joint force g F,
+
+the sum of a joint's actuator forces clamped to its actuatorfrcrange, and each DoF adds its spring k (springref - q)
+and damper -d v. MuJoCo's integrator takes the dampers, and under the implicit integrators each actuator's b2 g^2
+(its kv on the joint), implicitly: those stay in a PhysX drive (damping, no stiffness, zero targets), whose implicit
+law matches MuJoCo's step under PGS. The joint force the law writes is everything else, evaluated at the step's
+start: g (F - b2 dL/dt) for an actuator the drive holds, its velocity term taken out as the drive gives it. Where
+forcerange or actuatorfrcrange binds, the force is constant in MuJoCo and the drive's share is cancelled at the start
+state, not at the end: the one approximation inside the law's scope. The law's force and the drives' force sum to
+MuJoCo's qfrc_actuator + qfrc_passive at any state
+(tests/test_maniskill_joint_actuation.py::test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force;
+tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from ..model import mj
+
+JOINT_TRANSMISSION = int(mujoco.mjtTrn.mjTRN_JOINT)
+SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+NO_DYNAMICS = int(mujoco.mjtDyn.mjDYN_NONE)
+FIXED_GAIN = int(mujoco.mjtGain.mjGAIN_FIXED)
+BIASES = (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE))
+EXPLICIT_ACTUATORS = (int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4))
+
+
+@dataclass
+class JointActuation:
+    """The law's arrays: per actuator (`dof` in the robot's active DoFs), per DoF (`ndof` of them), and what the
+    law leaves out (`not_carried`)."""
+
+    ndof: int
+    dof: np.ndarray  # per actuator: the robot DoF its joint moves
+    gear: np.ndarray
+    gain: np.ndarray
+    bias: np.ndarray  # (3, nu): b0, b1, b2
+    held: np.ndarray  # 1.0 where the drive holds the actuator's velocity term (b2 g^2 as damping), else 0.0
+    ctrl_range: np.ndarray  # (2, nu): -inf, inf where ctrl is not clamped
+    force_range: np.ndarray  # (2, nu): -inf, inf where the force is not clamped
+    joint_range: np.ndarray  # (2, ndof): each DoF's actuatorfrcrange, -inf, inf where it has none
+    stiffness: np.ndarray  # per DoF
+    spring_ref: np.ndarray
+    drive_damping: np.ndarray  # per DoF: the damping its PhysX drive holds
+    explicit_damping: np.ndarray  # per DoF: damping the law applies at the start state (eulerdamp disabled)
+    not_carried: list[str] = field(default_factory=list)
+
+
+def plan_joint_actuation(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointActuation | str:
+    """The law for `model` whose MuJoCo joint j moves robot DoF `dof_of_joint[j]` (hinges and slides), or why
+    the law cannot drive it (an actuator outside its scope)."""
+    why = _outside(model, dof_of_joint)
+    if why is not None:
+        return why
+    nu = model.nu
+    actuated = not mj.disabled(model, "actuation")
+    dof = np.array([dof_of_joint[int(model.actuator_trnid[a, 0])] for a in range(nu)], dtype=np.int64)
+    affine = (model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)).astype(float)
+    bias = (model.actuator_biasprm[:, :3] * affine[:, None]).T.copy() if nu else np.zeros((3, 0))
+    gain = model.actuator_gainprm[:, 0].copy()
+    off = ((int(model.opt.disableactuator) >> np.clip(model.actuator_group, 0, 30)) & 1).astype(bool) | (not actuated)
+    gain[off], bias[:, off] = 0.0, 0.0  # actuation disabled, or the actuator's group (`disableactuator`)
+    gear = model.actuator_gear[:, 0].copy()
+    implicit = int(model.opt.integrator) not in EXPLICIT_ACTUATORS
+    held = ((bias[2] < 0) & implicit).astype(float)  # PhysX's damping cannot be negative
+    clamps = model.actuator_ctrllimited.astype(bool) & (not mj.disabled(model, "clampctrl"))
+    ctrl_range = np.where(clamps, model.actuator_ctrlrange.T, [[-np.inf], [np.inf]])
+    force_range = np.where(model.actuator_forcelimited.astype(bool), model.actuator_forcerange.T, [[-np.inf], [np.inf]])
+    stiffness, spring_ref, damping = np.zeros(ndof), np.zeros(ndof), np.zeros(ndof)
+    joint_range = np.tile([[-np.inf], [np.inf]], (1, ndof))
+    for joint, robot_dof in dof_of_joint.items():
+        if model.jnt_actfrclimited[joint]:
+            joint_range[:, robot_dof] = model.jnt_actfrcrange[joint]
+        stiffness[robot_dof] = model.jnt_stiffness[joint]
+        spring_ref[robot_dof] = model.qpos_spring[model.jnt_qposadr[joint]]
+        damping[robot_dof] = model.dof_damping[model.jnt_dofadr[joint]]
+    if mj.disabled(model, "spring"):
+        stiffness[:] = 0.0
+    if mj.disabled(model, "damper"):
+        damping[:] = 0.0
+    damped_explicitly = not implicit and mj.disabled(model, "eulerdamp")
+    drive = np.zeros(ndof) if damped_explicitly else damping.copy()
+    np.add.at(drive, dof, held * -bias[2] * gear**2)
+    return JointActuation(
+        ndof,
+        dof,
+        gear,
+        gain,
+        bias,
+        held,
+        ctrl_range,
+        force_range,
+        joint_range,
+        stiffness,
+        spring_ref,
+        drive,
+        damping if damped_explicitly else np.zeros(ndof),
+        _not_carried(model),
+    )
+
+
+def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
+    """Why an actuator is outside the law's scope, naming it; None where every one is inside."""
+    for a in range(model.nu):
+        name = mj.name(model, "actuator", a)
+        joint = int(model.actuator_trnid[a, 0])
+        if int(model.actuator_trntype[a]) != JOINT_TRANSMISSION:
+            return f"actuator {name!r} drives a tendon, site or body, not a joint"
+        if int(model.jnt_type[joint]) not in SCALAR_JOINTS:
+            return f"actuator {name!r} drives a ball or free joint"
+        if joint not in dof_of_joint:
+            return (
+                f"actuator {name!r} drives joint {mj.name(model, 'joint', joint)!r}, outside the robot's articulation"
+            )
+        if int(model.actuator_dyntype[a]) != NO_DYNAMICS:
+            return f"actuator {name!r} has activation dynamics"
+        if int(model.actuator_gaintype[a]) != FIXED_GAIN or int(model.actuator_biastype[a]) not in BIASES:
+            return f"actuator {name!r} has a gain or bias that is not fixed or affine"
+    return None
+
+
+def _not_carried(model: mujoco.MjModel) -> list[str]:
+    """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
+    checks = [
+        (np.any(model.jnt_limited) and not mj.disabled(model, "limit"), "soft joint limits (PhysX's hard limits)"),
+        (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss"), "frictionloss"),
+        (model.ntendon > 0, "tendons"),
+        (model.neq > 0, "equality constraints"),
+        (np.any(model.body_gravcomp), "gravity compensation"),
+        (np.any(model.jnt_actgravcomp), "gravity compensation through the actuators"),
+        (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
+        (int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_IMPLICIT), "the implicit integrator's Coriolis"),
+        (np.any(model.actuator_biasprm[:, 2] > 0), "an actuator's positive velocity gain (explicit here)"),
+    ]
+    return [what for present, what in checks if present]

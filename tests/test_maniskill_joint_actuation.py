@@ -1,0 +1,161 @@
+"""`mujoco_ctrl_tensor`: the joint actuation law (loader/plan/joint_actuation.py) over (env, DoF) tensors in
+ManiSkill (loader/maniskill/joint_actuation.py). MuJoCo is the oracle: the law's force and its drives' force are
+MuJoCo's actuator and passive forces at any state, and the mode follows MuJoCo stepped with the same ctrl under PGS.
+Needs torch and mani_skill (the `maniskill` extra); the CUDA test skips without a GPU."""
+
+from __future__ import annotations
+
+import warnings
+
+import mujoco
+import numpy as np
+import pytest
+from support.corpus import FIXTURES
+
+torch = pytest.importorskip("torch", reason="torch is not installed (the `maniskill` extra)")
+pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
+
+from test_joint_actuation import ACTUATED, DOF_OF_JOINT
+
+from conformance.tiers.maniskill import empty_env
+from loader import SceneMismatchWarning
+from loader.maniskill import register_agent
+from loader.maniskill.joint_actuation import Law, joint_forces
+from loader.plan.joint_actuation import plan_joint_actuation
+
+
+def _mujoco_forces(model: mujoco.MjModel, q: np.ndarray, v: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
+    """MuJoCo's qfrc_actuator + qfrc_passive at each row's state and ctrl."""
+    data, out = mujoco.MjData(model), []
+    for row in range(q.shape[0]):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = q[row], v[row], ctrl[row]
+        mujoco.mj_forward(model, data)
+        out.append(data.qfrc_actuator + data.qfrc_passive)
+    return np.array(out)
+
+
+def _mistaken(name: str, plan) -> None:
+    """A small mistake in the plan: the position servo's spring left out, the joint's actuatorfrcrange left out, or
+    each kv on the wrong side (in the law where the drive holds it, out of it where the drive does not)."""
+    if name == "no_position_gain":
+        plan.bias[1, 0] = 0.0
+    elif name == "no_joint_range":
+        plan.joint_range[:, 0] = [-np.inf, np.inf]
+    elif name == "kv_misplaced":
+        plan.held[:] = np.where(plan.bias[2] < 0, 1.0 - plan.held, plan.held)
+
+
+@pytest.mark.parametrize("mistake", [None, "no_position_gain", "no_joint_range", "kv_misplaced"])
+@pytest.mark.parametrize("integrator", ["implicitfast", "Euler", "implicitfast group off"])
+def test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force(integrator, mistake):
+    """At 64 random states and ctrls (past ctrlrange, binding forcerange and actuatorfrcrange), the law's joint
+    force plus its drives' (-damping v) is MuJoCo's actuator and passive force, to float64 rounding, in float64 on
+    the CPU, also with the motor's actuator group disabled; each mistake breaks it."""
+    xml = ACTUATED.format(integrator=integrator.split()[0])
+    if integrator.endswith("group off"):
+        xml = xml.replace("<motor ", '<motor group="2" ').replace("<option ", '<option actuatorgroupdisable="2" ')
+    model = mujoco.MjModel.from_xml_string(xml)
+    plan = plan_joint_actuation(model, DOF_OF_JOINT, model.nv)
+    _mistaken(mistake, plan)
+    rng = np.random.default_rng(0)
+    q, v, ctrl = rng.uniform(-1, 1, (64, 3)), rng.uniform(-3, 3, (64, 3)), rng.uniform(-3, 3, (64, model.nu))
+    law = Law(plan, "cpu", torch.float64)
+    qf = joint_forces(law, *(torch.as_tensor(x) for x in (ctrl, q, v))).numpy()
+    error = np.abs(qf - plan.drive_damping * v - _mujoco_forces(model, q, v, ctrl)).max()
+    assert (error < 1e-10) == (mistake is None), error
+
+
+def _follow(uid: str, model: mujoco.MjModel, tgs: bool = False) -> float:
+    """The largest |ManiSkill - MuJoCo| joint position over 0.5 s of `mujoco_ctrl_tensor` (a 0.3 sine on every
+    ctrl around the keyframe's), ten physics steps per control step, MuJoCo stepped with the same ctrl."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    env = empty_env(uid, "mujoco_ctrl_tensor", 500, 50, None if tgs else {"enable_tgs": False})
+    try:
+        env.reset(seed=0)
+        robot = env.unwrapped.agent.robot
+        robot.set_qpos(np.asarray(data.qpos, np.float32)[None])
+        robot.set_qvel(np.zeros((1, model.nv), np.float32))
+        worst = 0.0
+        for step in range(25):
+            ctrl = (model.key_ctrl[0] + 0.3 * np.sin(2 * np.pi * step / 25)).astype(np.float32)
+            env.step(ctrl)
+            data.ctrl[:] = ctrl
+            for _ in range(10):
+                mujoco.mj_step(model, data)
+            worst = max(worst, float(np.abs(robot.get_qpos()[0].numpy() - data.qpos).max()))
+    finally:
+        env.close()
+    return worst
+
+
+# rad, the largest |ManiSkill - MuJoCo| joint position of the stiff servo arm over 0.5 s under mujoco_ctrl_tensor,
+# PGS (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0): measured 5.2e-6 (float32 tensors and PhysX's
+# float32 step); with each kv misplaced 0.53; under TGS, whose drives damp over their iterations, 0.55
+TENSOR_FOLLOW_TOLERANCE = 2e-5
+
+
+@pytest.mark.parametrize("mistake", [None, "kv_misplaced"])
+def test_mujoco_ctrl_tensor_follows_mujoco_under_pgs_on_the_cpu_backend(mistake):
+    """The stiff servo arm (kp 5000, kv 200 on light links) in `Empty-v1` under `mujoco_ctrl_tensor`, PGS: it
+    follows MuJoCo; with the drives' kv also in the law it does not; under TGS the mode warns and does not follow."""
+    path = FIXTURES / "folding_servo_arm.xml"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, f"tensor_arm_{mistake}", override=True)
+    _mistaken(mistake, agent.joint_actuation)
+    worst = _follow(agent.uid, model)
+    assert (worst < TENSOR_FOLLOW_TOLERANCE) == (mistake is None), worst
+    if mistake is None:
+        with pytest.warns(SceneMismatchWarning, match="enable_tgs=False"):
+            assert _follow(agent.uid, model, tgs=True) > 100 * TENSOR_FOLLOW_TOLERANCE
+
+
+def test_a_robot_outside_the_law_is_not_offered_the_mode():
+    """The law's scope decides the mode: a robot whose gripper is a tendon actuator gets no `mujoco_ctrl_tensor`,
+    and its agent keeps why."""
+    tendon = FIXTURES / "coupled_joints.xml"
+    model = mujoco.MjModel.from_xml_path(str(tendon))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(tendon, "tensor_coupled", override=True)
+    transmissions = set(model.actuator_trntype.tolist())
+    assert isinstance(agent.joint_actuation, str) == (transmissions != {int(mujoco.mjtTrn.mjTRN_JOINT)})
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (ManiSkill's physx_cuda backend)")
+def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
+    """On `physx_cuda` with 4 sub-scenes, the mode's `qf` on the device is the law's for each sub-scene's own state
+    (the same code as on the CPU, one launch per operation for all of them)."""
+    import gymnasium as gym
+
+    path = FIXTURES / "folding_servo_arm.xml"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, "tensor_arm_gpu", override=True)
+        env = gym.make(
+            "Empty-v1",
+            robot_uids=agent.uid,
+            num_envs=4,
+            sim_backend="physx_cuda",
+            render_backend="none",
+            obs_mode="state",
+            control_mode="mujoco_ctrl_tensor",
+            sim_config={"sim_freq": 500, "control_freq": 50, "scene_config": {"enable_tgs": False}},
+        )
+    try:
+        env.reset(seed=0)
+        unwrapped = env.unwrapped
+        ctrl = torch.linspace(-0.5, 0.5, 4 * 3, device=unwrapped.device).reshape(4, 3)
+        env.step(ctrl)
+        robot, controller = unwrapped.agent.robot, unwrapped.agent.controller.controllers["ctrl"]
+        unwrapped.scene.px.gpu_fetch_articulation_qpos()
+        unwrapped.scene.px.gpu_fetch_articulation_qvel()
+        q, v = robot.get_qpos(), robot.get_qvel()
+        controller.before_simulation_step()
+        expected = joint_forces(controller.law, controller.ctrl, q, v)
+        assert torch.allclose(robot.get_qf(), expected)
+        assert not torch.allclose(expected[0], expected[1])  # each sub-scene its own ctrl and state
+    finally:
+        env.close()
