@@ -1,9 +1,10 @@
 """`python -m conformance maniskill-bench` (`pipx run nox -s maniskill -- bench`): ManiSkill's `Empty-v1` with a
 robot registered by this loader, physics steps per second under `mujoco_ctrl` (MuJoCo's ctrl before every physics
 step) against `pd_joint_pos` (PhysX's drives alone), each mode under the same seeded random walk of its actions
-from the middle of its action space. Both environments live in one process and take turns, a round of control
-steps each (`ROUNDS`), and each mode's figure is its fastest round: a machine whose speed drifts within the minute
-(a shared core) then slows both modes alike instead of whichever ran second. The ratio is what a ManiSkill user
+from the middle of its action space; and `mujoco_ctrl_tensor` where the robot is offered it (`tensor_ratio`: a law
+meant for the GPU, timed on the CPU backend). The environments live in one process and take turns, a round of
+control steps each (`ROUNDS`), and each mode's figure is its fastest round: a machine whose speed drifts within the
+minute (a shared core) then slows every mode alike instead of whichever ran last. The ratio is what a ManiSkill user
 pays for MuJoCo's behaviour on the CPU backend. Needs the `maniskill` extra; times are compared only as ratios
 within one run."""
 
@@ -22,6 +23,7 @@ from .versions import versions
 
 ROBOTS = {"panda": "franka_emika_panda/panda.xml", "leap_hand": "leap_hand/right_hand.xml"}
 MODES = ("mujoco_ctrl", "pd_joint_pos")
+TENSOR = "mujoco_ctrl_tensor"  # timed too where the robot is offered it (`tensor_ratio`), under the same walk
 SUBSTEPS = 10  # physics steps per control step (ManiSkill's sim_freq / control_freq)
 WALK = 0.01  # of each action's range per control step
 WARMUP = 5  # control steps before the clock starts
@@ -54,15 +56,17 @@ class Walk:
         return elapsed
 
 
-def steps_per_second(uid: str, sim_freq: int, control_steps: int, seed: int = 0) -> dict[str, float]:
-    """Physics steps per second of `Empty-v1` with the agent `uid` under each of `MODES`: `ROUNDS` turns of
+def steps_per_second(
+    uid: str, sim_freq: int, control_steps: int, seed: int = 0, modes: tuple[str, ...] = MODES
+) -> dict[str, float]:
+    """Physics steps per second of `Empty-v1` with the agent `uid` under each of `modes`: `ROUNDS` turns of
     `control_steps / ROUNDS` env steps each (at least one), after `WARMUP`; each mode's fastest round."""
-    walks = {mode: Walk(uid, mode, sim_freq, seed) for mode in MODES}
+    walks = {mode: Walk(uid, mode, sim_freq, seed) for mode in modes}
     try:
         for walk in walks.values():
             walk.seconds(WARMUP)
         per_round = max(1, control_steps // ROUNDS)
-        best = dict.fromkeys(MODES, np.inf)
+        best = dict.fromkeys(modes, np.inf)
         for _ in range(ROUNDS):
             for mode, walk in walks.items():
                 best[mode] = min(best[mode], walk.seconds(per_round))
@@ -88,9 +92,12 @@ def maniskill_bench(out: Path, control_steps: int = 100) -> dict:
         sim_freq = round(1.0 / float(mujoco.MjModel.from_xml_path(str(path)).opt.timestep))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            uid = register_agent(path, f"bench_{name}", override=True).uid
-        row = steps_per_second(uid, sim_freq, control_steps)
+            agent = register_agent(path, f"bench_{name}", override=True)
+        tensor = not isinstance(agent.joint_actuation, str)  # the robot is offered `mujoco_ctrl_tensor`
+        row = steps_per_second(agent.uid, sim_freq, control_steps, modes=MODES + (TENSOR,) * tensor)
         row["sim_freq"], row["ratio"] = sim_freq, row["mujoco_ctrl"] / row["pd_joint_pos"]
+        if tensor:
+            row["tensor_ratio"] = row[TENSOR] / row["pd_joint_pos"]
         robots[name] = row
     doc = {
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),

@@ -603,8 +603,10 @@ def test_a_comparison_puts_both_loaders_side_by_side(tmp_path):
 
 def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch):
     """`nox -s maniskill -- bench`: each robot's physics steps per second under `mujoco_ctrl` and `pd_joint_pos`,
-    their ratio, the versions; a robot the Menagerie slice lacks is skipped with its path."""
+    their ratio, `mujoco_ctrl_tensor`'s where the robot is offered it, the versions; a robot the Menagerie slice lacks
+    is skipped with its path."""
     from conformance import maniskill_bench
+    from conformance.maniskill_bench import TENSOR
 
     if menagerie_root() is None:
         pytest.skip("Menagerie slice not installed")
@@ -615,4 +617,6 @@ def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch)
     panda = doc["robots"]["panda"]
     assert panda["sim_freq"] == 500 and all(panda[mode] > 0 for mode in maniskill_bench.MODES)
     assert panda["ratio"] == pytest.approx(panda["mujoco_ctrl"] / panda["pd_joint_pos"])
+    hand = doc["robots"]["leap_hand"]  # offered mujoco_ctrl_tensor (the panda's gripper is a tendon actuator)
+    assert "tensor_ratio" not in panda and hand["tensor_ratio"] == pytest.approx(hand[TENSOR] / hand["pd_joint_pos"])
     assert "no_such_robot/robot.xml not found" in doc["robots"]["absent"]["skipped"]
