@@ -91,7 +91,8 @@ def _follow(uid: str, model: mujoco.MjModel, tgs: bool = False) -> float:
 
 # rad, the largest |ManiSkill - MuJoCo| joint position of the stiff servo arm over 0.5 s under mujoco_ctrl_tensor,
 # PGS (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0): measured 5.2e-6 (float32 tensors and PhysX's
-# float32 step); with each kv misplaced 0.53; under TGS, whose drives damp over their iterations, 0.55
+# float32 step); with each kv misplaced 0.53; under TGS, whose drives damp over their iterations, 0.55. With every
+# body compensated fully (gravcomp 1): 6.6e-6; with the links left weighing 6.8e-4
 TENSOR_FOLLOW_TOLERANCE = 2e-5
 
 
@@ -159,3 +160,22 @@ def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
         assert not torch.allclose(expected[0], expected[1])  # each sub-scene its own ctrl and state
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("mistake", [None, "weighing"])
+def test_a_compensated_arm_follows_mujoco_with_its_links_weightless(tmp_path, mistake):
+    """The stiff servo arm with every body compensated fully (gravcomp 1) follows MuJoCo under PGS: its links weigh
+    nothing in PhysX, as MuJoCo's gravity and compensation cancel at their centres of mass. With the links left
+    weighing, gravity sags the arm past the tolerance."""
+    xml = (FIXTURES / "folding_servo_arm.xml").read_text().replace('<body name="', '<body gravcomp="1" name="')
+    path = tmp_path / "compensated_arm.xml"
+    path.write_text(xml)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, f"tensor_compensated_{mistake}", override=True)
+    assert len(agent.joint_actuation.weightless) == 3
+    if mistake:
+        agent.joint_actuation.weightless = []
+    worst = _follow(agent.uid, model)
+    assert (worst < TENSOR_FOLLOW_TOLERANCE) == (mistake is None), worst

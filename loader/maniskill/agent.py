@@ -164,6 +164,7 @@ def register_agent(
         for j, target in enumerate(reference.mapping.joints)
         if target.drive_key is not None and target.articulation == 0
     }
+    link_of_body = {b: t.link for b, t in enumerate(reference.mapping.bodies) if t is not None and t.articulation == 0}
     attributes = {
         "uid": uid,
         "mjcf_path": path,
@@ -174,7 +175,7 @@ def register_agent(
         "motors": motors(reference),
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
-        "joint_actuation": plan_joint_actuation(model, dof_of_joint, articulation.dof),
+        "joint_actuation": plan_joint_actuation(model, dof_of_joint, articulation.dof, link_of_body),
     }
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)
     return registration.register_agent(override=override)(agent)

@@ -71,11 +71,13 @@ class JointActuationController(BaseController):
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device)
 
     def set_drive_property(self):
-        """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo."""
+        """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo, but on
+        the links of fully compensated bodies."""
         if uses_tgs(self.scene.sub_scenes[0]):
             warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
-        for link in self.articulation.links:
-            link.disable_gravity = False
+        weightless = set(self.config.plan.weightless)
+        for index, link in enumerate(self.articulation.links):
+            link.disable_gravity = index in weightless
         indices = self.active_joint_indices.cpu().numpy()
         for joint, damping in zip(self.joints, self.config.plan.drive_damping[indices].tolist()):
             joint.set_drive_properties(0.0, damping, force_limit=np.inf, mode="force")

@@ -8,15 +8,17 @@ is none or affine), MuJoCo's force at the state is
     F = clamp(gain clamp(ctrl) + b0 + b1 L + b2 dL/dt, forcerange),   L = g q,   joint force g F,
 
 the sum of a joint's actuator forces clamped to its actuatorfrcrange, and each DoF adds its spring k (springref - q)
-and damper -d v. MuJoCo's integrator takes the dampers, and under the implicit integrators each actuator's b2 g^2
-(its kv on the joint), implicitly: those stay in a PhysX drive (damping, no stiffness, zero targets), whose implicit
-law matches MuJoCo's step under PGS. The joint force the law writes is everything else, evaluated at the step's
-start: g (F - b2 dL/dt) for an actuator the drive holds, its velocity term taken out as the drive gives it. Where
-forcerange or actuatorfrcrange binds, the force is constant in MuJoCo and the drive's share is cancelled at the start
-state, not at the end: the one approximation inside the law's scope. The law's force and the drives' force sum to
-MuJoCo's qfrc_actuator + qfrc_passive at any state
+and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's integrator takes the dampers, and
+under the implicit integrators each actuator's b2 g^2 (its kv on the joint), implicitly: those stay in a PhysX drive
+(damping, no stiffness, zero targets), whose implicit law matches MuJoCo's step under PGS. The joint force the law
+writes is everything else, evaluated at the step's start: g (F - b2 dL/dt) for an actuator the drive holds, its
+velocity term taken out as the drive gives it. Where forcerange or actuatorfrcrange binds, the force is constant in
+MuJoCo and the drive's share is cancelled at the start state, not at the end: the one approximation inside the law's
+scope. The law's force and the drives' force sum to MuJoCo's qfrc_actuator + qfrc_passive at any state, and PhysX's
+gravity off on a fully compensated body's link is MuJoCo's gravity and compensation together
 (tests/test_maniskill_joint_actuation.py::test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force;
-tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast).
+tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast;
+tests/test_maniskill_joint_actuation.py::test_a_compensated_arm_follows_mujoco_with_its_links_weightless).
 """
 
 from __future__ import annotations
@@ -54,12 +56,17 @@ class JointActuation:
     spring_ref: np.ndarray
     drive_damping: np.ndarray  # per DoF: the damping its PhysX drive holds
     explicit_damping: np.ndarray  # per DoF: damping the law applies at the start state (eulerdamp disabled)
+    # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
+    # and its compensation at their centres of mass together
+    weightless: list[int] = field(default_factory=list)
     not_carried: list[str] = field(default_factory=list)
 
 
-def plan_joint_actuation(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointActuation | str:
-    """The law for `model` whose MuJoCo joint j moves robot DoF `dof_of_joint[j]` (hinges and slides), or why
-    the law cannot drive it (an actuator outside its scope)."""
+def plan_joint_actuation(
+    model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, link_of_body: dict[int, int] | None = None
+) -> JointActuation | str:
+    """The law for `model` whose MuJoCo joint j moves robot DoF `dof_of_joint[j]` (hinges and slides) and whose body
+    b is robot link `link_of_body[b]`, or why the law cannot drive it (an actuator outside its scope)."""
     why = _outside(model, dof_of_joint)
     if why is not None:
         return why
@@ -106,8 +113,17 @@ def plan_joint_actuation(model: mujoco.MjModel, dof_of_joint: dict[int, int], nd
         spring_ref,
         drive,
         damping if damped_explicitly else np.zeros(ndof),
+        _weightless(model, link_of_body or {}),
         _not_carried(model),
     )
+
+
+def _weightless(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[int]:
+    """The links of the fully compensated bodies, where the compensation is a passive force (not routed through the
+    actuators, `actuatorgravcomp`) and gravity is on."""
+    if np.any(model.jnt_actgravcomp) or mj.disabled(model, "gravity"):
+        return []
+    return sorted(link for body, link in link_of_body.items() if model.body_gravcomp[body] == 1.0)
 
 
 def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
@@ -137,8 +153,8 @@ def _not_carried(model: mujoco.MjModel) -> list[str]:
         (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss"), "frictionloss"),
         (model.ntendon > 0, "tendons"),
         (model.neq > 0, "equality constraints"),
-        (np.any(model.body_gravcomp), "gravity compensation"),
-        (np.any(model.jnt_actgravcomp), "gravity compensation through the actuators"),
+        (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
+        (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
         (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
         (int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_IMPLICIT), "the implicit integrator's Coriolis"),
         (np.any(model.actuator_biasprm[:, 2] > 0), "an actuator's positive velocity gain (explicit here)"),
