@@ -10,8 +10,8 @@ import pytest
 from loader.plan import joint_actuation
 from loader.plan.joint_actuation import plan_joint_actuation
 
-# every actuator kind of the law on hinges and a slide, with gears, clamps that bind (ctrlrange, forcerange and a
-# joint's actuatorfrcrange), springs and dampers
+# every actuator kind of the law on hinges, a slide and a fixed tendon over two of them, with gears, clamps that
+# bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers
 ACTUATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
   <worldbody><body name="a"><joint name="h1" axis="0 1 0" damping="0.3" stiffness="2" springref="0.2"
       actuatorfrcrange="-40 50"/>
@@ -20,27 +20,41 @@ ACTUATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
       <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/>
       <body name="c" pos=".2 0 0"><joint name="s" type="slide" axis="1 0 0" stiffness="5" damping="1"/>
         <geom type="box" size=".03 .03 .03" mass=".2"/></body></body></body></worldbody>
+  <tendon><fixed name="t"><joint joint="h1" coef="0.5"/><joint joint="s" coef="-1"/></fixed></tendon>
   <actuator>
     <position joint="h1" kp="40" kv="3" gear="2" ctrlrange="-1 1" forcerange="-30 30"/>
     <velocity joint="h2" kv="5" ctrlrange="-2 2"/>
     <motor joint="h2" gear="0.5" ctrlrange="-1 1"/>
     <general joint="s" gainprm="7" biastype="affine" biasprm="0.5 -20 -2" forcerange="-3 4"/>
+    <general tendon="t" gear="1.5" gainprm="3" biastype="affine" biasprm="0 -4 -1.5" forcerange="-2 2"/>
   </actuator></mujoco>"""
 DOF_OF_JOINT = {0: 0, 1: 1, 2: 2}
 
 
+SPATIAL = """<mujoco><worldbody><body><joint name="j"/><geom size=".1"/><site name="a" pos=".1 0 0"/></body>
+  <site name="b" pos=".3 .2 0"/></worldbody>
+  <tendon><spatial name="t"><site site="a"/><site site="b"/></spatial></tendon>
+  <actuator><motor name="pull" tendon="t"/></actuator></mujoco>"""
+
+
 def test_out_of_scope_actuators_are_named():
-    """An actuator the law cannot carry is named with why: one on a tendon, one with activation dynamics."""
-    tendon = """<mujoco><worldbody><body><joint name="j"/><geom size=".1"/></body></worldbody>
-      <tendon><fixed name="t"><joint joint="j" coef="1"/></fixed></tendon>
-      <actuator><motor name="pull" tendon="t"/></actuator></mujoco>"""
-    why = plan_joint_actuation(mujoco.MjModel.from_xml_string(tendon), {0: 0}, 1)
-    assert isinstance(why, str) and "'pull'" in why and "tendon" in why
+    """An actuator the law cannot carry is named with why: one on a spatial tendon (its moment changes with the
+    pose), one with activation dynamics."""
+    why = plan_joint_actuation(mujoco.MjModel.from_xml_string(SPATIAL), {0: 0}, 1)
+    assert isinstance(why, str) and "'pull'" in why and "spatial tendon" in why
     filtered = ACTUATED.format(integrator="implicitfast").replace(
         '<motor joint="h2" gear="0.5"', '<general name="m" dyntype="filter" dynprm="0.1" joint="h2" gear="0.5"'
     )
     why = plan_joint_actuation(mujoco.MjModel.from_xml_string(filtered), DOF_OF_JOINT, 3)
     assert isinstance(why, str) and "'m'" in why and "activation" in why
+
+
+def test_a_fixed_tendons_moment_is_its_gear_times_its_coefficients():
+    """The fixed tendon actuator's moment over the robot's DoFs (here in reverse of MuJoCo's order) is its gear
+    times the tendon's coefficients, as MuJoCo's transmission gives it."""
+    model = mujoco.MjModel.from_xml_string(ACTUATED.format(integrator="implicitfast"))
+    plan = plan_joint_actuation(model, {0: 2, 1: 1, 2: 0}, model.nv)
+    assert np.array_equal(plan.moment[-1], [-1.5 * 1.0, 0.0, 1.5 * 0.5])  # gear 1.5; coef 0.5 on h1, -1 on s
 
 
 def _velocity_derivative(model: mujoco.MjModel) -> np.ndarray:
@@ -60,13 +74,13 @@ def _velocity_derivative(model: mujoco.MjModel) -> np.ndarray:
 @pytest.mark.parametrize("mistake", [False, True], ids=["planned", "mistake_actuators_explicit"])
 def test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast(monkeypatch, mistake):
     """Under implicitfast MuJoCo integrates d(force)/d(qvel) implicitly: each DoF's joint damping and its actuators'
-    kv g^2 (the model's velocity terms sit one per DoF). The drives' damping is that derivative's diagonal, less its
+    kv m^2 on its diagonal (the fixed tendon's cross terms off it). The drives' damping is that diagonal, less its
     sign; planned as if implicitfast's actuators were explicit, it lacks the actuators' kv."""
     if mistake:
         implicitfast = int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
         monkeypatch.setattr(joint_actuation, "EXPLICIT_ACTUATORS", (*joint_actuation.EXPLICIT_ACTUATORS, implicitfast))
     model = mujoco.MjModel.from_xml_string(ACTUATED.format(integrator="implicitfast"))
     derivative = _velocity_derivative(model)
-    assert np.allclose(derivative, np.diag(np.diag(derivative)), atol=1e-6)  # one velocity term per DoF
+    assert not np.allclose(derivative, np.diag(np.diag(derivative)), atol=1e-6)  # the tendon couples h1 and s
     plan = plan_joint_actuation(model, DOF_OF_JOINT, model.nv)
     assert np.allclose(plan.drive_damping, -np.diag(derivative), atol=1e-6) != mistake

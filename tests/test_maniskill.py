@@ -617,6 +617,5 @@ def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch)
     panda = doc["robots"]["panda"]
     assert panda["sim_freq"] == 500 and all(panda[mode] > 0 for mode in maniskill_bench.MODES)
     assert panda["ratio"] == pytest.approx(panda["mujoco_ctrl"] / panda["pd_joint_pos"])
-    hand = doc["robots"]["leap_hand"]  # offered mujoco_ctrl_tensor (the panda's gripper is a tendon actuator)
-    assert "tensor_ratio" not in panda and hand["tensor_ratio"] == pytest.approx(hand[TENSOR] / hand["pd_joint_pos"])
+    assert panda["tensor_ratio"] == pytest.approx(panda[TENSOR] / panda["pd_joint_pos"])  # offered the mode
     assert "no_such_robot/robot.xml not found" in doc["robots"]["absent"]["skipped"]

@@ -33,28 +33,38 @@ class Law:
         def tensor(array):
             return torch.as_tensor(np.asarray(array, np.float64), dtype=dtype, device=device)
 
-        self.dof = torch.as_tensor(plan.dof, dtype=torch.long, device=device)
-        self.gear, self.gain, self.held = tensor(plan.gear), tensor(plan.gain), tensor(plan.held)
+        self.moment, self.gain = tensor(plan.moment), tensor(plan.gain)
         self.bias0, self.bias1, self.bias2 = (tensor(row) for row in plan.bias)
         self.ctrl_low, self.ctrl_high = tensor(plan.ctrl_range[0]), tensor(plan.ctrl_range[1])
         self.force_low, self.force_high = tensor(plan.force_range[0]), tensor(plan.force_range[1])
         self.joint_low, self.joint_high = tensor(plan.joint_range[0]), tensor(plan.joint_range[1])
         self.stiffness, self.spring_ref = tensor(plan.stiffness), tensor(plan.spring_ref)
-        self.explicit_damping = tensor(plan.explicit_damping)
+        self.held_damping = tensor(plan.held_damping())
+        self.velocity_gain = tensor(plan.held_damping() - plan.explicit_damping)  # per DoF, times v
+        self.held_gain, self.moment_squared = tensor(plan.held * -plan.bias[2]), tensor(plan.moment**2)
 
 
-def joint_forces(law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+def joint_forces(
+    law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor, previous: torch.Tensor | None = None
+) -> torch.Tensor:
     """The joint forces (env, DoF) the law writes as `qf` for `ctrl` (env, nu) at the state (q, v) (env, DoF): the
-    actuators' forces, each joint's sum within its range, less the velocity term their drives hold; the springs (and
-    the dampers MuJoCo applies explicitly)."""
+    actuators' forces, each joint's sum within its range; the drives' own force on the actuators' held velocity
+    terms taken back; the springs (and the dampers MuJoCo applies explicitly). Where a clamp binds, MuJoCo's force
+    is constant over the step and has no implicit term, while the drive still damps toward the end velocity: its
+    force there is taken back at the end velocity extrapolated from the last step's (`previous`, the velocities
+    at its start; None after a reset: at the start velocity)."""
     ctrl = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
-    length, rate = law.gear * q[:, law.dof], law.gear * v[:, law.dof]
-    force = law.gain * ctrl + law.bias0 + law.bias1 * length + law.bias2 * rate
-    force = torch.clamp(force, law.force_low, law.force_high)
-    actuated = torch.zeros_like(q).index_add(1, law.dof, law.gear * force)
-    qf = torch.clamp(actuated, law.joint_low, law.joint_high)
-    qf += law.stiffness * (law.spring_ref - q) - law.explicit_damping * v
-    return qf.index_add(1, law.dof, -law.gear * law.held * law.bias2 * rate)
+    length, rate = q @ law.moment.T, v @ law.moment.T
+    raw = law.gain * ctrl + law.bias0 + law.bias1 * length + law.bias2 * rate
+    force = torch.clamp(raw, law.force_low, law.force_high)
+    summed = force @ law.moment
+    actuated = torch.clamp(summed, law.joint_low, law.joint_high)
+    qf = actuated + law.stiffness * (law.spring_ref - q) + law.velocity_gain * v
+    if previous is None:
+        return qf
+    bound = ((force != raw).to(v.dtype) * law.held_gain) @ law.moment_squared  # per DoF, the clamped actuators'
+    bound = torch.where(actuated != summed, law.held_damping, bound)  # a joint's actuatorfrcrange: all of it
+    return qf + bound * (v - previous)
 
 
 class JointActuationController(BaseController):
@@ -69,10 +79,12 @@ class JointActuationController(BaseController):
         self.single_action_space = spaces.Box(low, high, dtype=np.float32)
         self.law = Law(self.config.plan, self.device)
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device)
+        self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
 
     def set_drive_property(self):
         """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo, but on
-        the links of fully compensated bodies."""
+        the links of fully compensated bodies. The next step starts without a last one."""
+        self.previous = None
         if uses_tgs(self.scene.sub_scenes[0]):
             warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
         weightless = set(self.config.plan.weightless)
@@ -86,6 +98,7 @@ class JointActuationController(BaseController):
     def reset(self):
         self.ctrl = torch.zeros_like(self.ctrl)
         self.targeted = False
+        self.previous = None  # every sub-scene's next step starts without a last one (a reset one has none)
 
     def zero_targets(self):
         """Every drive's position and velocity target at zero, in every sub-scene (on the device where it runs)."""
@@ -107,8 +120,9 @@ class JointActuationController(BaseController):
         if self.scene.gpu_sim_enabled:  # the state of the last physics step, on the device
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
-        q, v = self.articulation.get_qpos(), self.articulation.get_qvel()
-        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q.to(self.ctrl.dtype), v.to(self.ctrl.dtype)))
+        q, v = self.articulation.get_qpos().to(self.ctrl.dtype), self.articulation.get_qvel().to(self.ctrl.dtype)
+        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, self.previous))
+        self.previous = v.clone()
         if self.scene.gpu_sim_enabled:
             px.gpu_apply_articulation_qf()
 

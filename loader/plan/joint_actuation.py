@@ -2,20 +2,23 @@
 law over (env, DoF) that needs no MuJoCo call each step (`loader/maniskill/joint_actuation.py`, which runs it on
 ManiSkill's state tensors, on the CPU or the GPU).
 
-Per actuator on a hinge or slide (joint transmission, gear g, no activation dynamics, a fixed gain and a bias that
-is none or affine), MuJoCo's force at the state is
+Per actuator on a hinge, a slide or a fixed tendon over them (MuJoCo's constant moment m = dL/dq: the gear, times
+the tendon's coefficients), with no activation dynamics, a fixed gain and a bias that is none or affine, MuJoCo's
+force at the state is
 
-    F = clamp(gain clamp(ctrl) + b0 + b1 L + b2 dL/dt, forcerange),   L = g q,   joint force g F,
+    F = clamp(gain clamp(ctrl) + b0 + b1 L + b2 dL/dt, forcerange),   L = m q,   joint forces m F,
 
 the sum of a joint's actuator forces clamped to its actuatorfrcrange, and each DoF adds its spring k (springref - q)
 and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's integrator takes the dampers, and
-under the implicit integrators each actuator's b2 g^2 (its kv on the joint), implicitly: those stay in a PhysX drive
-(damping, no stiffness, zero targets), whose implicit law matches MuJoCo's step under PGS. The joint force the law
-writes is everything else, evaluated at the step's start: g (F - b2 dL/dt) for an actuator the drive holds, its
-velocity term taken out as the drive gives it. Where forcerange or actuatorfrcrange binds, the force is constant in
-MuJoCo and the drive's share is cancelled at the start state, not at the end: the one approximation inside the law's
-scope. The law's force and the drives' force sum to MuJoCo's qfrc_actuator + qfrc_passive at any state, and PhysX's
-gravity off on a fully compensated body's link is MuJoCo's gravity and compensation together
+under the implicit integrators each actuator's -b2 m m^T (its kv on the joints), implicitly: the dampers and that
+term's diagonal stay in a PhysX drive (damping, no stiffness, zero targets), whose implicit law matches MuJoCo's step
+under PGS; a fixed tendon's cross terms are explicit. The joint force the law writes is everything else, evaluated
+at the step's start: m F, plus -b2 m_j^2 v_j on DoF j for an actuator the drives hold (the drive's own force there
+taken back). Where forcerange or actuatorfrcrange binds, the force is constant in MuJoCo and the drive's share is
+taken back at an end velocity the per-step half estimates: with the tendon's explicit cross terms, the law's only
+approximations. The law's
+force and the drives' force sum to MuJoCo's qfrc_actuator + qfrc_passive at any state, and PhysX's gravity off on a
+fully compensated body's link is MuJoCo's gravity and compensation together
 (tests/test_maniskill_joint_actuation.py::test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force;
 tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast;
 tests/test_maniskill_joint_actuation.py::test_a_compensated_arm_follows_mujoco_with_its_links_weightless).
@@ -30,7 +33,8 @@ import numpy as np
 
 from ..model import mj
 
-JOINT_TRANSMISSION = int(mujoco.mjtTrn.mjTRN_JOINT)
+TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_TENDON))
+JOINT_WRAP = int(mujoco.mjtWrap.mjWRAP_JOINT)
 SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 NO_DYNAMICS = int(mujoco.mjtDyn.mjDYN_NONE)
 FIXED_GAIN = int(mujoco.mjtGain.mjGAIN_FIXED)
@@ -40,15 +44,14 @@ EXPLICIT_ACTUATORS = (int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtInteg
 
 @dataclass
 class JointActuation:
-    """The law's arrays: per actuator (`dof` in the robot's active DoFs), per DoF (`ndof` of them), and what the
-    law leaves out (`not_carried`)."""
+    """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
+    the law leaves out (`not_carried`)."""
 
     ndof: int
-    dof: np.ndarray  # per actuator: the robot DoF its joint moves
-    gear: np.ndarray
+    moment: np.ndarray  # (nu, ndof): dL/dq, MuJoCo's (gear, times a fixed tendon's coefficients), constant here
     gain: np.ndarray
     bias: np.ndarray  # (3, nu): b0, b1, b2
-    held: np.ndarray  # 1.0 where the drive holds the actuator's velocity term (b2 g^2 as damping), else 0.0
+    held: np.ndarray  # 1.0 where the drives hold the actuator's velocity term (its diagonal), else 0.0
     ctrl_range: np.ndarray  # (2, nu): -inf, inf where ctrl is not clamped
     force_range: np.ndarray  # (2, nu): -inf, inf where the force is not clamped
     joint_range: np.ndarray  # (2, ndof): each DoF's actuatorfrcrange, -inf, inf where it has none
@@ -61,6 +64,10 @@ class JointActuation:
     weightless: list[int] = field(default_factory=list)
     not_carried: list[str] = field(default_factory=list)
 
+    def held_damping(self) -> np.ndarray:
+        """Per DoF, the actuators' velocity terms the drives hold: sum over held actuators of -b2 m^2."""
+        return (self.held * -self.bias[2]) @ self.moment**2
+
 
 def plan_joint_actuation(
     model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, link_of_body: dict[int, int] | None = None
@@ -70,20 +77,55 @@ def plan_joint_actuation(
     why = _outside(model, dof_of_joint)
     if why is not None:
         return why
-    nu = model.nu
     actuated = not mj.disabled(model, "actuation")
-    dof = np.array([dof_of_joint[int(model.actuator_trnid[a, 0])] for a in range(nu)], dtype=np.int64)
     affine = (model.actuator_biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)).astype(float)
-    bias = (model.actuator_biasprm[:, :3] * affine[:, None]).T.copy() if nu else np.zeros((3, 0))
+    bias = (model.actuator_biasprm[:, :3] * affine[:, None]).T.copy() if model.nu else np.zeros((3, 0))
     gain = model.actuator_gainprm[:, 0].copy()
     off = ((int(model.opt.disableactuator) >> np.clip(model.actuator_group, 0, 30)) & 1).astype(bool) | (not actuated)
     gain[off], bias[:, off] = 0.0, 0.0  # actuation disabled, or the actuator's group (`disableactuator`)
-    gear = model.actuator_gear[:, 0].copy()
     implicit = int(model.opt.integrator) not in EXPLICIT_ACTUATORS
     held = ((bias[2] < 0) & implicit).astype(float)  # PhysX's damping cannot be negative
     clamps = model.actuator_ctrllimited.astype(bool) & (not mj.disabled(model, "clampctrl"))
     ctrl_range = np.where(clamps, model.actuator_ctrlrange.T, [[-np.inf], [np.inf]])
     force_range = np.where(model.actuator_forcelimited.astype(bool), model.actuator_forcerange.T, [[-np.inf], [np.inf]])
+    stiffness, spring_ref, damping, joint_range = _joint_arrays(model, dof_of_joint, ndof)
+    damped_explicitly = not implicit and mj.disabled(model, "eulerdamp")
+    plan = JointActuation(
+        ndof,
+        _moment(model, dof_of_joint, ndof),
+        gain,
+        bias,
+        held,
+        ctrl_range,
+        force_range,
+        joint_range,
+        stiffness,
+        spring_ref,
+        np.zeros(ndof),
+        damping if damped_explicitly else np.zeros(ndof),
+        _weightless(model, link_of_body or {}),
+        _not_carried(model),
+    )
+    plan.drive_damping = plan.held_damping() + (0.0 if damped_explicitly else damping)
+    return plan
+
+
+def _moment(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> np.ndarray:
+    """MuJoCo's actuator moments (nu, ndof) in the robot's DoF order, from its transmission pass at qpos0: constant
+    for a hinge or slide and for a fixed tendon over them."""
+    data = mujoco.MjData(model)
+    mujoco.mj_fwdPosition(model, data)
+    dense = np.zeros((model.nu, model.nv))
+    if model.nu:
+        mujoco.mju_sparse2dense(dense, data.actuator_moment, data.moment_rownnz, data.moment_rowadr, data.moment_colind)
+    moment = np.zeros((model.nu, ndof))
+    for joint, robot_dof in dof_of_joint.items():
+        moment[:, robot_dof] = dense[:, model.jnt_dofadr[joint]]
+    return moment
+
+
+def _joint_arrays(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> tuple[np.ndarray, ...]:
+    """Per robot DoF: the spring's stiffness and reference, the damper, the actuatorfrcrange (-inf, inf: none)."""
     stiffness, spring_ref, damping = np.zeros(ndof), np.zeros(ndof), np.zeros(ndof)
     joint_range = np.tile([[-np.inf], [np.inf]], (1, ndof))
     for joint, robot_dof in dof_of_joint.items():
@@ -96,26 +138,7 @@ def plan_joint_actuation(
         stiffness[:] = 0.0
     if mj.disabled(model, "damper"):
         damping[:] = 0.0
-    damped_explicitly = not implicit and mj.disabled(model, "eulerdamp")
-    drive = np.zeros(ndof) if damped_explicitly else damping.copy()
-    np.add.at(drive, dof, held * -bias[2] * gear**2)
-    return JointActuation(
-        ndof,
-        dof,
-        gear,
-        gain,
-        bias,
-        held,
-        ctrl_range,
-        force_range,
-        joint_range,
-        stiffness,
-        spring_ref,
-        drive,
-        damping if damped_explicitly else np.zeros(ndof),
-        _weightless(model, link_of_body or {}),
-        _not_carried(model),
-    )
+    return stiffness, spring_ref, damping, joint_range
 
 
 def _weightless(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[int]:
@@ -130,15 +153,17 @@ def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
     """Why an actuator is outside the law's scope, naming it; None where every one is inside."""
     for a in range(model.nu):
         name = mj.name(model, "actuator", a)
-        joint = int(model.actuator_trnid[a, 0])
-        if int(model.actuator_trntype[a]) != JOINT_TRANSMISSION:
-            return f"actuator {name!r} drives a tendon, site or body, not a joint"
-        if int(model.jnt_type[joint]) not in SCALAR_JOINTS:
-            return f"actuator {name!r} drives a ball or free joint"
-        if joint not in dof_of_joint:
-            return (
-                f"actuator {name!r} drives joint {mj.name(model, 'joint', joint)!r}, outside the robot's articulation"
-            )
+        if int(model.actuator_trntype[a]) not in TRANSMISSIONS:
+            return f"actuator {name!r} drives a site, body or slider-crank, not a joint or tendon"
+        joints = _transmission_joints(model, a)
+        if joints is None:
+            return f"actuator {name!r} drives a spatial tendon (its moment changes with the pose)"
+        for joint in joints:
+            if int(model.jnt_type[joint]) not in SCALAR_JOINTS:
+                return f"actuator {name!r} drives a ball or free joint"
+            if joint not in dof_of_joint:
+                where = mj.name(model, "joint", joint)
+                return f"actuator {name!r} drives joint {where!r}, outside the robot's articulation"
         if int(model.actuator_dyntype[a]) != NO_DYNAMICS:
             return f"actuator {name!r} has activation dynamics"
         if int(model.actuator_gaintype[a]) != FIXED_GAIN or int(model.actuator_biastype[a]) not in BIASES:
@@ -146,12 +171,28 @@ def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
     return None
 
 
+def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | None:
+    """The joints an actuator's joint or fixed tendon moves; None for a spatial tendon."""
+    target = int(model.actuator_trnid[actuator, 0])
+    if int(model.actuator_trntype[actuator]) == TRANSMISSIONS[0]:
+        return [target]
+    start, count = int(model.tendon_adr[target]), int(model.tendon_num[target])
+    wraps = range(start, start + count)
+    if any(int(model.wrap_type[w]) != JOINT_WRAP for w in wraps):
+        return None
+    return [int(model.wrap_objid[w]) for w in wraps]
+
+
 def _not_carried(model: mujoco.MjModel) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
     checks = [
         (np.any(model.jnt_limited) and not mj.disabled(model, "limit"), "soft joint limits (PhysX's hard limits)"),
         (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss"), "frictionloss"),
-        (model.ntendon > 0, "tendons"),
+        (
+            np.any(model.tendon_stiffness) or np.any(model.tendon_damping) or np.any(model.tendon_limited),
+            "tendon springs, dampers and limits",
+        ),
+        (np.any(model.tendon_frictionloss > 0), "tendon frictionloss"),
         (model.neq > 0, "equality constraints"),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
         (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
