@@ -20,6 +20,7 @@ from ..errors import SceneMismatchWarning
 from ..plan.joint_actuation import JointActuation
 from ..plan.physx_settings import uses_tgs
 
+UNLIMITED = float(np.finfo(np.float32).max)  # ManiSkill's own "no force limit" for a drive, finite for PhysX's GPU
 TGS_NOTE = (
     "mujoco_ctrl_tensor: the drives hold MuJoCo's implicit damping under PGS; TGS damps a drive over its position "
     "iterations and moves the joints elsewhere: set sim_config's scene_config enable_tgs=False"
@@ -92,7 +93,7 @@ class JointActuationController(BaseController):
             link.disable_gravity = index in weightless
         indices = self.active_joint_indices.cpu().numpy()
         for joint, damping in zip(self.joints, self.config.plan.drive_damping[indices].tolist()):
-            joint.set_drive_properties(0.0, damping, force_limit=np.inf, mode="force")
+            joint.set_drive_properties(0.0, damping, force_limit=UNLIMITED, mode="force")
         self.targeted = False  # the targets are zeroed before the next physics step (`zero_targets`)
 
     def reset(self):
