@@ -11,7 +11,8 @@ from loader.plan import joint_actuation
 from loader.plan.joint_actuation import plan_joint_actuation
 
 # every actuator kind of the law on hinges, a slide and a fixed tendon over two of them, with gears, clamps that
-# bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers
+# bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers; a filter, an integrator within
+# its actrange and an exact filter acting early
 ACTUATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
   <worldbody><body name="a"><joint name="h1" axis="0 1 0" damping="0.3" stiffness="2" springref="0.2"
       actuatorfrcrange="-40 50"/>
@@ -27,6 +28,9 @@ ACTUATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
     <motor joint="h2" gear="0.5" ctrlrange="-1 1"/>
     <general joint="s" gainprm="7" biastype="affine" biasprm="0.5 -20 -2" forcerange="-3 4"/>
     <general tendon="t" gear="1.5" gainprm="3" biastype="affine" biasprm="0 -4 -1.5" forcerange="-2 2"/>
+    <general joint="h2" dyntype="filter" dynprm="0.05" gainprm="2" biastype="affine" biasprm="0 0 -0.5"/>
+    <general joint="s" dyntype="integrator" actlimited="true" actrange="-0.5 0.8" gainprm="4" ctrlrange="-1 1"/>
+    <general joint="h1" dyntype="filterexact" dynprm="0.03" actearly="true" gainprm="1.5"/>
   </actuator></mujoco>"""
 DOF_OF_JOINT = {0: 0, 1: 1, 2: 2}
 
@@ -39,13 +43,13 @@ SPATIAL = """<mujoco><worldbody><body><joint name="j"/><geom size=".1"/><site na
 
 def test_out_of_scope_actuators_are_named():
     """An actuator the law cannot carry is named with why: one on a spatial tendon (its moment changes with the
-    pose), one with activation dynamics."""
+    pose), one with a muscle's activation dynamics."""
     why = plan_joint_actuation(mujoco.MjModel.from_xml_string(SPATIAL), {0: 0}, 1)
     assert isinstance(why, str) and "'pull'" in why and "spatial tendon" in why
-    filtered = ACTUATED.format(integrator="implicitfast").replace(
-        '<motor joint="h2" gear="0.5"', '<general name="m" dyntype="filter" dynprm="0.1" joint="h2" gear="0.5"'
+    muscle = ACTUATED.format(integrator="implicitfast").replace(
+        '<motor joint="h2" gear="0.5"', '<general name="m" dyntype="muscle" dynprm="0.01 0.04" joint="h2" gear="0.5"'
     )
-    why = plan_joint_actuation(mujoco.MjModel.from_xml_string(filtered), DOF_OF_JOINT, 3)
+    why = plan_joint_actuation(mujoco.MjModel.from_xml_string(muscle), DOF_OF_JOINT, 3)
     assert isinstance(why, str) and "'m'" in why and "activation" in why
 
 
@@ -54,7 +58,8 @@ def test_a_fixed_tendons_moment_is_its_gear_times_its_coefficients():
     times the tendon's coefficients, as MuJoCo's transmission gives it."""
     model = mujoco.MjModel.from_xml_string(ACTUATED.format(integrator="implicitfast"))
     plan = plan_joint_actuation(model, {0: 2, 1: 1, 2: 0}, model.nv)
-    assert np.array_equal(plan.moment[-1], [-1.5 * 1.0, 0.0, 1.5 * 0.5])  # gear 1.5; coef 0.5 on h1, -1 on s
+    (tendon,) = np.flatnonzero(model.actuator_trntype == mujoco.mjtTrn.mjTRN_TENDON)
+    assert np.array_equal(plan.moment[tendon], [-1.5 * 1.0, 0.0, 1.5 * 0.5])  # gear 1.5; coef 0.5 on h1, -1 on s
 
 
 def _velocity_derivative(model: mujoco.MjModel) -> np.ndarray:

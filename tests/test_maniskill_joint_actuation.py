@@ -5,6 +5,7 @@ Needs torch and mani_skill (the `maniskill` extra); the CUDA test skips without 
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import mujoco
@@ -20,15 +21,23 @@ from test_joint_actuation import ACTUATED, DOF_OF_JOINT, SPATIAL
 from conformance.tiers.maniskill import empty_env
 from loader import SceneMismatchWarning
 from loader.maniskill import register_agent
-from loader.maniskill.joint_actuation import Law, joint_forces
+from loader.maniskill.joint_actuation import Law, joint_forces, next_activation
 from loader.plan.joint_actuation import plan_joint_actuation
 
 
-def _mujoco_forces(model: mujoco.MjModel, q: np.ndarray, v: np.ndarray, ctrl: np.ndarray) -> np.ndarray:
-    """MuJoCo's qfrc_actuator + qfrc_passive at each row's state and ctrl."""
+def _acts(model: mujoco.MjModel, act: np.ndarray) -> np.ndarray:
+    """MuJoCo's act (na) per actuator (nu): each actuator with dynamics reads its one activation."""
+    out = np.zeros(model.nu)
+    has = model.actuator_actadr >= 0
+    out[has] = act[model.actuator_actadr[has]]
+    return out
+
+
+def _mujoco_forces(model: mujoco.MjModel, q: np.ndarray, v: np.ndarray, ctrl: np.ndarray, act: np.ndarray):
+    """MuJoCo's qfrc_actuator + qfrc_passive at each row's state, activation and ctrl."""
     data, out = mujoco.MjData(model), []
     for row in range(q.shape[0]):
-        data.qpos[:], data.qvel[:], data.ctrl[:] = q[row], v[row], ctrl[row]
+        data.qpos[:], data.qvel[:], data.ctrl[:], data.act[:] = q[row], v[row], ctrl[row], act[row]
         mujoco.mj_forward(model, data)
         out.append(data.qfrc_actuator + data.qfrc_passive)
     return np.array(out)
@@ -48,9 +57,9 @@ def _mistaken(name: str, plan) -> None:
 @pytest.mark.parametrize("mistake", [None, "no_position_gain", "no_joint_range", "kv_misplaced"])
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler", "implicitfast group off"])
 def test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force(integrator, mistake):
-    """At 64 random states and ctrls (past ctrlrange, binding forcerange and actuatorfrcrange), the law's joint
-    force plus its drives' (-damping v) is MuJoCo's actuator and passive force, to float64 rounding, in float64 on
-    the CPU, also with the motor's actuator group disabled; each mistake breaks it."""
+    """At 64 random states, activations and ctrls (past ctrlrange, binding forcerange and actuatorfrcrange), the
+    law's joint force plus its drives' (-damping v) is MuJoCo's actuator and passive force, to float64 rounding, in
+    float64 on the CPU, also with the motor's actuator group disabled; each mistake breaks it."""
     xml = ACTUATED.format(integrator=integrator.split()[0])
     if integrator.endswith("group off"):
         xml = xml.replace("<motor ", '<motor group="2" ').replace("<option ", '<option actuatorgroupdisable="2" ')
@@ -59,10 +68,36 @@ def test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force(integrat
     _mistaken(mistake, plan)
     rng = np.random.default_rng(0)
     q, v, ctrl = rng.uniform(-1, 1, (64, 3)), rng.uniform(-3, 3, (64, 3)), rng.uniform(-3, 3, (64, model.nu))
-    law = Law(plan, "cpu", torch.float64)
-    qf = joint_forces(law, *(torch.as_tensor(x) for x in (ctrl, q, v))).numpy()
-    error = np.abs(qf - plan.drive_damping * v - _mujoco_forces(model, q, v, ctrl)).max()
+    act = rng.uniform(-1, 1, (64, model.na))
+    law = Law(plan, model.opt.timestep, "cpu", torch.float64)
+    state = (torch.as_tensor(x) for x in (ctrl, q, v))
+    qf = joint_forces(law, *state, act=torch.as_tensor(np.array([_acts(model, a) for a in act]))).numpy()
+    error = np.abs(qf - plan.drive_damping * v - _mujoco_forces(model, q, v, ctrl, act)).max()
     assert (error < 1e-10) == (mistake is None), error
+
+
+@pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
+def test_the_activation_steps_as_mujocos(integrator):
+    """From 64 random activations and ctrls (past ctrlrange and actrange), one step of the law's activation is
+    MuJoCo's `mj_step`'s: the filter by Euler, the exact filter exactly, the integrator held to its actrange. With
+    the exact filter stepped by Euler it is not."""
+    model = mujoco.MjModel.from_xml_string(ACTUATED.format(integrator=integrator))
+    plan = plan_joint_actuation(model, DOF_OF_JOINT, model.nv)
+    rng, data = np.random.default_rng(1), mujoco.MjData(model)
+    act, ctrl = rng.uniform(-1, 1, (64, model.na)), rng.uniform(-3, 3, (64, model.nu))
+    expected = []
+    for row in range(64):
+        mujoco.mj_resetData(model, data)
+        data.act[:], data.ctrl[:] = act[row], ctrl[row]
+        mujoco.mj_step(model, data)
+        expected.append(_acts(model, data.act))
+    law = Law(plan, model.opt.timestep, "cpu", torch.float64)
+    before = torch.as_tensor(np.array([_acts(model, a) for a in act]))
+    stepped = next_activation(law, torch.as_tensor(ctrl), before).numpy()
+    activated = model.actuator_actadr >= 0
+    assert np.abs(stepped - np.array(expected))[:, activated].max() < 1e-12
+    law.exact[:] = False  # the mistake: filterexact stepped as a filter
+    assert np.abs(next_activation(law, torch.as_tensor(ctrl), before).numpy() - np.array(expected)).max() > 1e-6
 
 
 def _follow(uid: str, model: mujoco.MjModel, tgs: bool = False, joints: slice = slice(None)) -> float:
@@ -92,7 +127,8 @@ def _follow(uid: str, model: mujoco.MjModel, tgs: bool = False, joints: slice = 
 # rad, the largest |ManiSkill - MuJoCo| joint position of the stiff servo arm over 0.5 s under mujoco_ctrl_tensor,
 # PGS (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0): measured 5.2e-6 (float32 tensors and PhysX's
 # float32 step); with each kv misplaced 0.53; under TGS, whose drives damp over their iterations, 0.55. With every
-# body compensated fully (gravcomp 1): 6.6e-6; with the links left weighing 6.8e-4
+# body compensated fully (gravcomp 1): 6.6e-6; with the links left weighing 6.8e-4. Each servo behind a 10 ms
+# filter: 5.0e-6; with the activations never stepped 2.9
 TENSOR_FOLLOW_TOLERANCE = 2e-5
 # rad, the Menagerie panda's arm joints the same way: its servos saturate (forcerange) through most of the sine, where
 # the drive damps toward the end velocity and MuJoCo's force has no implicit term. Measured 8.7e-3 with the drive's
@@ -212,7 +248,9 @@ def test_a_saturated_arm_takes_the_drives_force_back_at_the_extrapolated_velocit
         agent = register_agent(path, f"tensor_panda_{mistake}", override=True)
     if mistake:
         forces = joint_actuation.joint_forces
-        monkeypatch.setattr(joint_actuation, "joint_forces", lambda law, u, q, v, previous=None: forces(law, u, q, v))
+        monkeypatch.setattr(
+            joint_actuation, "joint_forces", lambda law, u, q, v, _, act: forces(law, u, q, v, None, act)
+        )
     worst = _follow(agent.uid, model, joints=slice(0, 7))
     assert (worst < SATURATED_TOLERANCE) == (mistake is None), worst
 
@@ -245,7 +283,8 @@ def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
         return
     if np.any(model.tendon_stiffness) or np.any(model.tendon_damping):
         pytest.skip("tendon springs and dampers: listed as not carried")
-    rng, data, law = np.random.default_rng(0), mujoco.MjData(model), Law(plan, "cpu", torch.float64)
+    rng, data = np.random.default_rng(0), mujoco.MjData(model)
+    law = Law(plan, model.opt.timestep, "cpu", torch.float64)
     joints = list(dofs)
     qpos, qvel, robot = model.jnt_qposadr[joints], model.jnt_dofadr[joints], [dofs[j] for j in joints]
     low, high = model.actuator_ctrlrange.T
@@ -263,3 +302,26 @@ def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
         got = force.numpy()[0, robot] - plan.drive_damping[robot] * data.qvel[qvel]
         worst = max(worst, float(np.abs(got - expected).max() / max(1.0, np.abs(expected).max())))
     assert worst < 1e-10, worst
+
+
+@pytest.mark.parametrize("mistake", [None, "activation_held"])
+def test_a_filtered_arm_follows_mujoco_with_its_activations_stepped(tmp_path, monkeypatch, mistake):
+    """The stiff servo arm with each servo behind a first-order filter (MuJoCo's dyntype filter, 10 ms) follows
+    MuJoCo under PGS: the law steps each env's activations as MuJoCo does and the servos multiply them. With the
+    activations never stepped, the servos push nothing and the arm falls."""
+    from loader.maniskill import joint_actuation
+
+    servo = re.compile(r'<position joint="(\w+)" kp="5000" kv="200"/>')
+    filtered = r'<general joint="\1" dyntype="filter" dynprm="0.01" gainprm="5000" biastype="affine" '
+    xml = servo.sub(filtered + r'biasprm="0 -5000 -200"/>', (FIXTURES / "folding_servo_arm.xml").read_text())
+    path = tmp_path / "filtered_arm.xml"
+    path.write_text(xml)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    assert model.na == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, f"tensor_filtered_{mistake}", override=True)
+    if mistake:
+        monkeypatch.setattr(joint_actuation, "next_activation", lambda law, ctrl, act: act)
+    worst = _follow(agent.uid, model)
+    assert (worst < TENSOR_FOLLOW_TOLERANCE) == (mistake is None), worst

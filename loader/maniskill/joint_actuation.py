@@ -17,7 +17,7 @@ from mani_skill.agents.controllers.base_controller import BaseController, Contro
 from mani_skill.utils import common
 
 from ..errors import SceneMismatchWarning
-from ..plan.joint_actuation import JointActuation
+from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.physx_settings import uses_tgs
 
 UNLIMITED = float(np.finfo(np.float32).max)  # ManiSkill's own "no force limit" for a drive, finite for PhysX's GPU
@@ -30,7 +30,7 @@ TGS_NOTE = (
 class Law:
     """The plan's arrays as tensors on one device and dtype."""
 
-    def __init__(self, plan: JointActuation, device, dtype=torch.float32):
+    def __init__(self, plan: JointActuation, timestep: float, device, dtype=torch.float32):
         def tensor(array):
             return torch.as_tensor(np.asarray(array, np.float64), dtype=dtype, device=device)
 
@@ -43,20 +43,52 @@ class Law:
         self.held_damping = tensor(plan.held_damping())
         self.velocity_gain = tensor(plan.held_damping() - plan.explicit_damping)  # per DoF, times v
         self.held_gain, self.moment_squared = tensor(plan.held * -plan.bias[2]), tensor(plan.moment**2)
+        dynamics = plan.dynamics
+        self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
+        self.any_activated = bool(np.any(dynamics != NO_DYNAMICS))  # read on the host, never synced from a device
+        self.integrates = torch.as_tensor(dynamics == INTEGRATOR, device=device)
+        self.exact = torch.as_tensor(dynamics == FILTEREXACT, device=device)
+        self.early = torch.as_tensor(plan.act_early, device=device)
+        self.time_constant = tensor(plan.time_constant)
+        self.act_low, self.act_high = tensor(plan.act_range[0]), tensor(plan.act_range[1])
+        self.timestep = float(timestep)
+        self.exact_step = tensor(
+            plan.time_constant * -np.expm1(-self.timestep / plan.time_constant)
+        )  # tau (1 - e^-dt/tau)
+
+
+def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's activation one step on (`mj_nextActivation`) from `act` (env, nu) under `ctrl`: an integrator's rate
+    is the clamped ctrl, a filter's (ctrl - act) / tau, stepped by Euler or, for filterexact, exactly; then held to
+    actrange. An actuator without dynamics keeps its column."""
+    ctrl = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
+    rate = torch.where(law.integrates, ctrl, (ctrl - act) / law.time_constant)
+    stepped = act + rate * torch.where(law.exact, law.exact_step, torch.full_like(law.exact_step, law.timestep))
+    return torch.where(law.activated, torch.clamp(stepped, law.act_low, law.act_high), act)
 
 
 def joint_forces(
-    law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor, previous: torch.Tensor | None = None
+    law: Law,
+    ctrl: torch.Tensor,
+    q: torch.Tensor,
+    v: torch.Tensor,
+    previous: torch.Tensor | None = None,
+    act: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """The joint forces (env, DoF) the law writes as `qf` for `ctrl` (env, nu) at the state (q, v) (env, DoF): the
     actuators' forces, each joint's sum within its range; the drives' own force on the actuators' held velocity
     terms taken back; the springs (and the dampers MuJoCo applies explicitly). Where a clamp binds, MuJoCo's force
     is constant over the step and has no implicit term, while the drive still damps toward the end velocity: its
     force there is taken back at the end velocity extrapolated from the last step's (`previous`, the velocities
-    at its start; None after a reset: at the start velocity)."""
-    ctrl = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
+    at its start; None after a reset: at the start velocity). An actuator with dynamics multiplies its activation
+    (`act`, env x nu; None: zeros), or its next one where it acts early."""
+    inputs = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
+    if law.any_activated:
+        act = torch.zeros_like(inputs) if act is None else act
+        act = torch.where(law.early, next_activation(law, ctrl, act), act)
+        inputs = torch.where(law.activated, act, inputs)
     length, rate = q @ law.moment.T, v @ law.moment.T
-    raw = law.gain * ctrl + law.bias0 + law.bias1 * length + law.bias2 * rate
+    raw = law.gain * inputs + law.bias0 + law.bias1 * length + law.bias2 * rate
     force = torch.clamp(raw, law.force_low, law.force_high)
     summed = force @ law.moment
     actuated = torch.clamp(summed, law.joint_low, law.joint_high)
@@ -78,9 +110,10 @@ class JointActuationController(BaseController):
     def _initialize_action_space(self):
         low, high = np.float32(self.config.low), np.float32(self.config.high)
         self.single_action_space = spaces.Box(low, high, dtype=np.float32)
-        self.law = Law(self.config.plan, self.device)
+        self.law = Law(self.config.plan, float(self.scene.timestep), self.device)
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device)
         self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
+        self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
 
     def set_drive_property(self):
         """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo, but on
@@ -97,7 +130,7 @@ class JointActuationController(BaseController):
         self.targeted = False  # the targets are zeroed before the next physics step (`zero_targets`)
 
     def reset(self):
-        self.ctrl = torch.zeros_like(self.ctrl)
+        self.ctrl, self.act = torch.zeros_like(self.ctrl), torch.zeros_like(self.act)
         self.targeted = False
         self.previous = None  # every sub-scene's next step starts without a last one (a reset one has none)
 
@@ -122,8 +155,9 @@ class JointActuationController(BaseController):
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
         q, v = self.articulation.get_qpos().to(self.ctrl.dtype), self.articulation.get_qvel().to(self.ctrl.dtype)
-        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, self.previous))
+        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, self.previous, self.act))
         self.previous = v.clone()
+        self.act = next_activation(self.law, self.ctrl, self.act)
         if self.scene.gpu_sim_enabled:
             px.gpu_apply_articulation_qf()
 

@@ -3,22 +3,22 @@ law over (env, DoF) that needs no MuJoCo call each step (`loader/maniskill/joint
 ManiSkill's state tensors, on the CPU or the GPU).
 
 Per actuator on a hinge, a slide or a fixed tendon over them (MuJoCo's constant moment m = dL/dq: the gear, times
-the tendon's coefficients), with no activation dynamics, a fixed gain and a bias that is none or affine, MuJoCo's
-force at the state is
+the tendon's coefficients), with a fixed gain and a bias that is none or affine, MuJoCo's force at the state is
 
-    F = clamp(gain clamp(ctrl) + b0 + b1 L + b2 dL/dt, forcerange),   L = m q,   joint forces m F,
+    F = clamp(gain u + b0 + b1 L + b2 dL/dt, forcerange),   L = m q,   joint forces m F,
 
-the sum of a joint's actuator forces clamped to its actuatorfrcrange, and each DoF adds its spring k (springref - q)
-and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's integrator takes the dampers, and
-under the implicit integrators each actuator's -b2 m m^T (its kv on the joints), implicitly: the dampers and that
-term's diagonal stay in a PhysX drive (damping, no stiffness, zero targets), whose implicit law matches MuJoCo's step
-under PGS; a fixed tendon's cross terms are explicit. The joint force the law writes is everything else, evaluated
-at the step's start: m F, plus -b2 m_j^2 v_j on DoF j for an actuator the drives hold (the drive's own force there
-taken back). Where forcerange or actuatorfrcrange binds, the force is constant in MuJoCo and the drive's share is
-taken back at an end velocity the per-step half estimates: with the tendon's explicit cross terms, the law's only
-approximations. The law's
-force and the drives' force sum to MuJoCo's qfrc_actuator + qfrc_passive at any state, and PhysX's gravity off on a
-fully compensated body's link is MuJoCo's gravity and compensation together
+with u the clamped ctrl, or the activation where the actuator has one (an integrator or a filter: the per-step half
+steps it as MuJoCo does); the sum of a joint's actuator forces clamped to its actuatorfrcrange; and each DoF adds
+its spring k (springref - q) and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's
+integrator takes the dampers, and under the implicit integrators each actuator's -b2 m m^T (its kv on the joints),
+implicitly: the dampers and that term's diagonal stay in a PhysX drive (damping, no stiffness, zero targets), whose
+implicit law matches MuJoCo's step under PGS; a fixed tendon's cross terms are explicit. The joint force the law
+writes is everything else, evaluated at the step's start: m F, plus -b2 m_j^2 v_j on DoF j for an actuator the
+drives hold (the drive's own force there taken back). Where forcerange or actuatorfrcrange binds, the force is
+constant in MuJoCo and the drive's share is taken back at an end velocity the per-step half estimates: with the
+tendon's explicit cross terms, the law's only approximations. The law's force and the drives' force sum to MuJoCo's
+qfrc_actuator + qfrc_passive at any state, and PhysX's gravity off on a fully compensated body's link is MuJoCo's
+gravity and compensation together
 (tests/test_maniskill_joint_actuation.py::test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force;
 tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast;
 tests/test_maniskill_joint_actuation.py::test_a_compensated_arm_follows_mujoco_with_its_links_weightless).
@@ -37,6 +37,12 @@ TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_TENDON)
 JOINT_WRAP = int(mujoco.mjtWrap.mjWRAP_JOINT)
 SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 NO_DYNAMICS = int(mujoco.mjtDyn.mjDYN_NONE)
+INTEGRATOR, FILTER, FILTEREXACT = (
+    int(mujoco.mjtDyn.mjDYN_INTEGRATOR),
+    int(mujoco.mjtDyn.mjDYN_FILTER),
+    int(mujoco.mjtDyn.mjDYN_FILTEREXACT),
+)
+DYNAMICS = (NO_DYNAMICS, INTEGRATOR, FILTER, FILTEREXACT)  # the activations the law steps itself
 FIXED_GAIN = int(mujoco.mjtGain.mjGAIN_FIXED)
 BIASES = (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE))
 EXPLICIT_ACTUATORS = (int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4))
@@ -55,6 +61,10 @@ class JointActuation:
     ctrl_range: np.ndarray  # (2, nu): -inf, inf where ctrl is not clamped
     force_range: np.ndarray  # (2, nu): -inf, inf where the force is not clamped
     joint_range: np.ndarray  # (2, ndof): each DoF's actuatorfrcrange, -inf, inf where it has none
+    dynamics: np.ndarray  # per actuator: MuJoCo's dyntype (none, integrator, filter, filterexact)
+    time_constant: np.ndarray  # per actuator: a filter's dynprm[0] (at least mjMINVAL), else 1
+    act_range: np.ndarray  # (2, nu): actrange where actlimited, else -inf, inf
+    act_early: np.ndarray  # per actuator: the force reads the step's next activation (actearly)
     stiffness: np.ndarray  # per DoF
     spring_ref: np.ndarray
     drive_damping: np.ndarray  # per DoF: the damping its PhysX drive holds
@@ -90,6 +100,10 @@ def plan_joint_actuation(
     force_range = np.where(model.actuator_forcelimited.astype(bool), model.actuator_forcerange.T, [[-np.inf], [np.inf]])
     stiffness, spring_ref, damping, joint_range = _joint_arrays(model, dof_of_joint, ndof)
     damped_explicitly = not implicit and mj.disabled(model, "eulerdamp")
+    dynamics = model.actuator_dyntype.astype(np.int64)
+    filtered = (dynamics == FILTER) | (dynamics == FILTEREXACT)
+    time_constant = np.where(filtered, np.maximum(model.actuator_dynprm[:, 0], mj.MJMINVAL), 1.0)
+    act_range = np.where(model.actuator_actlimited.astype(bool), model.actuator_actrange.T, [[-np.inf], [np.inf]])
     plan = JointActuation(
         ndof,
         _moment(model, dof_of_joint, ndof),
@@ -99,6 +113,10 @@ def plan_joint_actuation(
         ctrl_range,
         force_range,
         joint_range,
+        dynamics,
+        time_constant,
+        act_range,
+        model.actuator_actearly.astype(bool),
         stiffness,
         spring_ref,
         np.zeros(ndof),
@@ -164,8 +182,8 @@ def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
             if joint not in dof_of_joint:
                 where = mj.name(model, "joint", joint)
                 return f"actuator {name!r} drives joint {where!r}, outside the robot's articulation"
-        if int(model.actuator_dyntype[a]) != NO_DYNAMICS:
-            return f"actuator {name!r} has activation dynamics"
+        if int(model.actuator_dyntype[a]) not in DYNAMICS:
+            return f"actuator {name!r} has activation dynamics other than an integrator or a filter"
         if int(model.actuator_gaintype[a]) != FIXED_GAIN or int(model.actuator_biastype[a]) not in BIASES:
             return f"actuator {name!r} has a gain or bias that is not fixed or affine"
     return None
