@@ -304,6 +304,35 @@ def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
     assert worst < 1e-10, worst
 
 
+def _filtered_arm(tmp_path, uid: str):
+    """The stiff servo arm with each servo behind a 10 ms filter: (its model, its registered agent)."""
+    servo = re.compile(r'<position joint="(\w+)" kp="5000" kv="200"/>')
+    filtered = r'<general joint="\1" dyntype="filter" dynprm="0.01" gainprm="5000" biastype="affine" '
+    xml = servo.sub(filtered + r'biasprm="0 -5000 -200"/>', (FIXTURES / "folding_servo_arm.xml").read_text())
+    path = tmp_path / "filtered_arm.xml"
+    path.write_text(xml)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, uid, override=True)
+    return mujoco.MjModel.from_xml_path(str(path)), agent
+
+
+def test_a_reset_of_the_one_sub_scene_restarts_its_activations(tmp_path):
+    """MuJoCo's reset zeroes act: on the CPU backend's one sub-scene, `env.reset` restarts the activations the law
+    stepped, as a mode switch does."""
+    model, agent = _filtered_arm(tmp_path, "tensor_filtered_reset")
+    env = empty_env(agent.uid, "mujoco_ctrl_tensor", 500, 50, {"enable_tgs": False})
+    try:
+        env.reset(seed=0)
+        env.step(np.full(model.nu, 0.5, np.float32))
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        assert float(controller.act.abs().min()) > 0.1  # ten steps of a 10 ms filter toward 0.5
+        env.reset(seed=1)
+        assert float(controller.act.abs().max()) == 0.0
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize("mistake", [None, "activation_held"])
 def test_a_filtered_arm_follows_mujoco_with_its_activations_stepped(tmp_path, monkeypatch, mistake):
     """The stiff servo arm with each servo behind a first-order filter (MuJoCo's dyntype filter, 10 ms) follows
@@ -311,16 +340,8 @@ def test_a_filtered_arm_follows_mujoco_with_its_activations_stepped(tmp_path, mo
     activations never stepped, the servos push nothing and the arm falls."""
     from loader.maniskill import joint_actuation
 
-    servo = re.compile(r'<position joint="(\w+)" kp="5000" kv="200"/>')
-    filtered = r'<general joint="\1" dyntype="filter" dynprm="0.01" gainprm="5000" biastype="affine" '
-    xml = servo.sub(filtered + r'biasprm="0 -5000 -200"/>', (FIXTURES / "folding_servo_arm.xml").read_text())
-    path = tmp_path / "filtered_arm.xml"
-    path.write_text(xml)
-    model = mujoco.MjModel.from_xml_path(str(path))
+    model, agent = _filtered_arm(tmp_path, f"tensor_filtered_{mistake}")
     assert model.na == 3
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        agent = register_agent(path, f"tensor_filtered_{mistake}", override=True)
     if mistake:
         monkeypatch.setattr(joint_actuation, "next_activation", lambda law, ctrl, act: act)
     worst = _follow(agent.uid, model)

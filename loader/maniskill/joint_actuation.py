@@ -114,11 +114,12 @@ class JointActuationController(BaseController):
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device)
         self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
         self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
+        self.targeted = False  # the drives' targets zeroed (`zero_targets`)
 
     def set_drive_property(self):
         """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo, but on
-        the links of fully compensated bodies. The next step starts without a last one."""
-        self.previous = None
+        the links of fully compensated bodies. The mode starts afresh: no last step, activations at zero."""
+        self.previous, self.act = None, torch.zeros_like(self.act)
         if uses_tgs(self.scene.sub_scenes[0]):
             warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
         weightless = set(self.config.plan.weightless)
@@ -130,9 +131,14 @@ class JointActuationController(BaseController):
         self.targeted = False  # the targets are zeroed before the next physics step (`zero_targets`)
 
     def reset(self):
-        self.ctrl, self.act = torch.zeros_like(self.ctrl), torch.zeros_like(self.act)
+        """The next step starts without a last one, in every sub-scene (a reset one has none). The activations
+        restart at zero, as MuJoCo's reset has them, where there is one sub-scene. Of several, ManiSkill says which
+        reset only through a private attribute: all keep theirs, as zeroing all would upset the ones running on."""
+        self.ctrl = torch.zeros_like(self.ctrl)
+        if self.scene.num_envs == 1:
+            self.act = torch.zeros_like(self.act)
         self.targeted = False
-        self.previous = None  # every sub-scene's next step starts without a last one (a reset one has none)
+        self.previous = None
 
     def zero_targets(self):
         """Every drive's position and velocity target at zero, in every sub-scene (on the device where it runs)."""
