@@ -373,6 +373,8 @@ def cmd_maniskill_bench(args) -> int:
                 f"{name}: mujoco_ctrl {row['mujoco_ctrl']:.0f}, pd_joint_pos {row['pd_joint_pos']:.0f} physics "
                 f"steps/s at {row['sim_freq']} Hz (ratio {row['ratio']:.2f})"
             )
+            gpu = row.get("gpu", {})
+            print(f"  physx_cuda: {gpu['skipped']}" if "skipped" in gpu else f"  physx_cuda: {gpu}")
     print(f"maniskill-bench: {args.out}")
     return 0
 

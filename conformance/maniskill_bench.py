@@ -2,11 +2,12 @@
 robot registered by this loader, physics steps per second under `mujoco_ctrl` (MuJoCo's ctrl before every physics
 step) against `pd_joint_pos` (PhysX's drives alone), each mode under the same seeded random walk of its actions
 from the middle of its action space; and `mujoco_ctrl_tensor` where the robot is offered it (`tensor_ratio`: a law
-meant for the GPU, timed on the CPU backend). The environments live in one process and take turns, a round of
-control steps each (`ROUNDS`), and each mode's figure is its fastest round: a machine whose speed drifts within the
-minute (a shared core) then slows every mode alike instead of whichever ran last. The ratio is what a ManiSkill user
-pays for MuJoCo's behaviour on the CPU backend. Needs the `maniskill` extra; times are compared only as ratios
-within one run."""
+meant for the GPU, timed on the CPU backend), with the PD and tensor modes on `physx_cuda` too where a CUDA device
+is there (`gpu`, summed over `GPU_ENVS` sub-scenes; otherwise why not). The environments live in one process and
+take turns, a round of control steps each (`ROUNDS`), and each mode's figure is its fastest round: a machine whose
+speed drifts within the minute (a shared core) then slows every mode alike instead of whichever ran last. The ratio
+is what a ManiSkill user pays for MuJoCo's behaviour on the CPU backend. Needs the `maniskill` extra; times are
+compared only as ratios within one run."""
 
 from __future__ import annotations
 
@@ -28,6 +29,8 @@ SUBSTEPS = 10  # physics steps per control step (ManiSkill's sim_freq / control_
 WALK = 0.01  # of each action's range per control step
 WARMUP = 5  # control steps before the clock starts
 ROUNDS = 10  # turns each mode takes (the figure is its fastest)
+GPU_ENVS = 1024  # sub-scenes on physx_cuda, where a CUDA device is there
+GPU_MODES = ("pd_joint_pos", "mujoco_ctrl_tensor")  # what runs per step on the device, under PGS (the law's)
 
 
 class Walk:
@@ -76,6 +79,70 @@ def steps_per_second(
     return {mode: per_round * SUBSTEPS / seconds for mode, seconds in best.items()}
 
 
+def gpu_steps_per_second(uid: str, sim_freq: int, control_steps: int, num_envs: int = GPU_ENVS) -> dict:
+    """Physics steps per second summed over `num_envs` sub-scenes of `Empty-v1` on `physx_cuda` (PGS) under each of
+    `GPU_MODES`, the actions a seeded random walk on the device, after `WARMUP` control steps; or why not measured.
+    Written against ManiSkill's GPU API and not yet run on a GPU."""
+    import torch
+
+    if not torch.cuda.is_available():
+        return {"skipped": "no CUDA device: physx_cuda needs one"}
+    import gymnasium as gym
+    import mani_skill.envs  # noqa: F401  registers Empty-v1
+
+    row: dict = {"num_envs": num_envs}
+    for mode in GPU_MODES:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            env = gym.make(
+                "Empty-v1",
+                robot_uids=uid,
+                num_envs=num_envs,
+                sim_backend="physx_cuda",
+                render_backend="none",
+                obs_mode="state",
+                control_mode=mode,
+                sim_config={
+                    "sim_freq": sim_freq,
+                    "control_freq": sim_freq // SUBSTEPS,
+                    "scene_config": {"enable_tgs": False},
+                },
+            )
+        try:
+            row[mode] = _gpu_walk(env, control_steps) * num_envs
+        finally:
+            env.close()
+    row["tensor_ratio"] = row["mujoco_ctrl_tensor"] / row["pd_joint_pos"]
+    return row
+
+
+def _gpu_walk(env, control_steps: int, seed: int = 0) -> float:
+    """One sub-scene's physics steps per second under a random walk of the actions from the middle of the space."""
+    import torch
+
+    env.reset(seed=seed)
+    space, device = env.unwrapped.single_action_space, env.unwrapped.device
+    low, high = (
+        torch.as_tensor(np.where(np.isfinite(b), b, s), device=device)
+        for b, s in ((space.low, -1.0), (space.high, 1.0))
+    )
+    generator = torch.Generator(device=device).manual_seed(seed)
+    action = ((low + high) / 2).expand(env.unwrapped.num_envs, -1).clone()
+
+    def walk(steps: int) -> None:
+        nonlocal action
+        for _ in range(steps):
+            noise = torch.randn(action.shape, generator=generator, device=device)
+            action = torch.clamp(action + WALK * noise * (high - low), low, high)
+            env.step(action)
+        torch.cuda.synchronize()
+
+    walk(WARMUP)
+    start = time.perf_counter()
+    walk(control_steps)
+    return control_steps * SUBSTEPS / (time.perf_counter() - start)
+
+
 def maniskill_bench(out: Path, control_steps: int = 100) -> dict:
     """Each robot of `ROBOTS` found in the Menagerie slice under both modes; the JSON document written atomically."""
     import mujoco
@@ -98,6 +165,9 @@ def maniskill_bench(out: Path, control_steps: int = 100) -> dict:
         row["sim_freq"], row["ratio"] = sim_freq, row["mujoco_ctrl"] / row["pd_joint_pos"]
         if tensor:
             row["tensor_ratio"] = row[TENSOR] / row["pd_joint_pos"]
+        row["gpu"] = (
+            gpu_steps_per_second(agent.uid, sim_freq, control_steps) if tensor else {"skipped": agent.joint_actuation}
+        )
         robots[name] = row
     doc = {
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),

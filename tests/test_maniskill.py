@@ -603,8 +603,8 @@ def test_a_comparison_puts_both_loaders_side_by_side(tmp_path):
 
 def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch):
     """`nox -s maniskill -- bench`: each robot's physics steps per second under `mujoco_ctrl` and `pd_joint_pos`,
-    their ratio, `mujoco_ctrl_tensor`'s where the robot is offered it, the versions; a robot the Menagerie slice lacks
-    is skipped with its path."""
+    their ratio, `mujoco_ctrl_tensor`'s where the robot is offered it (and on `physx_cuda`, where CUDA is there, or
+    why not), the versions; a robot the Menagerie slice lacks is skipped with its path."""
     from conformance import maniskill_bench
     from conformance.maniskill_bench import TENSOR
 
@@ -618,4 +618,8 @@ def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch)
     assert panda["sim_freq"] == 500 and all(panda[mode] > 0 for mode in maniskill_bench.MODES)
     assert panda["ratio"] == pytest.approx(panda["mujoco_ctrl"] / panda["pd_joint_pos"])
     assert panda["tensor_ratio"] == pytest.approx(panda[TENSOR] / panda["pd_joint_pos"])  # offered the mode
+    if torch.cuda.is_available():  # physx_cuda, GPU_ENVS sub-scenes, both modes on the device
+        assert panda["gpu"]["tensor_ratio"] == pytest.approx(panda["gpu"][TENSOR] / panda["gpu"]["pd_joint_pos"])
+    else:
+        assert "no CUDA device" in panda["gpu"]["skipped"]
     assert "no_such_robot/robot.xml not found" in doc["robots"]["absent"]["skipped"]
