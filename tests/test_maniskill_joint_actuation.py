@@ -57,9 +57,10 @@ def _mistaken(name: str, plan) -> None:
 @pytest.mark.parametrize("mistake", [None, "no_position_gain", "no_joint_range", "kv_misplaced"])
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler", "implicitfast group off"])
 def test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force(integrator, mistake):
-    """At 64 random states, activations and ctrls (past ctrlrange, binding forcerange and actuatorfrcrange), the
-    law's joint force plus its drives' (-damping v) is MuJoCo's actuator and passive force, to float64 rounding, in
-    float64 on the CPU, also with the motor's actuator group disabled; each mistake breaks it."""
+    """At 64 random states, activations and ctrls (past ctrlrange, binding forcerange and actuatorfrcrange), with
+    the drives aimed at the state's velocity (so they pull nothing there), the law's joint force is MuJoCo's
+    actuator and passive force, to float64 rounding, in float64 on the CPU, also with the motor's actuator group
+    disabled; each mistake breaks it."""
     xml = ACTUATED.format(integrator=integrator.split()[0])
     if integrator.endswith("group off"):
         xml = xml.replace("<motor ", '<motor group="2" ').replace("<option ", '<option actuatorgroupdisable="2" ')
@@ -72,7 +73,7 @@ def test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force(integrat
     law = Law(plan, model.opt.timestep, "cpu", torch.float64)
     state = (torch.as_tensor(x) for x in (ctrl, q, v))
     qf = joint_forces(law, *state, act=torch.as_tensor(np.array([_acts(model, a) for a in act]))).numpy()
-    error = np.abs(qf - plan.drive_damping * v - _mujoco_forces(model, q, v, ctrl, act)).max()
+    error = np.abs(qf - _mujoco_forces(model, q, v, ctrl, act)).max()  # the drives aimed at v: no pull at v
     assert (error < 1e-10) == (mistake is None), error
 
 
@@ -125,16 +126,16 @@ def _follow(uid: str, model: mujoco.MjModel, tgs: bool = False, joints: slice = 
 
 
 # rad, the largest |ManiSkill - MuJoCo| joint position of the stiff servo arm over 0.5 s under mujoco_ctrl_tensor,
-# PGS (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0): measured 5.2e-6 (float32 tensors and PhysX's
-# float32 step); with each kv misplaced 0.53; under TGS, whose drives damp over their iterations, 0.55. With every
-# body compensated fully (gravcomp 1): 6.6e-6; with the links left weighing 6.8e-4. Each servo behind a 10 ms
-# filter: 5.0e-6; with the activations never stepped 2.9
-TENSOR_FOLLOW_TOLERANCE = 2e-5
+# PGS (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0): measured 1.2e-6 (PhysX's float32 step); with each
+# kv misplaced 0.53; under TGS, whose drives damp over their iterations, 0.56. With every body compensated fully
+# (gravcomp 1): 1.5e-6; with the links left weighing 6.8e-4. Each servo behind a 10 ms filter: 2.4e-6; with the
+# activations never stepped 2.9
+TENSOR_FOLLOW_TOLERANCE = 1e-5
 # rad, the Menagerie panda's arm joints the same way: its servos saturate (forcerange) through most of the sine, where
-# the drive damps toward the end velocity and MuJoCo's force has no implicit term. Measured 8.7e-3 with the drive's
-# force taken back at the extrapolated end velocity, 0.13 at the start velocity (same versions). Beyond the law: the
-# stiff servo arm given a forcerange of 30 misses by radians either way (dt kv is a thousand times its wrist's
-# inertia, and only M would say where a saturated joint ends)
+# MuJoCo's force has no implicit term and the drive's pull is left aimed at the end velocity. Measured 8.7e-3 with the
+# drives aimed at the extrapolated end velocity (1.9e-2 under TGS), 0.13 at the start velocity (same versions). Beyond
+# the law: the stiff servo arm given a forcerange of 30 misses by radians either way (dt kv is a thousand times its
+# wrist's inertia, and only M would say where a saturated joint ends)
 SATURATED_TOLERANCE = 2e-2
 
 
@@ -201,10 +202,12 @@ def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
         robot, controller = unwrapped.agent.robot, unwrapped.agent.controller.controllers["ctrl"]
         unwrapped.scene.px.gpu_fetch_articulation_qpos()
         unwrapped.scene.px.gpu_fetch_articulation_qvel()
-        q, v, previous = robot.get_qpos().clone(), robot.get_qvel().clone(), controller.previous.clone()
+        q, v = robot.get_qpos().double(), robot.get_qvel().double()
+        target, act = controller.end_velocity(v), controller.act.clone()
         controller.before_simulation_step()
-        expected = joint_forces(controller.law, controller.ctrl, q, v, previous)
+        expected = joint_forces(controller.law, controller.ctrl, q, v, target, act).float()
         assert torch.allclose(robot.get_qf(), expected)
+        assert torch.allclose(robot.get_drive_velocities(), target.float())  # ManiSkill's own reader
         assert not torch.allclose(expected[0], expected[1])  # each sub-scene its own ctrl and state
     finally:
         env.close()
@@ -230,10 +233,10 @@ def test_a_compensated_arm_follows_mujoco_with_its_links_weightless(tmp_path, mi
 
 
 @pytest.mark.parametrize("mistake", [None, "start_velocity"])
-def test_a_saturated_arm_takes_the_drives_force_back_at_the_extrapolated_velocity(monkeypatch, mistake):
+def test_a_saturated_arm_aims_its_drives_at_the_extrapolated_velocity(monkeypatch, mistake):
     """The panda's arm under a sine that saturates its servos follows MuJoCo within `SATURATED_TOLERANCE`: where a
-    clamp binds, the drive's force is taken back at the end velocity extrapolated from the last step; taken back at
-    the start velocity instead, the arm misses."""
+    clamp binds, the drive's pull is left aimed at the end velocity extrapolated from the last step; aimed at the
+    start velocity instead, the arm misses."""
     from support.corpus import menagerie_root
 
     from loader.maniskill import joint_actuation
@@ -247,10 +250,7 @@ def test_a_saturated_arm_takes_the_drives_force_back_at_the_extrapolated_velocit
         warnings.simplefilter("ignore")
         agent = register_agent(path, f"tensor_panda_{mistake}", override=True)
     if mistake:
-        forces = joint_actuation.joint_forces
-        monkeypatch.setattr(
-            joint_actuation, "joint_forces", lambda law, u, q, v, _, act: forces(law, u, q, v, None, act)
-        )
+        monkeypatch.setattr(joint_actuation.JointActuationController, "end_velocity", lambda self, v: v)
     worst = _follow(agent.uid, model, joints=slice(0, 7))
     assert (worst < SATURATED_TOLERANCE) == (mistake is None), worst
 
@@ -272,9 +272,9 @@ def _planned(path):
 @pytest.mark.parametrize("path", corpus_params())
 def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
     """Robot by robot over the default corpus: where the law takes the model, at 16 random states and ctrls (past
-    ctrlrange) its force and its drives' is MuJoCo's actuator and passive force less what the law leaves to the
-    build (gravity compensation, weightless links) or lists as not carried (fluid), to float64 rounding; where it
-    does not, it says why in words. Models whose tendons have springs or dampers are judged without them."""
+    ctrlrange), its drives aimed at the state's velocity, its force is MuJoCo's actuator and passive force less what
+    the law leaves to the build (gravity compensation, weightless links) or lists as not carried (fluid), to float64
+    rounding; where it does not, it says why in words. Models whose tendons have springs or dampers are skipped."""
     model, dofs, plan = _planned(path)
     if not model.nu or not dofs:
         pytest.skip("no actuator, or no hinge or slide: nothing for the law")
@@ -299,7 +299,7 @@ def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
         q, v = np.zeros((1, plan.ndof)), np.zeros((1, plan.ndof))
         q[0, robot], v[0, robot] = data.qpos[qpos], data.qvel[qvel]
         force = joint_forces(law, torch.as_tensor(data.ctrl[None].copy()), torch.as_tensor(q), torch.as_tensor(v))
-        got = force.numpy()[0, robot] - plan.drive_damping[robot] * data.qvel[qvel]
+        got = force.numpy()[0, robot]  # the drives aimed at the state's velocity: no pull there
         worst = max(worst, float(np.abs(got - expected).max() / max(1.0, np.abs(expected).max())))
     assert worst < 1e-10, worst
 

@@ -20,6 +20,9 @@ from ..errors import SceneMismatchWarning
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.physx_settings import uses_tgs
 
+# the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
+# would round a thousand times coarser than PhysX's float32 qf rounds the sum
+LAW_DTYPE = torch.float64
 UNLIMITED = float(np.finfo(np.float32).max)  # ManiSkill's own "no force limit" for a drive, finite for PhysX's GPU
 TGS_NOTE = (
     "mujoco_ctrl_tensor: the drives hold MuJoCo's implicit damping under PGS; TGS damps a drive over its position "
@@ -41,7 +44,7 @@ class Law:
         self.joint_low, self.joint_high = tensor(plan.joint_range[0]), tensor(plan.joint_range[1])
         self.stiffness, self.spring_ref = tensor(plan.stiffness), tensor(plan.spring_ref)
         self.held_damping = tensor(plan.held_damping())
-        self.velocity_gain = tensor(plan.held_damping() - plan.explicit_damping)  # per DoF, times v
+        self.drive_damping, self.explicit_damping = tensor(plan.drive_damping), tensor(plan.explicit_damping)
         self.held_gain, self.moment_squared = tensor(plan.held * -plan.bias[2]), tensor(plan.moment**2)
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
@@ -72,16 +75,18 @@ def joint_forces(
     ctrl: torch.Tensor,
     q: torch.Tensor,
     v: torch.Tensor,
-    previous: torch.Tensor | None = None,
+    target: torch.Tensor | None = None,
     act: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """The joint forces (env, DoF) the law writes as `qf` for `ctrl` (env, nu) at the state (q, v) (env, DoF): the
-    actuators' forces, each joint's sum within its range; the drives' own force on the actuators' held velocity
-    terms taken back; the springs (and the dampers MuJoCo applies explicitly). Where a clamp binds, MuJoCo's force
-    is constant over the step and has no implicit term, while the drive still damps toward the end velocity: its
-    force there is taken back at the end velocity extrapolated from the last step's (`previous`, the velocities
-    at its start; None after a reset: at the start velocity). An actuator with dynamics multiplies its activation
-    (`act`, env x nu; None: zeros), or its next one where it acts early."""
+    """The joint forces (env, DoF) the law writes as `qf` for `ctrl` (env, nu) at the state (q, v) (env, DoF), with
+    the drives aimed at the velocity `target` (None: v). MuJoCo's force at the step's start (the actuators', each
+    joint's sum within its range; the springs, the dampers it applies explicitly), less what the drives give: they
+    hold D (v1 - target) where MuJoCo's step holds -D v1 (its dampers, and the kv of each actuator whose clamp does
+    not bind), so the law adds D target back and puts each held kv's start term kv v in its place. A binding clamp's
+    kv has no implicit term in MuJoCo; its drive share is left aimed at `target`, so the nearer the target to the
+    end velocity, the less it pulls: the controller aims at the velocity extrapolated from the last step, which also
+    keeps every drive's pull small, whatever the solver. An actuator with dynamics multiplies its activation (`act`,
+    env x nu; None: zeros), or its next one where it acts early."""
     inputs = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
     if law.any_activated:
         act = torch.zeros_like(inputs) if act is None else act
@@ -92,12 +97,12 @@ def joint_forces(
     force = torch.clamp(raw, law.force_low, law.force_high)
     summed = force @ law.moment
     actuated = torch.clamp(summed, law.joint_low, law.joint_high)
-    qf = actuated + law.stiffness * (law.spring_ref - q) + law.velocity_gain * v
-    if previous is None:
-        return qf
-    bound = ((force != raw).to(v.dtype) * law.held_gain) @ law.moment_squared  # per DoF, the clamped actuators'
+    bound = ((force != raw).to(v.dtype) * law.held_gain) @ law.moment_squared  # per DoF, the clamped actuators' kv
     bound = torch.where(actuated != summed, law.held_damping, bound)  # a joint's actuatorfrcrange: all of it
-    return qf + bound * (v - previous)
+    target = v if target is None else target
+    held = law.held_damping - bound
+    qf = actuated + law.stiffness * (law.spring_ref - q) - law.explicit_damping * v + held * v
+    return qf - (law.drive_damping - bound) * target
 
 
 class JointActuationController(BaseController):
@@ -110,15 +115,15 @@ class JointActuationController(BaseController):
     def _initialize_action_space(self):
         low, high = np.float32(self.config.low), np.float32(self.config.high)
         self.single_action_space = spaces.Box(low, high, dtype=np.float32)
-        self.law = Law(self.config.plan, float(self.scene.timestep), self.device)
-        self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device)
+        self.law = Law(self.config.plan, float(self.scene.timestep), self.device, LAW_DTYPE)
+        self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device, dtype=LAW_DTYPE)
         self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
         self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
-        self.targeted = False  # the drives' targets zeroed (`zero_targets`)
 
     def set_drive_property(self):
-        """The drives hold the implicit damping alone (no stiffness, zero targets); gravity on, as in MuJoCo, but on
-        the links of fully compensated bodies. The mode starts afresh: no last step, activations at zero."""
+        """The drives hold the implicit damping alone (no stiffness; a velocity target each step); gravity on, as in
+        MuJoCo, but on the links of fully compensated bodies. The mode starts afresh: no last step, activations at
+        zero."""
         self.previous, self.act = None, torch.zeros_like(self.act)
         if uses_tgs(self.scene.sub_scenes[0]):
             warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
@@ -128,7 +133,6 @@ class JointActuationController(BaseController):
         indices = self.active_joint_indices.cpu().numpy()
         for joint, damping in zip(self.joints, self.config.plan.drive_damping[indices].tolist()):
             joint.set_drive_properties(0.0, damping, force_limit=UNLIMITED, mode="force")
-        self.targeted = False  # the targets are zeroed before the next physics step (`zero_targets`)
 
     def reset(self):
         """The next step starts without a last one, in every sub-scene (a reset one has none). The activations
@@ -137,34 +141,31 @@ class JointActuationController(BaseController):
         self.ctrl = torch.zeros_like(self.ctrl)
         if self.scene.num_envs == 1:
             self.act = torch.zeros_like(self.act)
-        self.targeted = False
         self.previous = None
 
-    def zero_targets(self):
-        """Every drive's position and velocity target at zero, in every sub-scene (on the device where it runs)."""
-        zeros = torch.zeros((self.scene.num_envs, len(self.joints)), device=self.device)
-        self.articulation.set_joint_drive_targets(zeros, self.joints, self.active_joint_indices)
-        self.articulation.set_joint_drive_velocity_targets(zeros, self.joints, self.active_joint_indices)
-        if self.scene.gpu_sim_enabled:
-            self.scene.px.gpu_apply_articulation_target_position()
-            self.scene.px.gpu_apply_articulation_target_velocity()
-        self.targeted = True
-
     def set_action(self, action):
-        self.ctrl = common.to_tensor(self._preprocess_action(action), device=self.device).to(torch.float32)
+        self.ctrl = common.to_tensor(self._preprocess_action(action), device=self.device).to(LAW_DTYPE)
+
+    def end_velocity(self, v: torch.Tensor) -> torch.Tensor:
+        """The step's end velocity as the last step's change carries on from `v` (`v` itself after a reset)."""
+        return v if self.previous is None else 2.0 * v - self.previous
 
     def before_simulation_step(self):
-        if not self.targeted:
-            self.zero_targets()
+        """The state in, the drives' velocity targets (the end velocity extrapolated from the last step) and the
+        law's `qf` out; the activations one step on."""
         px = self.scene.px
         if self.scene.gpu_sim_enabled:  # the state of the last physics step, on the device
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
-        q, v = self.articulation.get_qpos().to(self.ctrl.dtype), self.articulation.get_qvel().to(self.ctrl.dtype)
-        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, self.previous, self.act))
-        self.previous = v.clone()
+        q, v = self.articulation.get_qpos().to(LAW_DTYPE), self.articulation.get_qvel().to(LAW_DTYPE)
+        target = self.end_velocity(v)
+        joints, indices = self.joints, self.active_joint_indices
+        self.articulation.set_joint_drive_velocity_targets(target[:, indices].float(), joints, indices)
+        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, target, self.act).float())
+        self.previous = v
         self.act = next_activation(self.law, self.ctrl, self.act)
         if self.scene.gpu_sim_enabled:
+            px.gpu_apply_articulation_target_velocity()
             px.gpu_apply_articulation_qf()
 
 

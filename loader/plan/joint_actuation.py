@@ -11,14 +11,14 @@ with u the clamped ctrl, or the activation where the actuator has one (an integr
 steps it as MuJoCo does); the sum of a joint's actuator forces clamped to its actuatorfrcrange; and each DoF adds
 its spring k (springref - q) and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's
 integrator takes the dampers, and under the implicit integrators each actuator's -b2 m m^T (its kv on the joints),
-implicitly: the dampers and that term's diagonal stay in a PhysX drive (damping, no stiffness, zero targets), whose
-implicit law matches MuJoCo's step under PGS; a fixed tendon's cross terms are explicit. The joint force the law
-writes is everything else, evaluated at the step's start: m F, plus -b2 m_j^2 v_j on DoF j for an actuator the
-drives hold (the drive's own force there taken back). Where forcerange or actuatorfrcrange binds, the force is
-constant in MuJoCo and the drive's share is taken back at an end velocity the per-step half estimates: with the
-tendon's explicit cross terms, the law's only approximations. The law's force and the drives' force sum to MuJoCo's
-qfrc_actuator + qfrc_passive at any state, and PhysX's gravity off on a fully compensated body's link is MuJoCo's
-gravity and compensation together
+implicitly: the dampers and that term's diagonal stay in a PhysX drive (damping, no stiffness), whose implicit law
+matches MuJoCo's step under PGS whatever velocity it aims at; a fixed tendon's cross terms are explicit. The joint
+force the law writes is everything else, evaluated at the step's start: m F, with each held kv's start term moved
+into its place and the drive's pull at its aim taken back. Where forcerange or actuatorfrcrange binds, the force is
+constant in MuJoCo and the drive's share pulls by how far the end velocity misses its aim (the per-step half aims at
+an estimate of it): with the tendon's explicit cross terms, the law's only approximations. With the drives aimed
+at the state's velocity, the law's force is MuJoCo's qfrc_actuator + qfrc_passive at any state; PhysX's gravity off
+on a fully compensated body's link is MuJoCo's gravity and compensation together
 (tests/test_maniskill_joint_actuation.py::test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force;
 tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast;
 tests/test_maniskill_joint_actuation.py::test_a_compensated_arm_follows_mujoco_with_its_links_weightless).
