@@ -95,7 +95,9 @@ class MJCFAgent(BaseAgent):
         if isinstance(self.joint_actuation, JointActuation) and self.ctrl_low:
             configs["mujoco_ctrl_tensor"] = {
                 "balance_passive_force": False,
-                "ctrl": JointActuationConfig(joints, list(self.ctrl_low), list(self.ctrl_high), self.joint_actuation),
+                "ctrl": JointActuationConfig(
+                    joints, list(self.ctrl_low), list(self.ctrl_high), self.joint_actuation, self.results
+                ),
             }
         return configs
 

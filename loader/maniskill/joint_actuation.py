@@ -150,6 +150,17 @@ class JointActuationController(BaseController):
         """The step's end velocity as the last step's change carries on from `v` (`v` itself after a reset)."""
         return v if self.previous is None else 2.0 * v - self.previous
 
+    def aim(self, target: torch.Tensor) -> None:
+        """Every drive's velocity target (env, DoF): one tensor write on the device; on the CPU backend, the one
+        sub-scene's PhysX joints directly (ManiSkill's setter converts each joint's target on its own)."""
+        if self.config.results:
+            joints = self.config.results[0].articulations[0].active_joints
+            for joint, velocity in zip(joints, target[0].tolist()):
+                joint.set_drive_velocity_target(velocity)
+            return
+        indices = self.active_joint_indices
+        self.articulation.set_joint_drive_velocity_targets(target[:, indices].float(), self.joints, indices)
+
     def before_simulation_step(self):
         """The state in, the drives' velocity targets (the end velocity extrapolated from the last step) and the
         law's `qf` out; the activations one step on."""
@@ -159,8 +170,7 @@ class JointActuationController(BaseController):
             px.gpu_fetch_articulation_qvel()
         q, v = self.articulation.get_qpos().to(LAW_DTYPE), self.articulation.get_qvel().to(LAW_DTYPE)
         target = self.end_velocity(v)
-        joints, indices = self.joints, self.active_joint_indices
-        self.articulation.set_joint_drive_velocity_targets(target[:, indices].float(), joints, indices)
+        self.aim(target)
         self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, target, self.act).float())
         self.previous = v
         self.act = next_activation(self.law, self.ctrl, self.act)
@@ -174,5 +184,6 @@ class JointActuationConfig(ControllerConfig):
     low: list[float] = field(default_factory=list)  # ctrlrange (or -inf) per actuator
     high: list[float] = field(default_factory=list)
     plan: JointActuation | None = None
+    results: list = field(default_factory=list)  # the CPU backend's one LoadResult (its PhysX joints); none on GPU
     normalize_action: bool = False
     controller_cls = JointActuationController
