@@ -22,7 +22,7 @@ from conformance.tiers.maniskill import empty_env
 from loader import SceneMismatchWarning
 from loader.maniskill import register_agent
 from loader.maniskill.joint_actuation import Law, joint_forces, next_activation
-from loader.plan.joint_actuation import plan_joint_actuation
+from loader.plan.joint_actuation import plan_joint_actuation, robot_indices
 
 
 def _acts(model: mujoco.MjModel, act: np.ndarray) -> np.ndarray:
@@ -262,9 +262,7 @@ def _planned(path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = MJCFLoader().load(str(path))
-    dofs = {
-        j: t.dofs[0] for j, t in enumerate(result.mapping.joints) if t.drive_key is not None and t.articulation == 0
-    }
+    dofs, _ = robot_indices(result.mapping)
     ndof = result.articulations[0].dof if result.articulations else 0
     return result.model, dofs, plan_joint_actuation(result.model, dofs, ndof)
 

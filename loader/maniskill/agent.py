@@ -21,7 +21,7 @@ from mani_skill.agents.controllers.pd_joint_vel import PDJointVelControllerConfi
 from mani_skill.utils.structs.pose import Pose
 
 from ..mjcf_loader import MJCFLoader as CoreLoader
-from ..plan.joint_actuation import JointActuation, plan_joint_actuation
+from ..plan.joint_actuation import JointActuation, plan_joint_actuation, robot_indices
 from ..servos import Motor, Servo, derive, motors
 from .joint_actuation import JointActuationConfig
 from .mujoco_ctrl import MujocoCtrlConfig
@@ -161,12 +161,7 @@ def register_agent(
             qvel=np.asarray(articulation.get_qvel()),
         )
     limited = model.actuator_ctrllimited.astype(bool)
-    dof_of_joint = {
-        j: target.dofs[0]
-        for j, target in enumerate(reference.mapping.joints)
-        if target.drive_key is not None and target.articulation == 0
-    }
-    link_of_body = {b: t.link for b, t in enumerate(reference.mapping.bodies) if t is not None and t.articulation == 0}
+    dof_of_joint, link_of_body = robot_indices(reference.mapping)
     attributes = {
         "uid": uid,
         "mjcf_path": path,

@@ -119,6 +119,7 @@ class JointActuationController(BaseController):
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device, dtype=LAW_DTYPE)
         self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
         self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
+        self.physx_joints: list | None = None  # on the CPU backend, the sub-scene's PhysX joints (`aim`)
 
     def set_drive_property(self):
         """The drives hold the implicit damping alone (no stiffness; a velocity target each step); gravity on, as in
@@ -154,8 +155,9 @@ class JointActuationController(BaseController):
         """Every drive's velocity target (env, DoF): one tensor write on the device; on the CPU backend, the one
         sub-scene's PhysX joints directly (ManiSkill's setter converts each joint's target on its own)."""
         if self.config.results:
-            joints = self.config.results[0].articulations[0].active_joints
-            for joint, velocity in zip(joints, target[0].tolist()):
+            if self.physx_joints is None:  # the property builds a new list per call
+                self.physx_joints = self.config.results[0].articulations[0].active_joints
+            for joint, velocity in zip(self.physx_joints, target[0].tolist()):
                 joint.set_drive_velocity_target(velocity)
             return
         indices = self.active_joint_indices

@@ -32,6 +32,8 @@ import mujoco
 import numpy as np
 
 from ..model import mj
+from ..model.joints import dof_damping, joint_stiffness
+from ..model.mapping import Mapping
 
 TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_TENDON))
 JOINT_WRAP = int(mujoco.mjtWrap.mjWRAP_JOINT)
@@ -75,8 +77,12 @@ class JointActuation:
     not_carried: list[str] = field(default_factory=list)
 
     def held_damping(self) -> np.ndarray:
-        """Per DoF, the actuators' velocity terms the drives hold: sum over held actuators of -b2 m^2."""
-        return (self.held * -self.bias[2]) @ self.moment**2
+        return held_damping(self.held, self.bias, self.moment)
+
+
+def held_damping(held: np.ndarray, bias: np.ndarray, moment: np.ndarray) -> np.ndarray:
+    """Per DoF, the actuators' velocity terms the drives hold: sum over held actuators of -b2 m^2."""
+    return (held * -bias[2]) @ moment**2
 
 
 def plan_joint_actuation(
@@ -100,13 +106,15 @@ def plan_joint_actuation(
     force_range = np.where(model.actuator_forcelimited.astype(bool), model.actuator_forcerange.T, [[-np.inf], [np.inf]])
     stiffness, spring_ref, damping, joint_range = _joint_arrays(model, dof_of_joint, ndof)
     damped_explicitly = not implicit and mj.disabled(model, "eulerdamp")
+    moment = _moment(model, dof_of_joint, ndof)
+    held_terms = held_damping(held, bias, moment)
     dynamics = model.actuator_dyntype.astype(np.int64)
     filtered = (dynamics == FILTER) | (dynamics == FILTEREXACT)
     time_constant = np.where(filtered, np.maximum(model.actuator_dynprm[:, 0], mj.MJMINVAL), 1.0)
     act_range = np.where(model.actuator_actlimited.astype(bool), model.actuator_actrange.T, [[-np.inf], [np.inf]])
-    plan = JointActuation(
+    return JointActuation(
         ndof,
-        _moment(model, dof_of_joint, ndof),
+        moment,
         gain,
         bias,
         held,
@@ -119,13 +127,23 @@ def plan_joint_actuation(
         model.actuator_actearly.astype(bool),
         stiffness,
         spring_ref,
-        np.zeros(ndof),
+        held_terms + (0.0 if damped_explicitly else damping),
         damping if damped_explicitly else np.zeros(ndof),
         _weightless(model, link_of_body or {}),
         _not_carried(model),
     )
-    plan.drive_damping = plan.held_damping() + (0.0 if damped_explicitly else damping)
-    return plan
+
+
+def robot_indices(mapping: Mapping, articulation: int = 0) -> tuple[dict[int, int], dict[int, int]]:
+    """For one articulation (a ManiSkill robot): MuJoCo joint -> its SAPIEN DoF for each hinge and slide, and MuJoCo
+    body -> its link, as `plan_joint_actuation` takes them."""
+    dofs = {
+        j: target.dofs[0]
+        for j, target in enumerate(mapping.joints)
+        if target.drive_key is not None and target.articulation == articulation
+    }
+    links = {b: t.link for b, t in enumerate(mapping.bodies) if t is not None and t.articulation == articulation}
+    return dofs, links
 
 
 def _moment(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> np.ndarray:
@@ -149,13 +167,9 @@ def _joint_arrays(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
     for joint, robot_dof in dof_of_joint.items():
         if model.jnt_actfrclimited[joint]:
             joint_range[:, robot_dof] = model.jnt_actfrcrange[joint]
-        stiffness[robot_dof] = model.jnt_stiffness[joint]
+        stiffness[robot_dof] = joint_stiffness(model, joint)
         spring_ref[robot_dof] = model.qpos_spring[model.jnt_qposadr[joint]]
-        damping[robot_dof] = model.dof_damping[model.jnt_dofadr[joint]]
-    if mj.disabled(model, "spring"):
-        stiffness[:] = 0.0
-    if mj.disabled(model, "damper"):
-        damping[:] = 0.0
+        damping[robot_dof] = dof_damping(model, int(model.jnt_dofadr[joint]))
     return stiffness, spring_ref, damping, joint_range
 
 
