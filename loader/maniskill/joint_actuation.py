@@ -19,11 +19,11 @@ from mani_skill.utils import common
 from ..errors import SceneMismatchWarning
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.physx_settings import uses_tgs
+from ..servos import UNLIMITED
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
-UNLIMITED = float(np.finfo(np.float32).max)  # ManiSkill's own "no force limit" for a drive, finite for PhysX's GPU
 TGS_NOTE = (
     "mujoco_ctrl_tensor: the drives hold MuJoCo's implicit damping under PGS; TGS damps a drive over its position "
     "iterations and moves the joints elsewhere: set sim_config's scene_config enable_tgs=False"
