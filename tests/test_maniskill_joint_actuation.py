@@ -11,7 +11,7 @@ import warnings
 import mujoco
 import numpy as np
 import pytest
-from support.corpus import FIXTURES, corpus_params
+from support.corpus import FIXTURES, corpus_params, suite_path
 
 torch = pytest.importorskip("torch", reason="torch is not installed (the `maniskill` extra)")
 pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
@@ -267,20 +267,10 @@ def _planned(path):
     return result.model, dofs, plan_joint_actuation(result.model, dofs, ndof)
 
 
-@pytest.mark.parametrize("path", corpus_params())
-def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
-    """Robot by robot over the default corpus: where the law takes the model, at 16 random states and ctrls (past
-    ctrlrange), its drives aimed at the state's velocity, its force is MuJoCo's actuator and passive force less what
-    the law leaves to the build (gravity compensation, weightless links) or lists as not carried (fluid), to float64
-    rounding; where it does not, it says why in words. Models whose tendons have springs or dampers are skipped."""
-    model, dofs, plan = _planned(path)
-    if not model.nu or not dofs:
-        pytest.skip("no actuator, or no hinge or slide: nothing for the law")
-    if isinstance(plan, str):
-        assert plan.startswith("actuator '"), plan  # names the actuator, and why
-        return
-    if np.any(model.tendon_stiffness) or np.any(model.tendon_damping):
-        pytest.skip("tendon springs and dampers: listed as not carried")
+def _worst_law_error(model: mujoco.MjModel, dofs: dict, plan) -> float:
+    """The largest relative difference, over 16 random states and ctrls (past ctrlrange), between the law's force
+    (its drives aimed at the state's velocity: no pull there) and MuJoCo's actuator and passive force less what the
+    law leaves to the build (gravity compensation, weightless links) or lists as not carried (fluid)."""
     rng, data = np.random.default_rng(0), mujoco.MjData(model)
     law = Law(plan, model.opt.timestep, "cpu", torch.float64)
     joints = list(dofs)
@@ -297,9 +287,32 @@ def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
         q, v = np.zeros((1, plan.ndof)), np.zeros((1, plan.ndof))
         q[0, robot], v[0, robot] = data.qpos[qpos], data.qvel[qvel]
         force = joint_forces(law, torch.as_tensor(data.ctrl[None].copy()), torch.as_tensor(q), torch.as_tensor(v))
-        got = force.numpy()[0, robot]  # the drives aimed at the state's velocity: no pull there
+        got = force.numpy()[0, robot]
         worst = max(worst, float(np.abs(got - expected).max() / max(1.0, np.abs(expected).max())))
-    assert worst < 1e-10, worst
+    return worst
+
+
+@pytest.mark.parametrize("path", corpus_params())
+def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
+    """Robot by robot over the default corpus: where the law takes the model, its force is MuJoCo's to float64
+    rounding (`_worst_law_error`); where it does not, it says why in words. Models whose tendons have springs or
+    dampers are skipped."""
+    model, dofs, plan = _planned(path)
+    if not model.nu or not dofs:
+        pytest.skip("no actuator, or no hinge or slide: nothing for the law")
+    if isinstance(plan, str):
+        assert plan.startswith("actuator '"), plan  # names the actuator, and why
+        return
+    if np.any(model.tendon_stiffness) or np.any(model.tendon_damping):
+        pytest.skip("tendon springs and dampers: listed as not carried")
+    assert _worst_law_error(model, dofs, plan) < 1e-10
+
+
+def test_the_corpus_check_catches_a_gain_a_thousandth_off():
+    """The robot-by-robot check is not blind: the cheetah's law with every actuator's gain 0.1 % off misses it."""
+    model, dofs, plan = _planned(suite_path("cheetah"))
+    plan.gain = plan.gain * 1.001
+    assert _worst_law_error(model, dofs, plan) > 1e-10
 
 
 def _filtered_arm(tmp_path, uid: str):
