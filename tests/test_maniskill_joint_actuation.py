@@ -344,6 +344,63 @@ def test_a_reset_of_the_one_sub_scene_restarts_its_activations(tmp_path):
         env.close()
 
 
+@pytest.mark.parametrize("mistake", [None, "mark_ignored"])
+def test_a_partial_reset_restarts_only_its_envs(tmp_path, mistake):
+    """An `env.reset` of no env (`env_idx` empty: ManiSkill marks none of its sub-scenes) leaves the one env's
+    activations, ctrl and last step as they were, so its drives go on aiming at the extrapolated end velocity; a reset
+    of every env restarts them. Mutation: the agent's mark not handed to the controller, which then resets every
+    env."""
+    from loader.maniskill.agent import MJCFAgent
+
+    model, agent = _filtered_arm(tmp_path, f"tensor_partial_{mistake}")
+    env = empty_env(agent.uid, "mujoco_ctrl_tensor", 500, 50, {"enable_tgs": False})
+    try:
+        env.reset(seed=0)
+        if mistake:
+            env.unwrapped.agent.reset = lambda init_qpos=None: super(MJCFAgent, env.unwrapped.agent).reset(init_qpos)
+        env.step(np.full(model.nu, 0.5, np.float32))
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        act, ctrl, previous = controller.act.clone(), controller.ctrl.clone(), controller.previous
+        assert float(act.abs().min()) > 0.1 and previous is not None
+        env.reset(seed=1, options={"env_idx": torch.tensor([], dtype=torch.long)})
+        kept = (
+            torch.equal(controller.act, act)
+            and torch.equal(controller.ctrl, ctrl)
+            and controller.previous is previous
+            and controller.fresh is None
+        )
+        assert kept == (mistake is None)
+        env.reset(seed=2)
+        assert float(controller.act.abs().max()) == 0.0 and controller.previous is None
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("mistake", [None, "fresh_ignored"])
+def test_a_reset_env_aims_at_its_own_velocity_while_the_others_extrapolate(tmp_path, mistake):
+    """Two envs' rows (as on the GPU backend), the first reset: its ctrl and activations restart at zero and its
+    drives aim at its velocity, while the second keeps its activations and aims at 2 v - v_prev. Mutation: the
+    reset env extrapolated from its last episode's velocity."""
+    _, agent = _filtered_arm(tmp_path, f"tensor_fresh_{mistake}")
+    env = empty_env(agent.uid, "mujoco_ctrl_tensor", 500, 50, {"enable_tgs": False})
+    try:
+        env.reset(seed=0)
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        rows = torch.tensor([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], dtype=torch.float64)
+        controller.ctrl, controller.act, controller.previous = rows.clone(), rows.clone(), -rows
+        controller.resetting = torch.tensor([True, False])
+        controller.reset()
+        if mistake:
+            controller.fresh = None
+        assert controller.ctrl[0].abs().max() == 0.0 and controller.act[0].abs().max() == 0.0
+        assert torch.equal(controller.ctrl[1], rows[1]) and torch.equal(controller.act[1], rows[1])
+        aim = controller.end_velocity(rows)
+        assert torch.equal(aim[1], 3.0 * rows[1])  # 2 v - (-v)
+        assert torch.equal(aim[0], rows[0]) == (mistake is None)
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize("mistake", [None, "activation_held"])
 def test_a_filtered_arm_follows_mujoco_with_its_activations_stepped(tmp_path, monkeypatch, mistake):
     """The stiff servo arm with each servo behind a first-order filter (MuJoCo's dyntype filter, 10 ms) follows

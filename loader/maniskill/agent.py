@@ -23,7 +23,7 @@ from mani_skill.utils.structs.pose import Pose
 from ..mjcf_loader import MJCFLoader as CoreLoader
 from ..plan.joint_actuation import JointActuation, plan_joint_actuation, robot_indices
 from ..servos import Motor, Servo, derive, motors
-from .joint_actuation import JointActuationConfig
+from .joint_actuation import JointActuationConfig, JointActuationController
 from .mujoco_ctrl import MujocoCtrlConfig
 from .scene_loader import MJCFLoader
 
@@ -60,6 +60,16 @@ class MJCFAgent(BaseAgent):
         self.results = loader.results
         for result in self.results:
             result.release()  # PD modes drive the joints; mujoco_ctrl takes them back
+
+    def reset(self, init_qpos=None):
+        """ManiSkill's reset, and the envs it resets handed to `mujoco_ctrl_tensor`'s controller: ManiSkill marks them
+        (its scene's `_reset_mask`, which its own PD controllers read) only while it resets the agent."""
+        super().reset(init_qpos)
+        mask = getattr(self.scene, "_reset_mask", None)
+        active = self.controllers.get(self._control_mode)
+        for controller in getattr(active, "controllers", {}).values():
+            if isinstance(controller, JointActuationController) and mask is not None:
+                controller.resetting = mask.clone()
 
     @property
     def _controller_configs(self):

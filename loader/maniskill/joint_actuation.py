@@ -118,6 +118,8 @@ class JointActuationController(BaseController):
         self.law = Law(self.config.plan, float(self.scene.timestep), self.device, LAW_DTYPE)
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device, dtype=LAW_DTYPE)
         self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
+        self.fresh: torch.Tensor | None = None  # the envs reset since the last step, where only some were (`reset`)
+        self.resetting: torch.Tensor | None = None  # the envs the agent's reset marked (`MJCFAgent.reset`)
         self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
         self.physx_joints: list | None = None  # on the CPU backend, the sub-scene's PhysX joints (`aim`)
 
@@ -125,7 +127,7 @@ class JointActuationController(BaseController):
         """The drives hold the implicit damping alone (no stiffness; a velocity target each step); gravity on, as in
         MuJoCo, but on the links of fully compensated bodies. The mode starts afresh: no last step, activations at
         zero."""
-        self.previous, self.act = None, torch.zeros_like(self.act)
+        self.previous, self.fresh, self.act = None, None, torch.zeros_like(self.act)
         if uses_tgs(self.scene.sub_scenes[0]):
             warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
         weightless = set(self.config.plan.weightless)
@@ -136,20 +138,34 @@ class JointActuationController(BaseController):
             joint.set_drive_properties(0.0, damping, force_limit=UNLIMITED, mode="force")
 
     def reset(self):
-        """The next step starts without a last one, in every sub-scene (a reset one has none). The activations
-        restart at zero, as MuJoCo's reset has them, where there is one sub-scene. Of several, ManiSkill says which
-        reset only through a private attribute: all keep theirs, as zeroing all would upset the ones running on."""
-        self.ctrl = torch.zeros_like(self.ctrl)
-        if self.scene.num_envs == 1:
-            self.act = torch.zeros_like(self.act)
-        self.previous = None
+        """The envs an `env.reset` resets start as MuJoCo's reset starts them: ctrl and activations zero, and no last
+        step to extrapolate the drives' aim from. ManiSkill marks those envs while it resets the agent and not while
+        it resets the controllers, so the agent hands the mark on (`resetting`); without one, every env resets. The
+        others run on untouched (tests/test_maniskill_joint_actuation.py::test_a_partial_reset_restarts_only_its_envs).
+        """
+        envs, self.resetting = self.resetting, None
+        if envs is None or bool(envs.all()):
+            self.ctrl, self.act = torch.zeros_like(self.ctrl), torch.zeros_like(self.act)
+            self.previous = self.fresh = None
+            return
+        envs = envs.to(self.device)
+        if not bool(envs.any()):
+            return
+        self.ctrl[envs], self.act[envs] = 0.0, 0.0
+        if self.previous is not None:
+            self.fresh = envs if self.fresh is None else self.fresh | envs
 
     def set_action(self, action):
         self.ctrl = common.to_tensor(self._preprocess_action(action), device=self.device).to(LAW_DTYPE)
 
     def end_velocity(self, v: torch.Tensor) -> torch.Tensor:
-        """The step's end velocity as the last step's change carries on from `v` (`v` itself after a reset)."""
-        return v if self.previous is None else 2.0 * v - self.previous
+        """The step's end velocity as the last step's change carries on from `v` (`v` itself in an env reset since
+        the last step)."""
+        if self.previous is None:
+            return v
+        if self.fresh is not None:
+            self.previous, self.fresh = torch.where(self.fresh[:, None], v, self.previous), None
+        return 2.0 * v - self.previous
 
     def aim(self, target: torch.Tensor) -> None:
         """Every drive's velocity target (env, DoF): one tensor write on the device; on the CPU backend, the one
