@@ -89,3 +89,24 @@ def test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast(monkeypa
     assert not np.allclose(derivative, np.diag(np.diag(derivative)), atol=1e-6)  # the tendon couples h1 and s
     plan = plan_joint_actuation(model, DOF_OF_JOINT, model.nv)
     assert np.allclose(plan.drive_damping, -np.diag(derivative), atol=1e-6) != mistake
+
+
+FLOATING = """<mujoco><worldbody><body name="root"><freejoint/><geom size=".1"/>
+  <body name="arm"><joint name="j" axis="0 1 0" limited="true" range="-1 1"/><geom size=".05" pos=".2 0 0"/></body>
+  </body></worldbody><equality><joint joint1="j"/></equality><actuator><motor joint="j"/></actuator></mujoco>"""
+FLOATING_ROOT = "a floating root's velocity in MuJoCo's convention (PhysX's step conserves momentum)"
+
+
+@pytest.mark.parametrize("flags", [(), ("limit", "equality"), ("constraint",)])
+def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
+    """A robot on a free joint names its floating root (the per-step terms' momentum settle, which the law lacks);
+    its limits and its equality are named unless the model disables them."""
+    disabled = " ".join(f'{flag}="disable"' for flag in flags)
+    xml = FLOATING.replace("<worldbody>", f"<option><flag {disabled}/></option><worldbody>", 1)
+    model = mujoco.MjModel.from_xml_string(xml)
+    plan = plan_joint_actuation(model, {1: 0}, 1, {1: 0, 2: 1})
+    rows = {"soft joint limits (PhysX's hard limits)", "equality constraints"}
+    assert FLOATING_ROOT in plan.not_carried
+    assert rows & set(plan.not_carried) == (set() if flags else rows)
+    fixed = plan_joint_actuation(model, {1: 0}, 1, {2: 0})  # the robot is the arm alone: no root of its own floats
+    assert FLOATING_ROOT not in fixed.not_carried

@@ -130,7 +130,7 @@ def plan_joint_actuation(
         held_terms + (0.0 if damped_explicitly else damping),
         damping if damped_explicitly else np.zeros(ndof),
         _weightless(model, link_of_body or {}),
-        _not_carried(model),
+        _not_carried(model, link_of_body or {}),
     )
 
 
@@ -215,17 +215,25 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
     return [int(model.wrap_objid[w]) for w in wraps]
 
 
-def _not_carried(model: mujoco.MjModel) -> list[str]:
+def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
+    free = int(mujoco.mjtJoint.mjJNT_FREE)
+    floating = any(
+        int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in link_of_body for j in range(model.njnt)
+    )
     checks = [
-        (np.any(model.jnt_limited) and not mj.disabled(model, "limit"), "soft joint limits (PhysX's hard limits)"),
-        (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss"), "frictionloss"),
+        (floating, "a floating root's velocity in MuJoCo's convention (PhysX's step conserves momentum)"),
+        (
+            np.any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"),
+            "soft joint limits (PhysX's hard limits)",
+        ),
+        (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss", "constraint"), "frictionloss"),
         (
             np.any(model.tendon_stiffness) or np.any(model.tendon_damping) or np.any(model.tendon_limited),
             "tendon springs, dampers and limits",
         ),
         (np.any(model.tendon_frictionloss > 0), "tendon frictionloss"),
-        (model.neq > 0, "equality constraints"),
+        (model.neq > 0 and not mj.disabled(model, "equality", "constraint"), "equality constraints"),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
         (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
         (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
