@@ -1,10 +1,11 @@
 """Isolation: a failing dynamics-type tier is run again with the model's known gaps taken out, on both sides.
 
-Each gap is an edit of the model's `MjSpec` (frictionloss zeroed, equalities or limits disabled, fluid off, the
-timestep halved); MuJoCo compiles the edited spec and the loader loads the same spec, so both simulators see the
-same change. The tier then runs as usual. Its numbers, gap by gap and all gaps together, say which gap the
-failure comes from: a model whose actuators are mapped right passes once the gaps PhysX cannot express are out,
-and a mapping error (a wrong kp, a flipped gear) survives every edit.
+Each gap is an edit of the model's `MjSpec` (`gaps.py`: frictionloss zeroed, equalities or limits disabled, fluid
+off, the timestep halved; a floating root welded, only where an expectation claims it); MuJoCo compiles the edited
+spec and the loader loads the same spec, so both simulators see the same change. The tier then runs as usual. Its
+numbers, gap by gap and all gaps together, say which gap the failure comes from: a model whose actuators are mapped
+right passes once the gaps PhysX cannot express are out, and a mapping error (a wrong kp, a flipped gear) survives
+every edit.
 The half timestep separates integrator differences from force errors: one-step velocity errors from a force
 mismatch halve with dt (order 1), an integration difference shrinks four times (order 2). Order 2 also fits a
 force error that is itself O(dt): the velocity-product drift PhysX's slide drives measured
@@ -17,95 +18,13 @@ those gaps out, so the reason written there is measured on every run.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
 
 import mujoco
 
-from loader.model import mj
-
+from .gaps import edited_spec, present_gaps
 from .session import quiet_load
 
 ISOLATED_TIERS = ("dynamics", "actuated")
-FLAGS = mujoco.mjtDisableBit
-
-
-def _zero_frictionloss(spec: mujoco.MjSpec) -> None:
-    for joint in spec.joints:
-        joint.frictionloss = 0.0
-
-
-def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
-    def edit(spec: mujoco.MjSpec) -> None:
-        spec.option.disableflags |= int(bit)
-
-    return edit
-
-
-def _no_fluid(spec: mujoco.MjSpec) -> None:
-    spec.option.density = 0.0
-    spec.option.viscosity = 0.0
-
-
-def _half_timestep(spec: mujoco.MjSpec) -> None:
-    spec.option.timestep /= 2
-
-
-@dataclass(frozen=True)
-class Gap:
-    name: str
-    what: str
-    present: Callable[[mujoco.MjModel], bool]
-    remove: Callable[[mujoco.MjSpec], None]
-
-
-GAPS = {
-    gap.name: gap
-    for gap in (
-        Gap(
-            "frictionloss",
-            "joint frictionloss zeroed (its rows are MuJoCo's own, solved with the others)",
-            lambda m: bool(m.dof_frictionloss.any()),
-            _zero_frictionloss,
-        ),
-        Gap(
-            "equality",
-            "equality constraints disabled (couplings and fixed-base loops are MuJoCo's own rows; "
-            "connects and welds moving a ball joint are D6 joints, coupled with joint damping)",
-            lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
-            _disable(FLAGS.mjDSBL_EQUALITY),
-        ),
-        Gap(
-            "limits",
-            "joint limits disabled (MuJoCo's own rows on both sides, solved with MuJoCo's contacts)",
-            lambda m: bool(m.jnt_limited.any()) and not mj.disabled(m, "limit", "constraint"),
-            _disable(FLAGS.mjDSBL_LIMIT),
-        ),
-        Gap(
-            "fluid",
-            "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
-            lambda m: m.opt.density > 0 or m.opt.viscosity > 0,
-            _no_fluid,
-        ),
-        Gap(
-            "half_timestep",
-            "timestep halved on both sides (integration differences shrink faster than force errors)",
-            lambda m: True,
-            _half_timestep,
-        ),
-    )
-}
-
-
-def present_gaps(model: mujoco.MjModel) -> list[str]:
-    return [name for name, gap in GAPS.items() if gap.present(model)]
-
-
-def edited_spec(path: str, gaps: tuple[str, ...]) -> mujoco.MjSpec:
-    spec = mujoco.MjSpec.from_file(str(path))
-    for name in gaps:
-        GAPS[name].remove(spec)
-    return spec
 
 
 def _load(spec: mujoco.MjSpec):

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import tomllib
 
-from .isolation import GAPS, ISOLATED_TIERS
+from .gaps import GAPS
+from .isolation import ISOLATED_TIERS
 from .session import OWN_LOADERS
 
 TIER_NAMES = (
@@ -44,7 +45,7 @@ class Expectation:
     tier: str
     outcome: str
     reason: str
-    # gaps (conformance.isolation.GAPS) whose removal on both sides makes the tier pass: checked on every run
+    # gaps (conformance.gaps.GAPS) whose removal on both sides makes the tier pass: checked on every run
     passes_without: tuple[str, ...] = ()
     # an expected failure: the metric its reason describes and the max measured then (checked every run: `band`);
     # `seen = [low, high]` in the manifest: the range measured over several seeds

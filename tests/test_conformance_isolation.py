@@ -10,7 +10,7 @@ import pytest
 from test_tiers_actuated import ARM
 
 import loader.runtime.controller
-from conformance import isolation, tolerances
+from conformance import gaps, isolation, tolerances
 from conformance.manifest import load as load_manifest
 from conformance.results import ModelResult
 from conformance.summary import judge
@@ -44,11 +44,30 @@ def dropped_friction(monkeypatch):
 
 def test_each_gap_is_removed_from_the_compiled_model(friction_arm):
     base = mujoco.MjModel.from_xml_path(friction_arm)
-    assert isolation.present_gaps(base) == ["frictionloss", "limits", "half_timestep"]
-    edited = isolation.edited_spec(friction_arm, ("frictionloss", "limits", "half_timestep")).compile()
+    assert gaps.present_gaps(base) == ["frictionloss", "limits", "half_timestep"]
+    edited = gaps.edited_spec(friction_arm, ("frictionloss", "limits", "half_timestep")).compile()
     assert not edited.dof_frictionloss.any()
     assert edited.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_LIMIT)
     assert np.isclose(edited.opt.timestep, base.opt.timestep / 2)
+
+
+FLOATING = """<mujoco><worldbody><body name="root" pos="0 0 1"><freejoint/><geom size=".1"/>
+  <body name="arm"><joint name="j" axis="0 1 0"/><geom size=".05" pos=".2 0 0"/></body></body></worldbody>
+  <keyframe><key name="up" qpos="0 0 2 1 0 0 0 0.3"/></keyframe></mujoco>"""
+
+
+def test_a_floating_root_is_welded_only_where_claimed(tmp_path):
+    """The `free_root` gap deletes the free joint (the root held where it starts) and the keyframes, whose qpos no
+    longer fits; it runs only where an expectation claims it, never among the gaps every failing tier runs."""
+    path = tmp_path / "floating.xml"
+    path.write_text(FLOATING)
+    base = mujoco.MjModel.from_xml_path(str(path))
+    assert gaps.GAPS["free_root"].present(base)
+    assert "free_root" not in gaps.present_gaps(base)
+    welded = gaps.edited_spec(str(path), ("free_root",)).compile()
+    assert (welded.njnt, welded.nq, welded.nkey) == (1, 1, 0)
+    assert np.allclose(welded.body_pos[1], base.body_pos[1])
+    assert not gaps.GAPS["free_root"].present(welded)
 
 
 def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm, dropped_friction):

@@ -1,0 +1,108 @@
+"""The known gaps between the loader and MuJoCo, each an edit of a model's `MjSpec` that takes it out on both sides
+(MuJoCo compiles the edited spec and the loader loads the same one): what isolation (`isolation.py`) reruns a
+failing tier without."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+
+from loader.model import mj
+
+FLAGS = mujoco.mjtDisableBit
+
+
+def _zero_frictionloss(spec: mujoco.MjSpec) -> None:
+    for joint in spec.joints:
+        joint.frictionloss = 0.0
+
+
+def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
+    def edit(spec: mujoco.MjSpec) -> None:
+        spec.option.disableflags |= int(bit)
+
+    return edit
+
+
+def _no_fluid(spec: mujoco.MjSpec) -> None:
+    spec.option.density = 0.0
+    spec.option.viscosity = 0.0
+
+
+def _half_timestep(spec: mujoco.MjSpec) -> None:
+    spec.option.timestep /= 2
+
+
+def _weld_free_roots(spec: mujoco.MjSpec) -> None:
+    for joint in [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]:
+        spec.delete(joint)
+    for key in list(spec.keys):  # their qpos no longer fits the model
+        spec.delete(key)
+
+
+@dataclass(frozen=True)
+class Gap:
+    name: str
+    what: str
+    present: Callable[[mujoco.MjModel], bool]
+    remove: Callable[[mujoco.MjSpec], None]
+    automatic: bool = True  # run wherever present; otherwise only where an expectation claims it (`passes_without`)
+
+
+GAPS = {
+    gap.name: gap
+    for gap in (
+        Gap(
+            "frictionloss",
+            "joint frictionloss zeroed (its rows are MuJoCo's own, solved with the others)",
+            lambda m: bool(m.dof_frictionloss.any()),
+            _zero_frictionloss,
+        ),
+        Gap(
+            "equality",
+            "equality constraints disabled (couplings and fixed-base loops are MuJoCo's own rows; "
+            "connects and welds moving a ball joint are D6 joints, coupled with joint damping)",
+            lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
+            _disable(FLAGS.mjDSBL_EQUALITY),
+        ),
+        Gap(
+            "limits",
+            "joint limits disabled (MuJoCo's own rows on both sides, solved with MuJoCo's contacts)",
+            lambda m: bool(m.jnt_limited.any()) and not mj.disabled(m, "limit", "constraint"),
+            _disable(FLAGS.mjDSBL_LIMIT),
+        ),
+        Gap(
+            "fluid",
+            "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
+            lambda m: m.opt.density > 0 or m.opt.viscosity > 0,
+            _no_fluid,
+        ),
+        Gap(
+            "free_root",
+            "free joints deleted on both sides (each floating root welded where it starts, the keyframes dropped)",
+            lambda m: bool((m.jnt_type == int(mujoco.mjtJoint.mjJNT_FREE)).any()),
+            _weld_free_roots,
+            automatic=False,
+        ),
+        Gap(
+            "half_timestep",
+            "timestep halved on both sides (integration differences shrink faster than force errors)",
+            lambda m: True,
+            _half_timestep,
+        ),
+    )
+}
+
+
+def present_gaps(model: mujoco.MjModel) -> list[str]:
+    """The gaps run wherever the model has them (a claimed one runs too: `isolate`)."""
+    return [name for name, gap in GAPS.items() if gap.automatic and gap.present(model)]
+
+
+def edited_spec(path: str, gaps: tuple[str, ...]) -> mujoco.MjSpec:
+    spec = mujoco.MjSpec.from_file(str(path))
+    for name in gaps:
+        GAPS[name].remove(spec)
+    return spec
