@@ -61,7 +61,8 @@ def tests(session: nox.Session) -> None:
 @nox.session
 def maniskill(session: nox.Session) -> None:
     """`loader.maniskill` inside ManiSkill 3.0.1 (tests/test_maniskill.py, tests/test_maniskill_joint_actuation.py),
-    and the `maniskill` tier's mutation test, which skips elsewhere; with `-- bench`, `Empty-v1`'s throughput under
+    the `maniskill_tensor` tier's tests (tests/test_maniskill_tensor_tier.py) and the `maniskill` tier's mutation
+    test, which skip elsewhere; with `-- bench`, `Empty-v1`'s throughput under
     `mujoco_ctrl` against `pd_joint_pos` (`conformance/maniskill_bench.py`). Not part of `tests`: the extra brings
     torch, whose default Linux wheel pulls CUDA; here its CPU build is installed first."""
     session.install("torch==2.13.0", "--extra-index-url", "https://download.pytorch.org/whl/cpu")
@@ -70,7 +71,12 @@ def maniskill(session: nox.Session) -> None:
         session.run("python", "-m", "conformance", "maniskill-bench", *session.posargs[1:])
         return
     mutation = "tests/test_tiers_mutations.py::test_the_maniskill_tier_catches_a_robot_built_there_without_armature"
-    tests = ["tests/test_maniskill.py", "tests/test_maniskill_joint_actuation.py", mutation]
+    tests = [
+        "tests/test_maniskill.py",
+        "tests/test_maniskill_joint_actuation.py",
+        "tests/test_maniskill_tensor_tier.py",
+        mutation,
+    ]
     session.run("python", "-m", "pytest", *tests, *session.posargs)
 
 

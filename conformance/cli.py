@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from . import manifest as manifest_mod
-from .manifest import TIER_NAMES
+from .manifest import OPTIONAL_TIERS, TIER_NAMES
 from .versions import project_version
 
 
@@ -36,8 +36,8 @@ def _tiers(text: str) -> tuple[str, ...]:
     bad = [t for t in tiers if t not in TIER_NAMES]
     if bad:
         raise argparse.ArgumentTypeError(f"unknown tiers {bad}; choose from {','.join(TIER_NAMES)}")
-    if "maniskill" in tiers:
-        _needs_maniskill("the maniskill tier")
+    for tier in (t for t in tiers if t in OPTIONAL_TIERS):
+        _needs_maniskill(f"the {tier} tier")
     return tiers
 
 
@@ -125,7 +125,7 @@ def parser() -> argparse.ArgumentParser:
         type=_tiers,
         default=None,
         help=f"comma-separated subset of {','.join(TIER_NAMES)} (default: the manifest's tiers of each model; "
-        "the opt-in maniskill tier only when named)",
+        "the opt-in maniskill and maniskill_tensor tiers only when named)",
     )
     run.add_argument(
         "--loader",

@@ -1,6 +1,6 @@
 """The known gaps between the loader and MuJoCo, each an edit of a model's `MjSpec` that takes it out on both sides
 (MuJoCo compiles the edited spec and the loader loads the same one): what isolation (`isolation.py`) reruns a
-failing tier without."""
+failing tier without, and what the `maniskill_tensor` tier takes out of the models it judges."""
 
 from __future__ import annotations
 
@@ -106,3 +106,11 @@ def edited_spec(path: str, gaps: tuple[str, ...]) -> mujoco.MjSpec:
     for name in gaps:
         GAPS[name].remove(spec)
     return spec
+
+
+def without(spec: mujoco.MjSpec, gaps: tuple[str, ...]) -> mujoco.MjSpec:
+    """A copy of `spec` with `gaps` taken out."""
+    copy = spec.copy()
+    for name in gaps:
+        GAPS[name].remove(copy)
+    return copy

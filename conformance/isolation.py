@@ -24,7 +24,7 @@ import mujoco
 from .gaps import edited_spec, present_gaps
 from .session import quiet_load
 
-ISOLATED_TIERS = ("dynamics", "actuated")
+ISOLATED_TIERS = ("dynamics", "actuated", "maniskill_tensor")
 
 
 def _load(spec: mujoco.MjSpec):

@@ -15,9 +15,11 @@ SKIPS = {
         "actuated_contact": "ManiSkill's loader maps no actuators",
         "actuated": "ManiSkill's loader maps no actuators",
         "maniskill": "the maniskill tier runs this project's loader inside ManiSkill, not ManiSkill's own",
+        "maniskill_tensor": "the maniskill_tensor tier runs this project's loader in ManiSkill, not ManiSkill's own",
     },
     "physx": {
         "maniskill": "the maniskill tier runs this project's loader with its per-step terms, in ManiSkill",
+        "maniskill_tensor": "the maniskill_tensor tier runs this project's loader with its joint actuation law",
     },
 }
 

@@ -21,8 +21,10 @@ TIER_NAMES = (
     "actuated",
     "dynamics",
     "maniskill",
+    "maniskill_tensor",
 )
-OPTIONAL_TIERS = ("maniskill",)  # run only when asked (`--tiers`, a model's `tiers`): it needs the maniskill extra
+# run only when asked (`--tiers`, a model's `tiers`): they need the maniskill extra
+OPTIONAL_TIERS = ("maniskill", "maniskill_tensor")
 DEFAULT_TIERS = tuple(t for t in TIER_NAMES if t not in OPTIONAL_TIERS)
 # Outcomes ranked from best to worst; a run fails when an outcome ranks worse than the manifest expects.
 # `changed` (an expected failure whose metric left the band its reason was measured in) and `diverged` (SAPIEN left
@@ -149,8 +151,8 @@ def _entry(raw: dict, defaults: dict, where: str, base_dir: str) -> ModelEntry:
 
 def _expectations(raw: dict, where: str) -> tuple[dict[str, Expectation], tuple[Expectation, ...]]:
     """A model entry's expectations by tier, and those that scope a tier again to other seeds (every one of a
-    tier's expectations then names its seeds, none shared); `maniskill` inherits the `actuated` one unless it has
-    its own."""
+    tier's expectations then names its seeds, none shared); the opt-in tiers inherit the `actuated` one unless they
+    have their own."""
     expect: dict[str, Expectation] = {}
     scoped: list[Expectation] = []
     for exp in raw.get("expect", []):
@@ -165,9 +167,10 @@ def _expectations(raw: dict, where: str) -> tuple[dict[str, Expectation], tuple[
                 "each name their seeds, none shared"
             )
         scoped.append(found)
-    if "actuated" in expect and "maniskill" not in expect:  # the same rollout through ManiSkill: the same known gap
-        known = expect["actuated"]
-        expect["maniskill"] = replace(known, tier="maniskill", reason=f"as actuated: {known.reason}", passes_without=())
+    for tier in OPTIONAL_TIERS:  # the same rollout through ManiSkill: the same known gap, unless it has its own
+        if "actuated" in expect and tier not in expect:
+            known = expect["actuated"]
+            expect[tier] = replace(known, tier=tier, reason=f"as actuated: {known.reason}", passes_without=())
     return expect, tuple(scoped)
 
 

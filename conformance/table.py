@@ -8,11 +8,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .manifest import TIER_NAMES
+from .manifest import DEFAULT_TIERS
 
 BEGIN = "<!-- results: made from a run by the harness's table command -->"
 END = "<!-- /results -->"
-COUNTED = [t for t in TIER_NAMES if t != "maniskill"]  # the tiers a default run judges
+COUNTED = list(DEFAULT_TIERS)  # the tiers a default run judges
 
 
 def counts(summary: dict) -> dict[str, tuple[int, int]]:

@@ -110,3 +110,18 @@ def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
     assert rows & set(plan.not_carried) == (set() if flags else rows)
     fixed = plan_joint_actuation(model, {1: 0}, 1, {2: 0})  # the robot is the arm alone: no root of its own floats
     assert FLOATING_ROOT not in fixed.not_carried
+
+
+@pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
+def test_a_tendon_actuators_velocity_cross_terms_are_named_where_mujoco_takes_them_implicitly(integrator):
+    """The chain's fixed tendon actuator (kv 1.5 over two joints): under implicitfast MuJoCo takes its -kv m m^T
+    implicitly and the drives hold only the diagonal, so the cross terms are named; under Euler kv is explicit in
+    MuJoCo too. Without that actuator nothing is named."""
+    cross = "the velocity cross terms of an actuator on a fixed tendon (explicit here)"
+    xml = ACTUATED.format(integrator=integrator)
+    plan = plan_joint_actuation(mujoco.MjModel.from_xml_string(xml), DOF_OF_JOINT, 3)
+    assert (cross in plan.not_carried) == (integrator == "implicitfast")
+    tendon = '<general tendon="t" gear="1.5" gainprm="3" biastype="affine" biasprm="0 -4 -1.5" forcerange="-2 2"/>'
+    assert tendon in xml
+    plan = plan_joint_actuation(mujoco.MjModel.from_xml_string(xml.replace(tendon, "")), DOF_OF_JOINT, 3)
+    assert cross not in plan.not_carried

@@ -14,7 +14,7 @@ from .contact import contact
 from .dynamics import dynamics
 from .inertia import inertia
 from .kinematics import kinematics
-from .maniskill import maniskill
+from .maniskill import maniskill, maniskill_tensor
 from .structure import structure
 
 TIERS = {
@@ -27,6 +27,7 @@ TIERS = {
     "actuated": actuated,
     "dynamics": dynamics,
     "maniskill": maniskill,  # opt-in (not a default tier): its own ManiSkill scene, no side effect on `result`
+    "maniskill_tensor": maniskill_tensor,  # opt-in, as `maniskill`
 }
 
 __all__ = [
@@ -39,5 +40,6 @@ __all__ = [
     "inertia",
     "kinematics",
     "maniskill",
+    "maniskill_tensor",
     "structure",
 ]

@@ -7,7 +7,15 @@ MuJoCo's rounded to it.
 
 Skipped, with the reason: without mani_skill (the `maniskill` extra); when the model's timestep is not 1/n s for an
 integer n (ManiSkill sets the simulation frequency); when the model is not one kinematic tree (ManiSkill's loader
-builds one robot); and wherever `actuated` skips."""
+builds one robot); and wherever `actuated` skips.
+
+Tier `maniskill_tensor` (opt-in: `--tiers maniskill_tensor`) judges `mujoco_ctrl_tensor`, the joint actuation law on
+ManiSkill's tensors that its GPU backend runs, the same way on the CPU backend under PGS (the law's drives match
+MuJoCo's implicit damping under PGS only). What the law does not carry and the harness can take out of both sides
+(joint limits, frictionloss, equalities, fluid: conformance/gaps.py) is taken out of MuJoCo's model and the
+robot's alike, and named in the notes, so that the tier judges the law itself against actuated's tolerances; what
+else the law leaves out (`JointActuation.not_carried`: a floating root, tendon springs, ...) stays in and is named
+too. Skipped, with the reason, where the robot is outside the law, and wherever `maniskill` skips."""
 
 from __future__ import annotations
 
@@ -20,11 +28,15 @@ import numpy as np
 
 from loader.plan.physx_settings import matched_config
 
+from ..gaps import GAPS, without
 from ..report import TierReport, skipped
 from ..tolerances import Tolerances
 from .actuated import actuated, unmapped_reason
 
 TIER = "maniskill"
+TENSOR_TIER = "maniskill_tensor"
+# what `mujoco_ctrl_tensor` does not carry that the harness takes out of both sides (conformance/gaps.py)
+TENSOR_GAPS = ("limits", "frictionloss", "equality", "fluid")
 TGS_TOLERANCES = ("one_step_qvel_fixed", "rollout_qpos_fixed")  # `[tolerance.maniskill]` replaces actuated's
 
 
@@ -61,6 +73,34 @@ class ThroughEnv:
         return getattr(self.result, name)
 
 
+class ThroughTensorEnv(ThroughEnv):
+    """`ThroughEnv` under `mujoco_ctrl_tensor`, whose controller (`law`) keeps its own activations and last step:
+    a state set from outside sets its activations too and starts its next step afresh, and the drives stay the
+    law's whenever the result's own `set_ctrl` wrote them (`disable_actuators`)."""
+
+    def __init__(self, result, env):
+        super().__init__(result, env)
+        self.law = env.unwrapped.agent.controller.controllers["ctrl"]
+
+    def set_state(self, qpos, qvel=None) -> None:
+        self.result.set_state(qpos, qvel)
+        self.law.previous = self.law.fresh = None
+
+    def set_act(self, act) -> None:
+        """MuJoCo's act (na) into the law's activations (one env x nu: an actuator's column is its act)."""
+        self.result.set_act(act)
+        model = self.result.model
+        columns = np.zeros(model.nu)
+        if act is not None:
+            has = model.actuator_actadr >= 0
+            columns[has] = np.asarray(act, np.float64)[model.actuator_actadr[has]]
+        self.law.act = self.law.act.new_tensor(columns)[None]
+
+    def disable_actuators(self, disabled: bool = True) -> None:
+        self.result.disable_actuators(disabled)
+        self.law.set_drive_property()
+
+
 def empty_env(uid: str, mode: str, sim_freq: int, control_freq: int, scene_config: dict | None = None):
     """ManiSkill's `Empty-v1` with the registered agent `uid` under `mode`, on the CPU backend without rendering
     (`scene_config`: PhysX settings over ManiSkill's default, TGS)."""
@@ -81,6 +121,24 @@ def empty_env(uid: str, mode: str, sim_freq: int, control_freq: int, scene_confi
     )
 
 
+def _env_skip(result, model: mujoco.MjModel, tier: str, tolerances: Tolerances) -> TierReport | None:
+    """Why the model cannot be judged through ManiSkill's env, or None."""
+    sim_freq = _frequency(model)
+    if np.float32(1.0 / sim_freq) != np.float32(model.opt.timestep):
+        return skipped(tier, f"the timestep {model.opt.timestep:g} s is not 1/n s: ManiSkill sets a frequency")
+    if len(result.articulations) != 1:
+        return skipped(tier, f"{len(result.articulations)} kinematic trees: ManiSkill's loader builds one robot")
+    return unmapped_reason(result, model, tier, tolerances)  # where `actuated` skips, before any env is made
+
+
+def _frequency(model: mujoco.MjModel) -> int:
+    return round(1.0 / model.opt.timestep)
+
+
+def _uid(tier: str, path) -> str:
+    return f"conformance-{tier}-" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
+
+
 def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     try:
         import mani_skill.envs  # noqa: F401  registers Empty-v1
@@ -88,15 +146,10 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         from loader.maniskill import register_agent
     except ImportError as exc:
         return skipped(TIER, f"mani_skill is not installed (the maniskill extra): {exc}")
-    sim_freq = round(1.0 / model.opt.timestep)
-    if np.float32(1.0 / sim_freq) != np.float32(model.opt.timestep):
-        return skipped(TIER, f"the timestep {model.opt.timestep:g} s is not 1/n s: ManiSkill sets a frequency")
-    if len(result.articulations) != 1:
-        return skipped(TIER, f"{len(result.articulations)} kinematic trees: ManiSkill's loader builds one robot")
-    nothing = unmapped_reason(result, model, TIER, tolerances)  # where `actuated` skips, before any env is made
-    if nothing is not None:
-        return nothing
-    uid = "conformance-" + hashlib.sha256(str(result.path).encode()).hexdigest()[:12]
+    skip = _env_skip(result, model, TIER, tolerances)
+    if skip is not None:
+        return skip
+    uid, sim_freq = _uid(TIER, result.path), _frequency(model)
     scene_config = {"gravity": np.asarray(matched_config(model).gravity).tolist()}  # ManiSkill's solver: TGS
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the loader's notes were counted by the session's load
@@ -114,3 +167,42 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
         env.close()
     notes = [*report.notes, f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl, {sim_freq} Hz)"]
     return dataclasses.replace(report, tier=TIER, notes=notes)
+
+
+def maniskill_tensor(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
+    try:
+        import mani_skill.envs  # noqa: F401  registers Empty-v1
+
+        from loader.maniskill import register_agent
+    except ImportError as exc:
+        return skipped(TENSOR_TIER, f"mani_skill is not installed (the maniskill extra): {exc}")
+    skip = _env_skip(result, model, TENSOR_TIER, tolerances)
+    if skip is not None:
+        return skip
+    gaps = tuple(name for name in TENSOR_GAPS if GAPS[name].present(model))
+    uid, sim_freq = _uid(TENSOR_TIER, result.path), _frequency(model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(without(result.spec, gaps), uid, override=True)
+    law = agent.joint_actuation
+    if isinstance(law, str):
+        return skipped(TENSOR_TIER, f"outside mujoco_ctrl_tensor's law: {law}")
+    scene_config = {"gravity": np.asarray(matched_config(model).gravity).tolist(), "enable_tgs": False}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = empty_env(uid, "mujoco_ctrl_tensor", sim_freq, sim_freq, scene_config)
+    try:
+        env.reset(seed=seed)
+        (agent_result,) = env.unwrapped.agent.results
+        edited = without(result.spec, gaps).compile()  # MuJoCo's side, without the same gaps
+        report = actuated(ThroughTensorEnv(agent_result, env), edited, seed, tolerances)
+    finally:
+        env.close()
+    taken = [f"taken out of both sides, which the law does not carry: {GAPS[name].what}" for name in gaps]
+    taken += [f"left in, which the law does not carry: {what}" for what in law.not_carried]
+    notes = [
+        *report.notes,
+        *taken,
+        f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl_tensor, PGS, {sim_freq} Hz)",
+    ]
+    return dataclasses.replace(report, tier=TENSOR_TIER, notes=notes)

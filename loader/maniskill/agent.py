@@ -10,6 +10,7 @@ import warnings
 from pathlib import Path
 from typing import ClassVar
 
+import mujoco
 import numpy as np
 from mani_skill.agents import registration
 from mani_skill.agents.base_agent import BaseAgent, Keyframe
@@ -149,15 +150,16 @@ def _pd_joint_pos(servos: list[Servo], timestep: float, delta: bool) -> dict:
 
 
 def register_agent(
-    mjcf_path: str | Path,
+    mjcf_path: str | Path | mujoco.MjSpec,
     uid: str,
     fix_root_link: bool = True,
     disable_self_collisions: bool = False,
     override: bool = False,
 ) -> type[MJCFAgent]:
     """Register the robot of `mjcf_path` with ManiSkill as `uid` (then `gym.make(..., robot_uids=uid)`). The file
-    is loaded once here, in a scene of its own, for its keyframes and servos."""
-    path = str(Path(mjcf_path).resolve())
+    is loaded once here, in a scene of its own, for its keyframes and servos. An `MjSpec` (built or edited in Python)
+    is compiled as it is, here and at every build of the robot."""
+    path = mjcf_path if isinstance(mjcf_path, mujoco.MjSpec) else str(Path(mjcf_path).resolve())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the env's load warns its notes
         reference = CoreLoader().load(path)

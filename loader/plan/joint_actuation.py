@@ -239,5 +239,21 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[st
         (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
         (int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_IMPLICIT), "the implicit integrator's Coriolis"),
         (np.any(model.actuator_biasprm[:, 2] > 0), "an actuator's positive velocity gain (explicit here)"),
+        (_tendon_kv_crosses(model), "the velocity cross terms of an actuator on a fixed tendon (explicit here)"),
     ]
     return [what for present, what in checks if present]
+
+
+def _tendon_kv_crosses(model: mujoco.MjModel) -> bool:
+    """Whether an actuator with a velocity gain MuJoCo's implicit integrators take implicitly drives a tendon over
+    several joints: its -b2 m m^T couples them, and the drives hold only the diagonal."""
+    if int(model.opt.integrator) in EXPLICIT_ACTUATORS:
+        return False
+    tendon = TRANSMISSIONS[1]
+    return any(
+        int(model.actuator_trntype[a]) == tendon
+        and int(model.actuator_biastype[a]) == BIASES[1]
+        and model.actuator_biasprm[a, 2] < 0
+        and int(model.tendon_num[model.actuator_trnid[a, 0]]) > 1
+        for a in range(model.nu)
+    )

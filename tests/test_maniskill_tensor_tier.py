@@ -1,0 +1,99 @@
+"""The opt-in `maniskill_tensor` tier (conformance/tiers/maniskill.py): `mujoco_ctrl_tensor` judged through
+ManiSkill's `env.step`, with what the law does not carry and the harness can remove taken out of both sides, and
+what stays named. Each check is shown to bite with a deliberate mistake."""
+
+from __future__ import annotations
+
+import importlib
+import warnings
+
+import pytest
+from support.corpus import suite_path
+
+pytest.importorskip("torch", reason="torch is not installed (the `maniskill` extra)")
+pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
+
+from conformance import gaps, isolation, tolerances
+from conformance.session import open_session
+from conformance.tiers import TIERS
+
+TIER = "maniskill_tensor"
+TOL = tolerances.load()
+tier_module = importlib.import_module("conformance.tiers.maniskill")
+
+
+def _session(name: str):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return open_session(str(suite_path(name)))
+
+
+def _judged(name: str):
+    session = _session(name)
+    return TIERS[TIER](session.result, session.model, 0, TOL)
+
+
+@pytest.mark.parametrize("mistake", [None, "limits_left_in"])
+def test_the_tier_takes_the_limits_out_of_both_sides(monkeypatch, mistake):
+    """The hopper folds into its joint limits within the tier's run: MuJoCo's soft limits against PhysX's hard ones,
+    which the law does not carry. With them taken out of both sides (and said so), the law passes; left in, it
+    fails."""
+    if mistake:
+        monkeypatch.setattr(tier_module, "TENSOR_GAPS", ())
+    report = _judged("hopper")
+    assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
+    assert any("taken out of both sides" in note and "limits" in note for note in report.notes) == (mistake is None)
+
+
+@pytest.mark.parametrize("mistake", [None, "gain_off"])
+def test_the_tier_catches_a_law_with_its_gains_two_percent_off(monkeypatch, mistake):
+    """The cheetah's law passes; with every actuator's gain 2 % off in the plan the robot is registered with, the
+    same tier fails."""
+    from loader.maniskill import agent
+
+    if mistake:
+        plan = agent.plan_joint_actuation
+
+        def off(*args, **kwargs):
+            law = plan(*args, **kwargs)
+            law.gain = law.gain * 1.02
+            return law
+
+        monkeypatch.setattr(agent, "plan_joint_actuation", off)
+    assert _judged("cheetah").status == ("pass" if mistake is None else "fail")
+
+
+def test_a_floating_root_is_named_and_welding_it_passes():
+    """The humanoid's law fails on its floating root (PhysX's step conserves momentum where MuJoCo's keeps qvel: the
+    per-step terms' momentum settle, which the law lacks), named in the notes; with the root welded on both sides
+    (the `free_root` gap, run only where claimed) the same tier passes."""
+    report = _judged("humanoid")
+    assert report.status == "fail"
+    assert any("left in" in note and "floating root" in note for note in report.notes)
+    model = _session("humanoid").model
+    assert "free_root" not in gaps.present_gaps(model)
+    welded = isolation.run_without(str(suite_path("humanoid")), TIER, ("free_root",), 0, TOL)
+    assert welded["outcome"] == "pass", welded
+
+
+@pytest.mark.parametrize("mistake", [None, "act_not_set"])
+def test_each_sample_starts_the_law_at_mujocos_activations(tmp_path, monkeypatch, mistake):
+    """The plan tests' chain with a filter, an integrator and an exact filter acting early (its fixed tendon
+    actuator left out: its velocity cross terms are explicit in the law): each one-step sample sets MuJoCo's state,
+    its activations among it, and the law starts from them, so the tier passes. Mutation: the law's activations left
+    as the last sample ended them."""
+    from test_joint_actuation import ACTUATED
+
+    tendon = '<general tendon="t" gear="1.5" gainprm="3" biastype="affine" biasprm="0 -4 -1.5" forcerange="-2 2"/>'
+    xml = ACTUATED.format(integrator="implicitfast")
+    assert tendon in xml
+    path = tmp_path / "activated_chain.xml"
+    path.write_text(xml.replace(tendon, ""))
+    if mistake:
+        monkeypatch.setattr(tier_module.ThroughTensorEnv, "set_act", lambda self, act: self.result.set_act(act))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = open_session(str(path))
+    assert session.model.na == 3
+    report = TIERS[TIER](session.result, session.model, 0, TOL)
+    assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
