@@ -122,7 +122,11 @@ def empty_env(uid: str, mode: str, sim_freq: int, control_freq: int, scene_confi
 
 
 def _env_skip(result, model: mujoco.MjModel, tier: str, tolerances: Tolerances) -> TierReport | None:
-    """Why the model cannot be judged through ManiSkill's env, or None."""
+    """Why the model cannot be judged through ManiSkill's env (without mani_skill, for one), or None."""
+    try:
+        import mani_skill.envs  # noqa: F401  registers Empty-v1
+    except ImportError as exc:
+        return skipped(tier, f"mani_skill is not installed (the maniskill extra): {exc}")
     sim_freq = _frequency(model)
     if np.float32(1.0 / sim_freq) != np.float32(model.opt.timestep):
         return skipped(tier, f"the timestep {model.opt.timestep:g} s is not 1/n s: ManiSkill sets a frequency")
@@ -140,15 +144,11 @@ def _uid(tier: str, path) -> str:
 
 
 def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    try:
-        import mani_skill.envs  # noqa: F401  registers Empty-v1
-
-        from loader.maniskill import register_agent
-    except ImportError as exc:
-        return skipped(TIER, f"mani_skill is not installed (the maniskill extra): {exc}")
     skip = _env_skip(result, model, TIER, tolerances)
     if skip is not None:
         return skip
+    from loader.maniskill import register_agent
+
     uid, sim_freq = _uid(TIER, result.path), _frequency(model)
     scene_config = {"gravity": np.asarray(matched_config(model).gravity).tolist()}  # ManiSkill's solver: TGS
     with warnings.catch_warnings():
@@ -170,15 +170,11 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
 
 
 def maniskill_tensor(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
-    try:
-        import mani_skill.envs  # noqa: F401  registers Empty-v1
-
-        from loader.maniskill import register_agent
-    except ImportError as exc:
-        return skipped(TENSOR_TIER, f"mani_skill is not installed (the maniskill extra): {exc}")
     skip = _env_skip(result, model, TENSOR_TIER, tolerances)
     if skip is not None:
         return skip
+    from loader.maniskill import register_agent
+
     gaps = tuple(name for name in TENSOR_GAPS if GAPS[name].present(model))
     uid, sim_freq = _uid(TENSOR_TIER, result.path), _frequency(model)
     with warnings.catch_warnings():
