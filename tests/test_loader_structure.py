@@ -593,3 +593,29 @@ def test_a_timed_controller_sums_each_stages_seconds_and_stops_when_asked():
     controller.timed(False)
     result.set_ctrl(None)
     assert timings == seen and controller.timings is None  # no longer timed
+
+
+# the mistake: the ellipsoid's sphere points made unique with np.unique(axis=0), whose first call imports numpy.ma
+UNIQUE_BY_NUMPY = (
+    "import numpy as np, loader.plan.geom as geom; points = geom.unit_sphere_points; "
+    "geom.unit_sphere_points = lambda n=7: np.unique(points(n), axis=0); "
+)
+
+
+@pytest.mark.parametrize("mistake", [None, "unique_by_numpy"])
+def test_a_cold_load_imports_no_module_beyond_its_own(mistake):
+    """A fresh process that loads the corpus models with an ellipsoid (fish, swimmer, quadruped) imports nothing
+    numpy keeps lazy: numpy.ma's import alone would be most of such a cold load's time beyond MuJoCo's compile.
+    Mutation: the ellipsoid's sphere points made unique with np.unique(axis=0), which imports it."""
+    import subprocess
+    import sys
+
+    paths = [str(suite_path(name)) for name in ("fish", "swimmer", "quadruped")]
+    code = (
+        "import sys, warnings; warnings.simplefilter('ignore'); import loader; "
+        + (UNIQUE_BY_NUMPY if mistake else "")
+        + "[loader.MJCFLoader().load(p) for p in sys.argv[1:]]; "
+        "print(sorted(m for m in ('numpy.ma', 'scipy', 'trimesh') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code, *paths], capture_output=True, text=True, check=True)
+    assert (done.stdout.strip().splitlines()[-1] == "[]") == (mistake is None), done.stdout

@@ -74,7 +74,9 @@ def unit_sphere_points(n: int = 7) -> np.ndarray:
             v = np.array([i, j, k], dtype=np.float64)
             for signs in np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).T.reshape(-1, 3):
                 points.append(v * signs)
-    points = np.unique(np.array(points), axis=0)
+    # each point once, rows in lexicographic order; a set of tuples rather than np.unique(axis=0), whose first call
+    # imports numpy.ma, a cold load's largest single cost on a model with an ellipsoid
+    points = np.array(sorted({tuple(p) for p in np.array(points).tolist()}))
     return (points / np.linalg.norm(points, axis=1, keepdims=True)).astype(np.float32)
 
 
