@@ -145,6 +145,26 @@ def test_a_model_without_rows_on_rk4_is_stepped_by_mujocos_euler(tmp_path):
     assert worst(mistaken) > 10 * TOLERANCE
 
 
+@pytest.mark.parametrize("law, mistake", [("mujoco_step", None), ("terms", None), ("terms", "damping_implicit")])
+def test_rk4_without_eulerdamp_damps_explicitly_under_either_law(tmp_path, monkeypatch, law, mistake):
+    """The damped pendulum on RK4 with `eulerdamp` disabled: the loader simulates RK4 as Euler, whose damping is then
+    explicit, so both laws follow MuJoCo's Euler without implicit damping. Mutation: the damping rule reading RK4 as
+    implicit, as it did for the terms (`mj.explicit_damping`); MuJoCo's own step gives v1 whatever its drives hold."""
+    from loader.model import mj
+
+    if mistake:
+        monkeypatch.setattr(mj, "EULER_LIKE", (int(mujoco.mjtIntegrator.mjINT_EULER),))
+    path = mjcf_file(
+        tmp_path, RK4.replace('<flag contact="disable"/>', '<flag contact="disable" eulerdamp="disable"/>')
+    )
+    result = _load(path)
+    result.controller.use_mujoco_step(law == "mujoco_step")
+    euler = mujoco.MjModel.from_xml_path(str(path))
+    euler.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    worst = float(replay(result, result.model, lambda step, data: np.sin(0.05 * step), 0.5, reference=euler).max())
+    assert (worst < TOLERANCE) == (mistake is None), worst
+
+
 def _pushed_then_let_go(path) -> float:
     """The worst joint position difference over 0.5 s from qpos0, the caller's `qfrc_applied` on every DoF for the
     first 0.1 s and none after, zero ctrl, contacts off: MuJoCo's step driving SAPIEN against MuJoCo."""

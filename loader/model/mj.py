@@ -56,10 +56,14 @@ def gravity(model: mujoco.MjModel) -> np.ndarray:
     return np.zeros(3) if disabled(model, "gravity") else np.array(model.opt.gravity, np.float64)
 
 
+EULER_LIKE = (int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4))  # RK4: simulated as Euler
+
+
 def explicit_damping(model: mujoco.MjModel) -> bool:
-    """Whether MuJoCo takes joint damping explicitly: Euler with `eulerdamp` disabled. Euler otherwise and the
-    implicit integrators take it implicitly (and RK4, which the loader simulates as Euler)."""
-    return int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_EULER) and disabled(model, "eulerdamp")
+    """Whether MuJoCo takes joint damping explicitly: Euler with `eulerdamp` disabled (and RK4, which the loader
+    simulates as Euler). Euler otherwise and the implicit integrators take it implicitly
+    (tests/test_loader_mujoco_step.py::test_rk4_without_eulerdamp_damps_explicitly_under_either_law)."""
+    return int(model.opt.integrator) in EULER_LIKE and disabled(model, "eulerdamp")
 
 
 _AT_QPOS0: ContextVar[tuple[mujoco.MjModel, mujoco.MjData] | None] = ContextVar("at_qpos0", default=None)

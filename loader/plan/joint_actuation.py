@@ -47,7 +47,7 @@ INTEGRATOR, FILTER, FILTEREXACT = (
 DYNAMICS = (NO_DYNAMICS, INTEGRATOR, FILTER, FILTEREXACT)  # the activations the law steps itself
 FIXED_GAIN = int(mujoco.mjtGain.mjGAIN_FIXED)
 BIASES = (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE))
-EXPLICIT_ACTUATORS = (int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4))
+EXPLICIT_ACTUATORS = mj.EULER_LIKE  # an actuator's kv is explicit there (RK4: simulated as Euler)
 
 
 @dataclass
@@ -105,7 +105,7 @@ def plan_joint_actuation(
     ctrl_range = np.where(clamps, model.actuator_ctrlrange.T, [[-np.inf], [np.inf]])
     force_range = np.where(model.actuator_forcelimited.astype(bool), model.actuator_forcerange.T, [[-np.inf], [np.inf]])
     stiffness, spring_ref, damping, joint_range = _joint_arrays(model, dof_of_joint, ndof)
-    damped_explicitly = not implicit and mj.disabled(model, "eulerdamp")
+    damped_explicitly = mj.explicit_damping(model)
     moment = _moment(model, dof_of_joint, ndof)
     held_terms = held_damping(held, bias, moment)
     dynamics = model.actuator_dyntype.astype(np.int64)

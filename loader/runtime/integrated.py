@@ -1,7 +1,7 @@
 """The constraint force MuJoCo's step integrates, from a solve of MuJoCo's copy (`rows.py`).
 
 Its implicit integrators, and Euler with implicit damping, solve for the acceleration from `qfrc_constraint`. Euler
-without implicit damping (and RK4, stage by stage) integrates the solver's own qacc, which a solver stopped before
+without implicit damping (and RK4, simulated as Euler) integrates the solver's own qacc, which a solver stopped before
 convergence (`iterations="1"`) leaves short of `qfrc_constraint`'s: there the force is M (qacc - qacc_smooth) less
 the contact rows' J^T f, and it can push a free joint, whose share goes on the root link as a wrench.
 (tests/test_loader_unconverged.py)
@@ -17,13 +17,11 @@ from ..model.frames import cross, quat_to_mat
 from ..model.joints import FREE
 from ..model.mapping import Mapping
 
-EULER, RK4 = int(mujoco.mjtIntegrator.mjINT_EULER), int(mujoco.mjtIntegrator.mjINT_RK4)
-
 
 def accelerated(model: mujoco.MjModel) -> bool:
     """Whether MuJoCo's step integrates the solver's qacc (not an acceleration solved from the forces)."""
-    integrator = int(model.opt.integrator)
-    return integrator == RK4 or (integrator == EULER and (mj.explicit_damping(model) or not np.any(model.dof_damping)))
+    euler = int(model.opt.integrator) in mj.EULER_LIKE
+    return euler and (mj.explicit_damping(model) or not np.any(model.dof_damping))
 
 
 def integrated_force(model: mujoco.MjModel, data: mujoco.MjData, rows: np.ndarray | None, qacc: bool) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 from ..model import mj
 from .dof_step import DofLayout, Step
 from .drive_forces import DriveForces
+from .integrated import accelerated
 from .rows import RowTerm, solve
 from .term import Handover
 
@@ -78,9 +79,7 @@ class MujocoStep:
         self.rows, self.writer = rows, writer
         self.integrate = INTEGRATORS[int(model.opt.integrator)]
         # Euler without implicit damping integrates the solver's acceleration, not one solved from the forces
-        self.accelerated = int(model.opt.integrator) in (EULER, RK4) and (
-            mj.disabled(model, "eulerdamp") or not np.any(model.dof_damping)
-        )
+        self.accelerated = accelerated(model)
         self.change, self.force = np.zeros(model.nv), np.zeros(model.nv)
         # per drive DoF, the damping its PhysX drive holds toward v1 (none where MuJoCo integrates the forces)
         self.damping = np.zeros_like(damping) if self.accelerated else damping
