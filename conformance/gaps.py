@@ -8,6 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 
 from loader.model import mj
 
@@ -29,6 +30,12 @@ def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
 def _no_fluid(spec: mujoco.MjSpec) -> None:
     spec.option.density = 0.0
     spec.option.viscosity = 0.0
+
+
+def _no_tendon_springs(spec: mujoco.MjSpec) -> None:
+    for tendon in spec.tendons:
+        tendon.stiffness = np.zeros_like(tendon.stiffness)
+        tendon.damping = np.zeros_like(tendon.damping)
 
 
 def _half_timestep(spec: mujoco.MjSpec) -> None:
@@ -78,6 +85,13 @@ GAPS = {
             "fluid density and viscosity zeroed (the loader's explicit fluid forces against MuJoCo's)",
             lambda m: m.opt.density > 0 or m.opt.viscosity > 0,
             _no_fluid,
+        ),
+        Gap(
+            "tendon_springs",
+            "tendon stiffness and damping zeroed (the per-step terms carry them; the joint actuation law does not)",
+            lambda m: bool(m.ntendon and (m.tendon_stiffness.any() or m.tendon_damping.any())),
+            _no_tendon_springs,
+            automatic=False,
         ),
         Gap(
             "free_root",

@@ -1,11 +1,11 @@
 """Isolation: a failing dynamics-type tier is run again with the model's known gaps taken out, on both sides.
 
 Each gap is an edit of the model's `MjSpec` (`gaps.py`: frictionloss zeroed, equalities or limits disabled, fluid
-off, the timestep halved; a floating root welded, only where an expectation claims it); MuJoCo compiles the edited
-spec and the loader loads the same spec, so both simulators see the same change. The tier then runs as usual. Its
-numbers, gap by gap and all gaps together, say which gap the failure comes from: a model whose actuators are mapped
-right passes once the gaps PhysX cannot express are out, and a mapping error (a wrong kp, a flipped gear) survives
-every edit.
+off, the timestep halved; a floating root welded or tendon springs zeroed, only where an expectation claims it);
+MuJoCo compiles the edited spec and the loader loads the same spec, so both simulators see the same change. The tier
+then runs as usual. Its numbers, gap by gap and all gaps together, say which gap the failure comes from: a model
+whose actuators are mapped right passes once the gaps PhysX cannot express are out, and a mapping error (a wrong kp,
+a flipped gear) survives every edit.
 The half timestep separates integrator differences from force errors: one-step velocity errors from a force
 mismatch halve with dt (order 1), an integration difference shrinks four times (order 2). Order 2 also fits a
 force error that is itself O(dt): the velocity-product drift PhysX's slide drives measured

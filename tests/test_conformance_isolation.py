@@ -70,6 +70,20 @@ def test_a_floating_root_is_welded_only_where_claimed(tmp_path):
     assert not gaps.GAPS["free_root"].present(welded)
 
 
+def test_tendon_springs_are_zeroed_only_where_claimed():
+    """The `tendon_springs` gap zeroes every tendon's stiffness and damping (the fish's fin spring, here), which the
+    joint actuation law does not carry; like `free_root`, it runs only where claimed or where a tier asks for it."""
+    from support.corpus import suite_path
+
+    path = str(suite_path("fish"))
+    base = mujoco.MjModel.from_xml_path(path)
+    assert base.tendon_stiffness.any() and gaps.GAPS["tendon_springs"].present(base)
+    assert "tendon_springs" not in gaps.present_gaps(base)
+    edited = gaps.edited_spec(path, ("tendon_springs",)).compile()
+    assert not edited.tendon_stiffness.any() and not edited.tendon_damping.any()
+    assert np.array_equal(edited.tendon_lengthspring, base.tendon_lengthspring)
+
+
 def test_the_tier_fails_with_the_friction_and_passes_without_it(friction_arm, dropped_friction):
     full = isolation.run_without(friction_arm, "actuated", (), 0, TOL)
     assert full["outcome"] == "fail"

@@ -12,10 +12,11 @@ builds one robot); and wherever `actuated` skips.
 Tier `maniskill_tensor` (opt-in: `--tiers maniskill_tensor`) judges `mujoco_ctrl_tensor`, the joint actuation law on
 ManiSkill's tensors that its GPU backend runs, the same way on the CPU backend under PGS (the law's drives match
 MuJoCo's implicit damping under PGS only). What the law does not carry and the harness can take out of both sides
-(joint limits, frictionloss, equalities, fluid: conformance/gaps.py) is taken out of MuJoCo's model and the
-robot's alike, and named in the notes, so that the tier judges the law itself against actuated's tolerances; what
-else the law leaves out (`JointActuation.not_carried`: a floating root, tendon springs, ...) stays in and is named
-too. Skipped, with the reason, where the robot is outside the law, and wherever `maniskill` skips."""
+(joint limits, frictionloss, equalities, fluid, tendon springs: conformance/gaps.py) is taken out of MuJoCo's model
+and the robot's alike, and named in the notes, so that the tier judges the law itself against actuated's
+tolerances; what else the law leaves out (`JointActuation.not_carried`: a floating root, a tendon actuator's kv
+cross terms, ...) stays in and is named too. Skipped, with the reason, where the robot is outside the law, and
+wherever `maniskill` skips."""
 
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ from .actuated import actuated, unmapped_reason
 TIER = "maniskill"
 TENSOR_TIER = "maniskill_tensor"
 # what `mujoco_ctrl_tensor` does not carry that the harness takes out of both sides (conformance/gaps.py)
-TENSOR_GAPS = ("limits", "frictionloss", "equality", "fluid")
+TENSOR_GAPS = ("limits", "frictionloss", "equality", "fluid", "tendon_springs")
 TGS_TOLERANCES = ("one_step_qvel_fixed", "rollout_qpos_fixed")  # `[tolerance.maniskill]` replaces actuated's
 
 

@@ -229,7 +229,9 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[st
         ),
         (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss", "constraint"), "frictionloss"),
         (
-            np.any(model.tendon_stiffness) or np.any(model.tendon_damping) or np.any(model.tendon_limited),
+            np.any(model.tendon_stiffness)
+            or np.any(model.tendon_damping)
+            or (np.any(model.tendon_limited) and not mj.disabled(model, "limit", "constraint")),
             "tendon springs, dampers and limits",
         ),
         (np.any(model.tendon_frictionloss > 0), "tendon frictionloss"),
