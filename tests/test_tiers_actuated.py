@@ -287,3 +287,19 @@ def test_a_reference_that_blows_up_is_skipped_not_judged(tmp_path, integrator):
         assert report.status == "skipped" and "unstable under EULER" in report.notes[0], report.to_dict()
     else:
         assert report.status == "pass", report.to_dict()
+
+
+@pytest.mark.parametrize("pair", [False, True])
+def test_a_model_whose_geoms_cannot_touch_skips_the_contact_run_saying_so(tmp_path, pair):
+    """Every geom's contype and conaffinity 0 (a gymnasium swimmer's defaults): `actuated_contact` has nothing to
+    judge and says why, rather than blaming an earlier tier for SAPIEN's contacts. One explicit <pair> (floor and
+    upper arm) is a contact MuJoCo may make: then the tier is not skipped for that reason."""
+    text = ARM.replace("<worldbody>", '<default><geom contype="0" conaffinity="0"/></default><worldbody>', 1)
+    if pair:
+        text = text.replace(
+            '<geom type="capsule" fromto="0 0 0 0 0 -0.3"', '<geom name="arm" type="capsule" fromto="0 0 0 0 0 -0.3"'
+        )
+        text = text.replace("</tendon>", '</tendon><contact><pair geom1="floor" geom2="arm"/></contact>')
+    report = _tier(_session(_write(tmp_path, text)), "actuated_contact")
+    cannot = report.status == "skipped" and "no geom can make a contact" in report.notes[0]
+    assert cannot == (not pair), (report.status, report.notes[:1])

@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from loader.model.mj import fixed_tendon_terms
+from loader.plan.geom import collides
 from loader.runtime.dof_step import clear_qf
 from loader.runtime.tendons import TendonPaths
 from loader.runtime.transmissions import MomentPaths, MuscleLaws
@@ -309,6 +310,8 @@ def reference_run(
         return skipped(tier, "the model disables contact (contact or constraint flag)")
     if contact and not carried(result, model):
         return skipped(tier, "no MuJoCo body is carried by an articulation link")
+    if contact and not any(collides(model, g) for g in range(model.ngeom)):
+        return skipped(tier, "no geom can make a contact (every contype and conaffinity is 0, and no <pair>)")
     if contact and not sapien_side.contacts_enabled(result):
         return skipped(tier, "the SAPIEN scene has its contacts turned off (run before dynamics)")
     ref, matched, removal = reference_model(result, model, contact=contact)
