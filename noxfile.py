@@ -62,9 +62,10 @@ def tests(session: nox.Session) -> None:
 def maniskill(session: nox.Session) -> None:
     """`loader.maniskill` inside ManiSkill 3.0.1 (tests/test_maniskill.py, tests/test_maniskill_joint_actuation.py),
     the `maniskill_tensor` tier's tests (tests/test_maniskill_tensor_tier.py) and the `maniskill` tier's mutation
-    test, which skip elsewhere; with `-- bench`, `Empty-v1`'s throughput under
-    `mujoco_ctrl` against `pd_joint_pos` (`conformance/maniskill_bench.py`). Not part of `tests`: the extra brings
-    torch, whose default Linux wheel pulls CUDA; here its CPU build is installed first."""
+    test, which skip elsewhere, then the `maniskill` and `maniskill_tensor` tiers over the default corpus; with
+    `-- bench`, `Empty-v1`'s throughput under `mujoco_ctrl` against `pd_joint_pos` (`conformance/maniskill_bench.py`).
+    Not part of `tests`: the extra brings torch, whose default Linux wheel pulls CUDA; here its CPU build is installed
+    first."""
     session.install("torch==2.13.0", "--extra-index-url", "https://download.pytorch.org/whl/cpu")
     install(session, "harness", "menagerie", "maniskill", "test")
     if session.posargs[:1] == ["bench"]:  # `nox -s maniskill -- bench`: Empty-v1's throughput per control mode
@@ -78,6 +79,10 @@ def maniskill(session: nox.Session) -> None:
         mutation,
     ]
     session.run("python", "-m", "pytest", *tests, *session.posargs)
+    # both ManiSkill tiers over the default corpus against the manifest, whose expectations for them (and the gaps
+    # their failures claim, `passes_without`) are then re-checked on every run
+    tiers = ["--tiers", "maniskill,maniskill_tensor", "--no-record", "--quiet", "--out", "reports/maniskill"]
+    session.run("python", "-m", "conformance", "run", *tiers)
 
 
 @nox.session(venv_backend="none")
