@@ -116,15 +116,16 @@ def present_gaps(model: mujoco.MjModel) -> list[str]:
 
 
 def edited_spec(path: str, gaps: tuple[str, ...]) -> mujoco.MjSpec:
-    spec = mujoco.MjSpec.from_file(str(path))
-    for name in gaps:
-        GAPS[name].remove(spec)
-    return spec
+    """The file's spec with `gaps` taken out."""
+    return _taken_out(mujoco.MjSpec.from_file(str(path)), gaps)
 
 
 def without(spec: mujoco.MjSpec, gaps: tuple[str, ...]) -> mujoco.MjSpec:
     """A copy of `spec` with `gaps` taken out."""
-    copy = spec.copy()
+    return _taken_out(spec.copy(), gaps)
+
+
+def _taken_out(spec: mujoco.MjSpec, gaps: tuple[str, ...]) -> mujoco.MjSpec:
     for name in gaps:
-        GAPS[name].remove(copy)
-    return copy
+        GAPS[name].remove(spec)
+    return spec

@@ -180,7 +180,8 @@ def maniskill_tensor(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     uid, sim_freq = _uid(TENSOR_TIER, result.path), _frequency(model)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        agent = register_agent(without(result.spec, gaps), uid, override=True)
+        spec = without(result.spec, gaps)  # the robot's and, compiled, MuJoCo's side: the same gaps out of both
+        agent = register_agent(spec, uid, override=True)
     law = agent.joint_actuation
     if isinstance(law, str):
         return skipped(TENSOR_TIER, f"outside mujoco_ctrl_tensor's law: {law}")
@@ -191,8 +192,7 @@ def maniskill_tensor(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     try:
         env.reset(seed=seed)
         (agent_result,) = env.unwrapped.agent.results
-        edited = without(result.spec, gaps).compile()  # MuJoCo's side, without the same gaps
-        report = actuated(ThroughTensorEnv(agent_result, env), edited, seed, tolerances)
+        report = actuated(ThroughTensorEnv(agent_result, env), spec.compile(), seed, tolerances)
     finally:
         env.close()
     taken = [f"taken out of both sides, which the law does not carry: {GAPS[name].what}" for name in gaps]

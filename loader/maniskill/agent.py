@@ -67,9 +67,11 @@ class MJCFAgent(BaseAgent):
         (its scene's `_reset_mask`, which its own PD controllers read) only while it resets the agent."""
         super().reset(init_qpos)
         mask = getattr(self.scene, "_reset_mask", None)
+        if mask is None:
+            return
         active = self.controllers.get(self._control_mode)
         for controller in getattr(active, "controllers", {}).values():
-            if isinstance(controller, JointActuationController) and mask is not None:
+            if isinstance(controller, JointActuationController):
                 controller.resetting = mask.clone()
 
     @property

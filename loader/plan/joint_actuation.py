@@ -130,7 +130,7 @@ def plan_joint_actuation(
         held_terms + (0.0 if damped_explicitly else damping),
         damping if damped_explicitly else np.zeros(ndof),
         _weightless(model, link_of_body or {}),
-        _not_carried(model, link_of_body or {}),
+        _not_carried(model, link_of_body or {}, _crossed(held, moment)),
     )
 
 
@@ -215,8 +215,15 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
     return [int(model.wrap_objid[w]) for w in wraps]
 
 
-def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[str]:
-    """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
+def _crossed(held: np.ndarray, moment: np.ndarray) -> bool:
+    """Whether an actuator whose velocity term the drives hold moves several DoFs (a fixed tendon over joints): its
+    -b2 m m^T couples them, and the drives hold only the diagonal."""
+    return bool(np.any((held > 0) & (np.count_nonzero(moment, axis=1) > 1)))
+
+
+def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], crossed: bool) -> list[str]:
+    """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path (`crossed`:
+    a held velocity term's cross terms, `_crossed`)."""
     free = int(mujoco.mjtJoint.mjJNT_FREE)
     floating = any(
         int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in link_of_body for j in range(model.njnt)
@@ -241,21 +248,6 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[st
         (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
         (int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_IMPLICIT), "the implicit integrator's Coriolis"),
         (np.any(model.actuator_biasprm[:, 2] > 0), "an actuator's positive velocity gain (explicit here)"),
-        (_tendon_kv_crosses(model), "the velocity cross terms of an actuator on a fixed tendon (explicit here)"),
+        (crossed, "the velocity cross terms of an actuator on a fixed tendon (explicit here)"),
     ]
     return [what for present, what in checks if present]
-
-
-def _tendon_kv_crosses(model: mujoco.MjModel) -> bool:
-    """Whether an actuator with a velocity gain MuJoCo's implicit integrators take implicitly drives a tendon over
-    several joints: its -b2 m m^T couples them, and the drives hold only the diagonal."""
-    if int(model.opt.integrator) in EXPLICIT_ACTUATORS:
-        return False
-    tendon = TRANSMISSIONS[1]
-    return any(
-        int(model.actuator_trntype[a]) == tendon
-        and int(model.actuator_biastype[a]) == BIASES[1]
-        and model.actuator_biasprm[a, 2] < 0
-        and int(model.tendon_num[model.actuator_trnid[a, 0]]) > 1
-        for a in range(model.nu)
-    )
