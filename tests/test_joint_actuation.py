@@ -112,16 +112,63 @@ def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
     assert FLOATING_ROOT not in fixed.not_carried
 
 
+# a hinge carrying two slides on separate branches (a gripper's fingers), one fixed tendon servo over both
+SIBLINGS = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
+  <worldbody><body name="hand"><joint name="h" axis="0 0 1" damping="0.2"/>
+    <geom type="box" size=".05 .02 .02" mass=".6"/>
+    <body name="left" pos="0 .03 0"><joint name="l" type="slide" axis="0 1 0" damping="1"/>
+      <geom type="box" size=".01 .01 .03" mass=".02"/></body>
+    <body name="right" pos="0 -.03 0"><joint name="r" type="slide" axis="0 -1 0" damping="1"/>
+      <geom type="box" size=".01 .01 .03" mass=".02"/></body></body></worldbody>
+  <tendon><fixed name="split"><joint joint="l" coef="0.5"/><joint joint="r" coef="0.5"/></fixed></tendon>
+  <actuator><position tendon="split" kp="100" kv="5" ctrlrange="0 .04" forcerange="-20 20"/>
+    <motor joint="h" ctrlrange="-1 1"/></actuator></mujoco>"""
+
+
+def _implicit_matrix(plan, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """The plan's D (the negated velocity derivative MuJoCo's step takes implicitly) at `data`: the implicit dampers,
+    and each actuator's velocity gain over the DoF pairs on one chain, but an actuator's on its forcerange."""
+    low, high = plan.force_range
+    free = (data.actuator_force > low) & (data.actuator_force < high)
+    moment = plan.moment * (plan.velocity_gain * free)[:, None]
+    return (moment.T @ plan.moment) * plan.chained + np.diag(plan.implicit_damping)
+
+
+@pytest.mark.parametrize("mistake", [None, "cross_terms_everywhere", "cross_terms_nowhere", "kv_explicit"])
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
-def test_a_tendon_actuators_velocity_cross_terms_are_named_where_mujoco_takes_them_implicitly(integrator):
-    """The chain's fixed tendon actuator (kv 1.5 over two joints): under implicitfast MuJoCo takes its -kv m m^T
-    implicitly and the drives hold only the diagonal, so the cross terms are named; under Euler kv is explicit in
-    MuJoCo too. Without that actuator nothing is named."""
-    cross = "the velocity cross terms of an actuator on a fixed tendon (explicit here)"
-    xml = ACTUATED.format(integrator=integrator)
-    plan = plan_joint_actuation(mujoco.MjModel.from_xml_string(xml), DOF_OF_JOINT, 3)
-    assert (cross in plan.not_carried) == (integrator == "implicitfast")
-    tendon = '<general tendon="t" gear="1.5" gainprm="3" biastype="affine" biasprm="0 -4 -1.5" forcerange="-2 2"/>'
-    assert tendon in xml
-    plan = plan_joint_actuation(mujoco.MjModel.from_xml_string(xml.replace(tendon, "")), DOF_OF_JOINT, 3)
-    assert cross not in plan.not_carried
+@pytest.mark.parametrize("fixture", ["chain", "siblings"])
+def test_the_planned_implicit_derivative_is_mujocos_step(fixture, integrator, mistake):
+    """MuJoCo's step solves (M + dt D) (v1 - v0) = dt (f - c), and the plan's D gives its v1 (MuJoCo's M, f and c;
+    random states, some binding a clamp): its dampers, and under implicitfast each actuator's -b2 m m^T, whose cross
+    terms MuJoCo keeps between DoFs on one chain (the chain's tendon over a hinge and a slide below it) and drops
+    across branches (the fingers' tendon). Each mistake misses one fixture under one integrator at least: the cross
+    terms everywhere (the fingers), nowhere (the chain), the actuators' kv explicit (implicitfast)."""
+    xml = (ACTUATED if fixture == "chain" else SIBLINGS).format(integrator=integrator)
+    model = mujoco.MjModel.from_xml_string(xml)
+    dofs = {j: j for j in range(model.njnt)}
+    plan = plan_joint_actuation(model, dofs, model.nv)
+    if mistake == "cross_terms_everywhere":
+        plan.chained[:] = True
+    elif mistake == "cross_terms_nowhere":
+        plan.chained[:] = np.eye(model.nv, dtype=bool)
+    elif mistake == "kv_explicit":
+        plan.velocity_gain[:] = 0.0
+    data, rng, worst = mujoco.MjData(model), np.random.default_rng(0), 0.0
+    dense = np.zeros((model.nv, model.nv))
+    for _ in range(16):
+        mujoco.mj_resetData(model, data)
+        data.qpos[:], data.qvel[:] = rng.uniform(-0.02, 0.02, model.nq), rng.uniform(-1, 1, model.nv)
+        data.ctrl[:] = rng.uniform(*model.actuator_ctrlrange.T) * 0.2
+        mujoco.mj_forward(model, data)
+        mujoco.mj_fullM(model, data, dense)
+        force = data.qfrc_actuator + data.qfrc_passive - data.qfrc_bias
+        step = model.opt.timestep
+        expected = data.qvel + np.linalg.solve(dense + step * _implicit_matrix(plan, model, data), step * force)
+        mujoco.mj_step(model, data)
+        worst = max(worst, float(np.abs(expected - data.qvel).max()))
+    wrong = {
+        "cross_terms_everywhere": fixture == "siblings" and integrator == "implicitfast",
+        "cross_terms_nowhere": fixture == "chain" and integrator == "implicitfast",
+        "kv_explicit": integrator == "implicitfast",
+    }.get(mistake, False)
+    assert (worst > 1e-9) == wrong, worst

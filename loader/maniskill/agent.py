@@ -23,6 +23,7 @@ from mani_skill.utils.structs.pose import Pose
 
 from ..mjcf_loader import MJCFLoader as CoreLoader
 from ..plan.joint_actuation import JointActuation, plan_joint_actuation, robot_indices
+from ..plan.rigid_tree import RigidTree, rigid_tree
 from ..servos import Motor, Servo, derive, motors
 from .joint_actuation import JointActuationConfig, JointActuationController
 from .mujoco_ctrl import MujocoCtrlConfig
@@ -40,6 +41,7 @@ class MJCFAgent(BaseAgent):
     ctrl_high: ClassVar[list[float]] = []
     # `mujoco_ctrl_tensor`'s law, or why the model's actuators are outside it
     joint_actuation: ClassVar[JointActuation | str] = "not planned"
+    rigid_tree: ClassVar[RigidTree | None] = None  # the robot's tree as built, for the law's M and c
 
     def _load_articulation(self, initial_pose=None):
         """The env's `initial_pose` places the file's world frame; the robot's root keeps its pose in it."""
@@ -109,7 +111,12 @@ class MJCFAgent(BaseAgent):
             configs["mujoco_ctrl_tensor"] = {
                 "balance_passive_force": False,
                 "ctrl": JointActuationConfig(
-                    joints, list(self.ctrl_low), list(self.ctrl_high), self.joint_actuation, self.results
+                    joints,
+                    list(self.ctrl_low),
+                    list(self.ctrl_high),
+                    self.joint_actuation,
+                    self.rigid_tree,
+                    self.results,
                 ),
             }
         return configs
@@ -187,6 +194,7 @@ def register_agent(
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
         "joint_actuation": plan_joint_actuation(model, dof_of_joint, articulation.dof, link_of_body),
+        "rigid_tree": rigid_tree(articulation),
     }
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)
     return registration.register_agent(override=override)(agent)

@@ -2,13 +2,19 @@
 (`loader/plan/joint_actuation.py`) written over (env, DoF) tensors, read from and written to ManiSkill's state
 tensors before every physics step, with no MuJoCo call and no per-env or per-DoF Python loop. The same torch code
 runs on the CPU backend (one env) and on the GPU backend (every sub-scene at once, the state fetched and `qf`
-applied on the device); the CPU tests exercise it, and no GPU has run it yet. Its drives match MuJoCo's implicit
-damping under PGS only: under TGS the mode warns (tests/test_maniskill_joint_actuation.py)."""
+applied on the device); the CPU tests exercise it, and no GPU has run it yet.
+
+Each step it solves MuJoCo's step of the joints from the state, with the robot's joint-space inertia M and bias c
+computed on the tensors (`inertia.py`), and writes the joint force that takes PhysX's joints to that step's end
+velocity v1, `qf = M (v1 - v0) / dt + c`: PhysX steps a joint force explicitly under either solver, so the mode
+follows MuJoCo under ManiSkill's default TGS as under PGS. The drives keep the implicit damping's diagonal, aimed at
+v1, where they hold nothing if PhysX's M is the law's; where float32 makes them differ (light links under heavy
+servos) they hold the joints to v1. A slide on a turning link keeps no drive: PhysX's drive measures its velocity
+short of the centripetal term (tests/test_maniskill_joint_actuation.py)."""
 
 from __future__ import annotations
 
-import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
@@ -16,18 +22,14 @@ from gymnasium import spaces
 from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
 from mani_skill.utils import common
 
-from ..errors import SceneMismatchWarning
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
-from ..plan.physx_settings import uses_tgs
+from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
+from .inertia import Inertia, mass_matrix_and_bias
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
-TGS_NOTE = (
-    "mujoco_ctrl_tensor: the drives hold MuJoCo's implicit damping under PGS; TGS damps a drive over its position "
-    "iterations and moves the joints elsewhere: set sim_config's scene_config enable_tgs=False"
-)
 
 
 class Law:
@@ -43,9 +45,8 @@ class Law:
         self.force_low, self.force_high = tensor(plan.force_range[0]), tensor(plan.force_range[1])
         self.joint_low, self.joint_high = tensor(plan.joint_range[0]), tensor(plan.joint_range[1])
         self.stiffness, self.spring_ref = tensor(plan.stiffness), tensor(plan.spring_ref)
-        self.held_damping = tensor(plan.held_damping())
-        self.drive_damping, self.explicit_damping = tensor(plan.drive_damping), tensor(plan.explicit_damping)
-        self.held_gain, self.moment_squared = tensor(plan.held * -plan.bias[2]), tensor(plan.moment**2)
+        self.damping, self.implicit_damping = tensor(plan.damping), tensor(plan.implicit_damping)
+        self.velocity_gain, self.chained = tensor(plan.velocity_gain), tensor(plan.chained)
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
         self.any_activated = bool(np.any(dynamics != NO_DYNAMICS))  # read on the host, never synced from a device
@@ -70,22 +71,9 @@ def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Te
     return torch.where(law.activated, torch.clamp(stepped, law.act_low, law.act_high), act)
 
 
-def joint_forces(
-    law: Law,
-    ctrl: torch.Tensor,
-    q: torch.Tensor,
-    v: torch.Tensor,
-    target: torch.Tensor | None = None,
-    act: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """The joint forces (env, DoF) the law writes as `qf` for `ctrl` (env, nu) at the state (q, v) (env, DoF), with
-    the drives aimed at the velocity `target` (None: v). MuJoCo's force at the step's start (the actuators', each
-    joint's sum within its range; the springs, the dampers it applies explicitly), less what the drives give: they
-    hold D (v1 - target) where MuJoCo's step holds -D v1 (its dampers, and the kv of each actuator whose clamp does
-    not bind), so the law adds D target back and puts each held kv's start term kv v in its place. A binding clamp's
-    kv has no implicit term in MuJoCo; its drive share is left aimed at `target`, so the nearer the target to the
-    end velocity, the less it pulls: the controller aims at the velocity extrapolated from the last step, which also
-    keeps every drive's pull small, whatever the solver. An actuator with dynamics multiplies its activation (`act`,
+def _actuation(law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor, act: torch.Tensor | None):
+    """The actuators' joint forces (env, DoF) at the state, each joint's sum within its actuatorfrcrange, and the
+    actuators held to their forcerange (env, nu). An actuator with dynamics multiplies its activation (`act`,
     env x nu; None: zeros), or its next one where it acts early."""
     inputs = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
     if law.any_activated:
@@ -96,17 +84,60 @@ def joint_forces(
     raw = law.gain * inputs + law.bias0 + law.bias1 * length + law.bias2 * rate
     force = torch.clamp(raw, law.force_low, law.force_high)
     summed = force @ law.moment
-    actuated = torch.clamp(summed, law.joint_low, law.joint_high)
-    bound = ((force != raw).to(v.dtype) * law.held_gain) @ law.moment_squared  # per DoF, the clamped actuators' kv
-    bound = torch.where(actuated != summed, law.held_damping, bound)  # a joint's actuatorfrcrange: all of it
-    target = v if target is None else target
-    held = law.held_damping - bound
-    qf = actuated + law.stiffness * (law.spring_ref - q) - law.explicit_damping * v + held * v
-    return qf - (law.drive_damping - bound) * target
+    return torch.clamp(summed, law.joint_low, law.joint_high), force != raw
+
+
+def start_force(
+    law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor, act: torch.Tensor | None = None
+) -> torch.Tensor:
+    """MuJoCo's actuator and passive force (env, DoF) at the state (q, v) (env, DoF) under `ctrl` (env, nu): the
+    actuators' joint forces, each DoF's spring and its damper at v."""
+    actuated = _actuation(law, ctrl, q, v, act)[0]
+    return actuated + law.stiffness * (law.spring_ref - q) - law.damping * v
+
+
+def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:
+    """D (env, DoF, DoF), the velocity derivative MuJoCo's step takes implicitly, negated: the dampers it integrates
+    implicitly, and under the implicit integrators each actuator's -b2 m m^T where its DoFs share a chain of the
+    tree, but where its forcerange binds (a joint's actuatorfrcrange binding leaves it in, as in MuJoCo)."""
+    gains = law.velocity_gain * (~clamped).to(law.velocity_gain.dtype)  # (env, nu)
+    actuators = ((law.moment.T * gains[:, None, :]) @ law.moment) * law.chained
+    return actuators + torch.diag_embed(law.implicit_damping)
+
+
+def implicit_step(
+    law: Law,
+    inertia: Inertia,
+    ctrl: torch.Tensor,
+    q: torch.Tensor,
+    v: torch.Tensor,
+    root_pose: torch.Tensor,
+    root_velocity: torch.Tensor | None = None,
+    act: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """MuJoCo's step of the joints from (q, v) under `ctrl` (no constraint rows): its end velocity v1 (env, DoF) from
+
+        (M + dt D) (v1 - v0) = dt (f - c),
+
+    f the actuator and passive force at the start, D its implicit derivative, M and c PhysX's inertia and bias at
+    the state (`inertia.py`; a floating root's six coordinates first, no force on them), and the joint force
+    `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver."""
+    actuated, clamped = _actuation(law, ctrl, q, v, act)
+    force = actuated + law.stiffness * (law.spring_ref - q) - law.damping * v
+    matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity)
+    root = matrix.shape[-1] - q.shape[-1]  # 6 for a floating root, else 0
+    damping = law.timestep * implicit_damping(law, clamped)
+    if root:  # no force and no damping on the root's coordinates
+        damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
+        force = torch.nn.functional.pad(force, (root, 0))
+    change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
+    qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
+    return qf[:, root:], v + change[:, root:]
 
 
 class JointActuationController(BaseController):
-    """Holds the last action as ctrl (env, nu); before every physics step, the law's `qf` for the robot's state."""
+    """Holds the last action as ctrl (env, nu); before every physics step, the law's `qf` for the robot's state and
+    its drives aimed at MuJoCo's end velocity."""
 
     config: JointActuationConfig
     sets_target_qpos = False
@@ -117,55 +148,44 @@ class JointActuationController(BaseController):
         self.single_action_space = spaces.Box(low, high, dtype=np.float32)
         self.law = Law(self.config.plan, float(self.scene.timestep), self.device, LAW_DTYPE)
         self.ctrl = torch.zeros((self.scene.num_envs, len(self.config.low)), device=self.device, dtype=LAW_DTYPE)
-        self.previous: torch.Tensor | None = None  # the velocities at the last physics step's start
-        self.fresh: torch.Tensor | None = None  # the envs reset since the last step, where only some were (`reset`)
         self.resetting: torch.Tensor | None = None  # the envs the agent's reset marked (`MJCFAgent.reset`)
         self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
+        self.inertia: Inertia | None = None  # the robot's M and c (`set_drive_property`)
         self.physx_joints: list | None = None  # on the CPU backend, the sub-scene's PhysX joints (`aim`)
 
     def set_drive_property(self):
         """The drives hold the implicit damping alone (no stiffness; a velocity target each step); gravity on, as in
-        MuJoCo, but on the links of fully compensated bodies. The mode starts afresh: no last step, activations at
-        zero."""
-        self.previous, self.fresh, self.act = None, None, torch.zeros_like(self.act)
-        if uses_tgs(self.scene.sub_scenes[0]):
-            warnings.warn(TGS_NOTE, SceneMismatchWarning, stacklevel=2)
+        MuJoCo, but on the links of fully compensated bodies, which the robot's M and c leave weightless too. The
+        mode starts afresh: activations at zero."""
+        self.act = torch.zeros_like(self.act)
         weightless = set(self.config.plan.weightless)
         for index, link in enumerate(self.articulation.links):
             link.disable_gravity = index in weightless
+        tree = self.config.tree
+        damping = np.where(turning_slides(tree), 0.0, self.config.plan.drive_damping)
         indices = self.active_joint_indices.cpu().numpy()
-        for joint, damping in zip(self.joints, self.config.plan.drive_damping[indices].tolist()):
-            joint.set_drive_properties(0.0, damping, force_limit=UNLIMITED, mode="force")
+        for joint, held in zip(self.joints, damping[indices].tolist()):
+            joint.set_drive_properties(0.0, held, force_limit=UNLIMITED, mode="force")
+        floating = tree.floating and not bool(self.articulation.fixed_root_link[0])
+        if floating != tree.floating:
+            tree = replace(tree, floating=floating)
+        gravity = self.scene.sim_config.scene_config.gravity
+        self.inertia = Inertia(tree, gravity, weightless, self.device, LAW_DTYPE)
 
     def reset(self):
-        """The envs an `env.reset` resets start as MuJoCo's reset starts them: ctrl and activations zero, and no last
-        step to extrapolate the drives' aim from. ManiSkill marks those envs while it resets the agent and not while
-        it resets the controllers, so the agent hands the mark on (`resetting`); without one, every env resets. The
-        others run on untouched (tests/test_maniskill_joint_actuation.py::test_a_partial_reset_restarts_only_its_envs).
-        """
+        """The envs an `env.reset` resets start as MuJoCo's reset starts them: ctrl and activations zero. ManiSkill
+        marks those envs while it resets the agent and not while it resets the controllers, so the agent hands the
+        mark on (`resetting`); without one, every env resets. The others run on untouched
+        (tests/test_maniskill_joint_actuation.py::test_a_partial_reset_restarts_only_its_envs)."""
         envs, self.resetting = self.resetting, None
         if envs is None or bool(envs.all()):
             self.ctrl, self.act = torch.zeros_like(self.ctrl), torch.zeros_like(self.act)
-            self.previous = self.fresh = None
             return
         envs = envs.to(self.device)
-        if not bool(envs.any()):
-            return
         self.ctrl[envs], self.act[envs] = 0.0, 0.0
-        if self.previous is not None:
-            self.fresh = envs if self.fresh is None else self.fresh | envs
 
     def set_action(self, action):
         self.ctrl = common.to_tensor(self._preprocess_action(action), device=self.device).to(LAW_DTYPE)
-
-    def end_velocity(self, v: torch.Tensor) -> torch.Tensor:
-        """The step's end velocity as the last step's change carries on from `v` (`v` itself in an env reset since
-        the last step)."""
-        if self.previous is None:
-            return v
-        if self.fresh is not None:
-            self.previous, self.fresh = torch.where(self.fresh[:, None], v, self.previous), None
-        return 2.0 * v - self.previous
 
     def aim(self, target: torch.Tensor) -> None:
         """Every drive's velocity target (env, DoF): one tensor write on the device; on the CPU backend, the one
@@ -179,20 +199,34 @@ class JointActuationController(BaseController):
         indices = self.active_joint_indices
         self.articulation.set_joint_drive_velocity_targets(target[:, indices].float(), self.joints, indices)
 
-    def before_simulation_step(self):
-        """The state in, the drives' velocity targets (the end velocity extrapolated from the last step) and the
-        law's `qf` out; the activations one step on."""
-        px = self.scene.px
-        if self.scene.gpu_sim_enabled:  # the state of the last physics step, on the device
+    def state(self) -> tuple[torch.Tensor, ...]:
+        """The robot's joint positions and velocities, its root's pose and, where it floats, its centre of mass's
+        velocity and its angular velocity, in the law's dtype (on the device: those of the last physics step)."""
+        px, floating = self.scene.px, self.inertia.floating
+        if self.scene.gpu_sim_enabled:
             px.gpu_fetch_articulation_qpos()
             px.gpu_fetch_articulation_qvel()
-        q, v = self.articulation.get_qpos().to(LAW_DTYPE), self.articulation.get_qvel().to(LAW_DTYPE)
-        target = self.end_velocity(v)
-        self.aim(target)
-        self.articulation.set_qf(joint_forces(self.law, self.ctrl, q, v, target, self.act).float())
-        self.previous = v
+            px.gpu_fetch_articulation_link_pose()
+            if floating:
+                px.gpu_fetch_articulation_link_velocity()
+        robot = self.articulation
+        q, v = robot.get_qpos().to(LAW_DTYPE), robot.get_qvel().to(LAW_DTYPE)
+        pose = robot.root_pose.raw_pose.to(LAW_DTYPE)
+        if not floating:
+            return q, v, pose, None
+        velocity = torch.cat((robot.root_linear_velocity, robot.root_angular_velocity), -1).to(LAW_DTYPE)
+        return q, v, pose, velocity
+
+    def before_simulation_step(self):
+        """The state in; MuJoCo's step from it: `qf` out, and the drives aimed at its end velocity; the activations
+        one step on."""
+        q, v, pose, velocity = self.state()
+        qf, end = implicit_step(self.law, self.inertia, self.ctrl, q, v, pose, velocity, self.act)
+        self.aim(end)
+        self.articulation.set_qf(qf.float())
         self.act = next_activation(self.law, self.ctrl, self.act)
         if self.scene.gpu_sim_enabled:
+            px = self.scene.px
             px.gpu_apply_articulation_target_velocity()
             px.gpu_apply_articulation_qf()
 
@@ -202,6 +236,7 @@ class JointActuationConfig(ControllerConfig):
     low: list[float] = field(default_factory=list)  # ctrlrange (or -inf) per actuator
     high: list[float] = field(default_factory=list)
     plan: JointActuation | None = None
+    tree: RigidTree | None = None  # the robot's rigid-body tree, for its M and c
     results: list = field(default_factory=list)  # the CPU backend's one LoadResult (its PhysX joints); none on GPU
     normalize_action: bool = False
     controller_cls = JointActuationController

@@ -9,19 +9,13 @@ the tendon's coefficients), with a fixed gain and a bias that is none or affine,
 
 with u the clamped ctrl, or the activation where the actuator has one (an integrator or a filter: the per-step half
 steps it as MuJoCo does); the sum of a joint's actuator forces clamped to its actuatorfrcrange; and each DoF adds
-its spring k (springref - q) and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's
-integrator takes the dampers, and under the implicit integrators each actuator's -b2 m m^T (its kv on the joints),
-implicitly: the dampers and that term's diagonal stay in a PhysX drive (damping, no stiffness), whose implicit law
-matches MuJoCo's step under PGS whatever velocity it aims at; a fixed tendon's cross terms are explicit. The joint
-force the law writes is everything else, evaluated at the step's start: m F, with each held kv's start term moved
-into its place and the drive's pull at its aim taken back. Where forcerange or actuatorfrcrange binds, the force is
-constant in MuJoCo and the drive's share pulls by how far the end velocity misses its aim (the per-step half aims at
-an estimate of it): with the tendon's explicit cross terms, the law's only approximations. With the drives aimed
-at the state's velocity, the law's force is MuJoCo's qfrc_actuator + qfrc_passive at any state; PhysX's gravity off
-on a fully compensated body's link is MuJoCo's gravity and compensation together
-(tests/test_maniskill_joint_actuation.py::test_the_law_and_its_drives_give_mujocos_actuator_and_passive_force;
-tests/test_joint_actuation.py::test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast;
-tests/test_maniskill_joint_actuation.py::test_a_compensated_arm_follows_mujoco_with_its_links_weightless).
+its spring k (springref - q) and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's step
+takes the dampers implicitly (unless eulerdamp is off), and under the implicit integrators each actuator's
+-b2 m m^T too, but where its forcerange binds, and only between DoFs on one chain of the tree (a tendon's cross term
+between two branches, a gripper's fingers, is dropped: the mass matrix's pattern). The per-step half solves that
+step with the robot's M and c
+(tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
+tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
 
 from __future__ import annotations
@@ -59,7 +53,6 @@ class JointActuation:
     moment: np.ndarray  # (nu, ndof): dL/dq, MuJoCo's (gear, times a fixed tendon's coefficients), constant here
     gain: np.ndarray
     bias: np.ndarray  # (3, nu): b0, b1, b2
-    held: np.ndarray  # 1.0 where the drives hold the actuator's velocity term (its diagonal), else 0.0
     ctrl_range: np.ndarray  # (2, nu): -inf, inf where ctrl is not clamped
     force_range: np.ndarray  # (2, nu): -inf, inf where the force is not clamped
     joint_range: np.ndarray  # (2, ndof): each DoF's actuatorfrcrange, -inf, inf where it has none
@@ -69,20 +62,23 @@ class JointActuation:
     act_early: np.ndarray  # per actuator: the force reads the step's next activation (actearly)
     stiffness: np.ndarray  # per DoF
     spring_ref: np.ndarray
-    drive_damping: np.ndarray  # per DoF: the damping its PhysX drive holds
-    explicit_damping: np.ndarray  # per DoF: damping the law applies at the start state (eulerdamp disabled)
+    damping: np.ndarray  # per DoF: its damper
+    implicit_damping: np.ndarray  # per DoF: the damper MuJoCo's step takes implicitly (none where eulerdamp is off)
+    velocity_gain: np.ndarray  # per actuator: -b2, where MuJoCo's step takes its velocity term implicitly, else 0
+    # (ndof, ndof): the DoF pairs on one chain of the tree (one moves the other), where MuJoCo's implicit step keeps
+    # an actuator's velocity cross term; it drops those between DoFs on separate branches (the mass matrix's pattern)
+    chained: np.ndarray
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
     not_carried: list[str] = field(default_factory=list)
 
-    def held_damping(self) -> np.ndarray:
-        return held_damping(self.held, self.bias, self.moment)
-
-
-def held_damping(held: np.ndarray, bias: np.ndarray, moment: np.ndarray) -> np.ndarray:
-    """Per DoF, the actuators' velocity terms the drives hold: sum over held actuators of -b2 m^2."""
-    return (held * -bias[2]) @ moment**2
+    @property
+    def drive_damping(self) -> np.ndarray:
+        """Per DoF, the damping its PhysX drive holds: the diagonal of MuJoCo's implicit derivative where no clamp
+        binds (the implicit dampers, each actuator's -b2 m^2), its negative actuator terms left out (PhysX's damping
+        cannot be negative)."""
+        return np.maximum(self.velocity_gain, 0.0) @ self.moment**2 + self.implicit_damping
 
 
 def plan_joint_actuation(
@@ -100,14 +96,12 @@ def plan_joint_actuation(
     off = ((int(model.opt.disableactuator) >> np.clip(model.actuator_group, 0, 30)) & 1).astype(bool) | (not actuated)
     gain[off], bias[:, off] = 0.0, 0.0  # actuation disabled, or the actuator's group (`disableactuator`)
     implicit = int(model.opt.integrator) not in EXPLICIT_ACTUATORS
-    held = ((bias[2] < 0) & implicit).astype(float)  # PhysX's damping cannot be negative
     clamps = model.actuator_ctrllimited.astype(bool) & (not mj.disabled(model, "clampctrl"))
     ctrl_range = np.where(clamps, model.actuator_ctrlrange.T, [[-np.inf], [np.inf]])
     force_range = np.where(model.actuator_forcelimited.astype(bool), model.actuator_forcerange.T, [[-np.inf], [np.inf]])
     stiffness, spring_ref, damping, joint_range = _joint_arrays(model, dof_of_joint, ndof)
     damped_explicitly = mj.explicit_damping(model)
     moment = _moment(model, dof_of_joint, ndof)
-    held_terms = held_damping(held, bias, moment)
     dynamics = model.actuator_dyntype.astype(np.int64)
     filtered = (dynamics == FILTER) | (dynamics == FILTEREXACT)
     time_constant = np.where(filtered, np.maximum(model.actuator_dynprm[:, 0], mj.MJMINVAL), 1.0)
@@ -117,7 +111,6 @@ def plan_joint_actuation(
         moment,
         gain,
         bias,
-        held,
         ctrl_range,
         force_range,
         joint_range,
@@ -127,10 +120,12 @@ def plan_joint_actuation(
         model.actuator_actearly.astype(bool),
         stiffness,
         spring_ref,
-        held_terms + (0.0 if damped_explicitly else damping),
-        damping if damped_explicitly else np.zeros(ndof),
+        damping,
+        np.zeros(ndof) if damped_explicitly else damping,
+        -bias[2] if implicit else np.zeros(model.nu),
+        _chained(model, dof_of_joint, ndof),
         _weightless(model, link_of_body or {}),
-        _not_carried(model, link_of_body or {}, _crossed(held, moment)),
+        _not_carried(model, link_of_body or {}),
     )
 
 
@@ -171,6 +166,19 @@ def _joint_arrays(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
         spring_ref[robot_dof] = model.qpos_spring[model.jnt_qposadr[joint]]
         damping[robot_dof] = dof_damping(model, int(model.jnt_dofadr[joint]))
     return stiffness, spring_ref, damping, joint_range
+
+
+def _chained(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> np.ndarray:
+    """(ndof, ndof): whether two robot DoFs lie on one chain of MuJoCo's tree (each DoF is on its own)."""
+    dof_of = {int(model.jnt_dofadr[joint]): robot_dof for joint, robot_dof in dof_of_joint.items()}
+    chained = np.eye(ndof, dtype=bool)
+    for dof, robot_dof in dof_of.items():
+        above = int(model.dof_parentid[dof])
+        while above >= 0:
+            if above in dof_of:
+                chained[robot_dof, dof_of[above]] = chained[dof_of[above], robot_dof] = True
+            above = int(model.dof_parentid[above])
+    return chained
 
 
 def _weightless(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[int]:
@@ -215,15 +223,8 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
     return [int(model.wrap_objid[w]) for w in wraps]
 
 
-def _crossed(held: np.ndarray, moment: np.ndarray) -> bool:
-    """Whether an actuator whose velocity term the drives hold moves several DoFs (a fixed tendon over joints): its
-    -b2 m m^T couples them, and the drives hold only the diagonal."""
-    return bool(np.any((held > 0) & (np.count_nonzero(moment, axis=1) > 1)))
-
-
-def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], crossed: bool) -> list[str]:
-    """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path (`crossed`:
-    a held velocity term's cross terms, `_crossed`)."""
+def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[str]:
+    """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
     free = int(mujoco.mjtJoint.mjJNT_FREE)
     floating = any(
         int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in link_of_body for j in range(model.njnt)
@@ -247,7 +248,5 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], crossed: b
         (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
         (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
         (int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_IMPLICIT), "the implicit integrator's Coriolis"),
-        (np.any(model.actuator_biasprm[:, 2] > 0), "an actuator's positive velocity gain (explicit here)"),
-        (crossed, "the velocity cross terms of an actuator on a fixed tendon (explicit here)"),
     ]
     return [what for present, what in checks if present]
