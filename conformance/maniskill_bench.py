@@ -30,7 +30,7 @@ WALK = 0.01  # of each action's range per control step
 WARMUP = 5  # control steps before the clock starts
 ROUNDS = 10  # turns each mode takes (the figure is its fastest)
 GPU_ENVS = 1024  # sub-scenes on physx_cuda, where a CUDA device is there
-GPU_MODES = ("pd_joint_pos", "mujoco_ctrl_tensor")  # what runs per step on the device, under PGS (the law's)
+GPU_MODES = ("pd_joint_pos", "mujoco_ctrl_tensor")  # what runs per step on the device, under ManiSkill's TGS
 
 
 class Walk:
@@ -80,9 +80,9 @@ def steps_per_second(
 
 
 def gpu_steps_per_second(uid: str, sim_freq: int, control_steps: int, num_envs: int = GPU_ENVS) -> dict:
-    """Physics steps per second summed over `num_envs` sub-scenes of `Empty-v1` on `physx_cuda` (PGS) under each of
-    `GPU_MODES`, the actions a seeded random walk on the device, after `WARMUP` control steps; or why not measured.
-    Written against ManiSkill's GPU API and not yet run on a GPU."""
+    """Physics steps per second summed over `num_envs` sub-scenes of `Empty-v1` on `physx_cuda` (ManiSkill's default
+    scene configuration, TGS) under each of `GPU_MODES`, the actions a seeded random walk on the device, after
+    `WARMUP` control steps; or why not measured. Written against ManiSkill's GPU API and not yet run on a GPU."""
     import torch
 
     if not torch.cuda.is_available():
@@ -102,11 +102,7 @@ def gpu_steps_per_second(uid: str, sim_freq: int, control_steps: int, num_envs: 
                 render_backend="none",
                 obs_mode="state",
                 control_mode=mode,
-                sim_config={
-                    "sim_freq": sim_freq,
-                    "control_freq": sim_freq // SUBSTEPS,
-                    "scene_config": {"enable_tgs": False},
-                },
+                sim_config={"sim_freq": sim_freq, "control_freq": sim_freq // SUBSTEPS},
             )
         try:
             row[mode] = _gpu_walk(env, control_steps) * num_envs

@@ -10,13 +10,13 @@ integer n (ManiSkill sets the simulation frequency); when the model is not one k
 builds one robot); and wherever `actuated` skips.
 
 Tier `maniskill_tensor` (opt-in: `--tiers maniskill_tensor`) judges `mujoco_ctrl_tensor`, the joint actuation law on
-ManiSkill's tensors that its GPU backend runs, the same way on the CPU backend under PGS (the law's drives match
-MuJoCo's implicit damping under PGS only). What the law does not carry and the harness can take out of both sides
-(joint limits, frictionloss, equalities, fluid, tendon springs: conformance/gaps.py) is taken out of MuJoCo's model
-and the robot's alike, and named in the notes, so that the tier judges the law itself against actuated's
-tolerances; what else the law leaves out (`JointActuation.not_carried`: a floating root, a tendon actuator's kv
-cross terms, ...) stays in and is named too. Skipped, with the reason, where the robot is outside the law, and
-wherever `maniskill` skips."""
+ManiSkill's tensors that its GPU backend runs, the same way on the CPU backend, under ManiSkill's default TGS and
+`[tolerance.maniskill]`. What the law does not carry and the harness can take out of both sides (joint limits,
+frictionloss, equalities, fluid, tendon springs: conformance/gaps.py) is taken out of MuJoCo's model and the robot's
+alike, and named in the notes, so that the tier judges the law itself; what else the law leaves out
+(`JointActuation.not_carried`: a floating root, ...) stays in and is named too. Skipped, with the reason, where the
+robot is outside the law, and wherever `maniskill` skips.
+"""
 
 from __future__ import annotations
 
@@ -144,6 +144,14 @@ def _uid(tier: str, path) -> str:
     return f"conformance-{tier}-" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
 
 
+def _under_tgs(tolerances: Tolerances) -> Tolerances:
+    """actuated's tolerances with `[tolerance.maniskill]`'s fixed-base ones: ManiSkill's default solver, TGS."""
+    return tolerances.with_overrides(
+        {f"actuated.{name}": tolerances[f"maniskill.{name}"] for name in TGS_TOLERANCES},
+        why="ManiSkill's default solver (TGS): tolerances.toml [tolerance.maniskill]",
+    )
+
+
 def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) -> TierReport:
     skip = _env_skip(result, model, TIER, tolerances)
     if skip is not None:
@@ -159,11 +167,7 @@ def maniskill(result, model: mujoco.MjModel, seed: int, tolerances: Tolerances) 
     try:
         env.reset(seed=seed)
         (agent_result,) = env.unwrapped.agent.results
-        under_tgs = tolerances.with_overrides(
-            {f"actuated.{name}": tolerances[f"maniskill.{name}"] for name in TGS_TOLERANCES},
-            why="ManiSkill's default solver (TGS): tolerances.toml [tolerance.maniskill]",
-        )
-        report = actuated(ThroughEnv(agent_result, env), model, seed, under_tgs)
+        report = actuated(ThroughEnv(agent_result, env), model, seed, _under_tgs(tolerances))
     finally:
         env.close()
     notes = [*report.notes, f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl, {sim_freq} Hz)"]
@@ -185,14 +189,14 @@ def maniskill_tensor(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     law = agent.joint_actuation
     if isinstance(law, str):
         return skipped(TENSOR_TIER, f"outside mujoco_ctrl_tensor's law: {law}")
-    scene_config = {"gravity": np.asarray(matched_config(model).gravity).tolist(), "enable_tgs": False}
+    scene_config = {"gravity": np.asarray(matched_config(model).gravity).tolist()}  # ManiSkill's solver: TGS
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         env = empty_env(uid, "mujoco_ctrl_tensor", sim_freq, sim_freq, scene_config)
     try:
         env.reset(seed=seed)
         (agent_result,) = env.unwrapped.agent.results
-        report = actuated(ThroughTensorEnv(agent_result, env), spec.compile(), seed, tolerances)
+        report = actuated(ThroughTensorEnv(agent_result, env), spec.compile(), seed, _under_tgs(tolerances))
     finally:
         env.close()
     taken = [f"taken out of both sides, which the law does not carry: {GAPS[name].what}" for name in gaps]
@@ -200,6 +204,6 @@ def maniskill_tensor(result, model: mujoco.MjModel, seed: int, tolerances: Toler
     notes = [
         *report.notes,
         *taken,
-        f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl_tensor, PGS, {sim_freq} Hz)",
+        f"driven through ManiSkill's env.step (Empty-v1, mujoco_ctrl_tensor, {sim_freq} Hz)",
     ]
     return dataclasses.replace(report, tier=TENSOR_TIER, notes=notes)
