@@ -172,6 +172,7 @@ class JointActuationController(BaseController):
         gravity = self.scene.sim_config.scene_config.gravity
         self.inertia = Inertia(tree, gravity, weightless, self.device, LAW_DTYPE)
 
+    @torch.inference_mode()
     def reset(self):
         """The envs an `env.reset` resets start as MuJoCo's reset starts them: ctrl and activations zero. ManiSkill
         marks those envs while it resets the agent and not while it resets the controllers, so the agent hands the
@@ -217,6 +218,7 @@ class JointActuationController(BaseController):
         velocity = torch.cat((robot.root_linear_velocity, robot.root_angular_velocity), -1).to(LAW_DTYPE)
         return q, v, pose, velocity
 
+    @torch.inference_mode()  # no autograd bookkeeping: a third of the law's time on the CPU
     def before_simulation_step(self):
         """The state in; MuJoCo's step from it: `qf` out, and the drives aimed at its end velocity; the activations
         one step on."""
