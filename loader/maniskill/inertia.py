@@ -7,8 +7,9 @@ The link frames follow from the root's pose and the joint positions, each link's
 transform; the products down the tree are taken by pointer doubling, log2 of its depth rounds of one product each.
 Each DoF's joint has its axis a_j through the point p_j. DoF j moves the centre of mass c_i of a link below it by
 a_j x (c_i - p_j) (a slide: a_j) and turns it by a_j (a slide: not at all): the Jacobians Jv_i, Jw_i. A floating root
-adds six coordinates in front: its centre of mass's velocity and its angular velocity, both in the world frame. Then,
-Kane's form of the link's Newton-Euler equations summed over the tree,
+adds six coordinates in front, as MuJoCo's free joint has them: its frame's origin's velocity in the world frame, and
+its angular velocity in its own frame (three axes b_k turning with it, through its origin). Then, Kane's form of the
+link's Newton-Euler equations summed over the tree,
 
     M = sum_i m_i Jv_i^T Jv_i + Jw_i^T I_i Jw_i + diag(armature),
     c = sum_i Jv_i^T m_i (dJv_i v - g_i) + Jw_i^T (I_i dJw_i v + w_i x I_i w_i),
@@ -134,13 +135,24 @@ def frames(law: Inertia, q: torch.Tensor, root_pose: torch.Tensor) -> tuple[torc
     return links[..., :3, :3], links[..., :3, 3], joints[..., :3, :3], joints[..., :3, 3]
 
 
+def free_velocity(law: Inertia, root_pose: torch.Tensor, velocity: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's free joint velocity (env, 6: the root frame origin's, in the world frame; the spin, in the root's
+    frame) from PhysX's root link velocity (env, 6: its centre of mass's, and the spin, both in the world frame)."""
+    rotation = root_frame(law, root_pose)[:, :3, :3]
+    spin = velocity[:, 3:]
+    offset = (rotation @ law.centre[0][:, None])[..., 0]  # the centre of mass from the origin, in the world frame
+    origin = velocity[:, :3] - torch.linalg.cross(spin, offset)
+    return torch.cat((origin, (rotation.transpose(-1, -2) @ spin[..., None])[..., 0]), -1)
+
+
 def mass_matrix_and_bias(
     law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, root_velocity: torch.Tensor | None = None
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """M (env, n, n) and c (env, n) at joint positions q and velocities v (env, ndof) and the root's pose (env, 7);
-    with a floating root, n = 6 + ndof, its coordinates first: `root_velocity` (env, 6), its centre of mass's linear
-    velocity and its angular velocity, in the world frame. The Jacobians are laid out (env, nlink, n, 3): row k is
-    what coordinate k adds to the link's velocity."""
+    with a floating root, n = 6 + ndof, its coordinates first, as MuJoCo's free joint has them: `root_velocity`
+    (env, 6), the root frame's origin's velocity in the world frame and its angular velocity in its own frame
+    (`free_velocity` converts PhysX's). The Jacobians are laid out (env, nlink, n, 3): row k is what coordinate k
+    adds to the link's velocity."""
     env, nlink = q.shape[0], law.mass.shape[0]
     rotation, origin, joint_rotation, joint_origin = frames(law, q, root_pose)
     centre = origin + (rotation @ law.centre[..., None])[..., 0]  # (env, nlink, 3)
@@ -150,10 +162,12 @@ def mass_matrix_and_bias(
     linear = torch.linalg.cross(axis, lever) * law.moved_turning + axis * law.moved_sliding
     angular = axis * law.moved_turning
     speed = v
-    if law.floating:
+    if law.floating:  # MuJoCo's free joint: the origin's velocity in the world frame, the spin in the root's frame
         eye = law.eye.expand(env, nlink, 3, 3)
-        linear = torch.cat((eye, _cross_rows(centre - centre[:, :1]), linear), 2)
-        angular = torch.cat((torch.zeros_like(eye), eye, angular), 2)
+        axes = rotation[:, :1].transpose(-1, -2).expand(env, nlink, 3, 3)  # row k: the root's axis k in the world
+        arm = (centre - origin[:, :1])[:, :, None, :].expand(env, nlink, 3, 3)  # c_i - o
+        linear = torch.cat((eye, torch.linalg.cross(axes, arm), linear), 2)
+        angular = torch.cat((torch.zeros_like(eye), axes, angular), 2)
         speed = torch.cat((root_velocity, v), 1)
     weights = speed[:, None, :, None]
     velocity, spin = (linear * weights).sum(2), (angular * weights).sum(2)  # each centre's, each link's spin
@@ -167,8 +181,9 @@ def mass_matrix_and_bias(
     weights = v[:, None, :, None]
     acceleration = (turned * (law.moved_turning * weights) + rate * (law.moved_sliding * weights)).sum(2)
     spin_rate = (rate * (law.moved_turning * weights)).sum(2)
-    if law.floating:  # the root's turn: d/dt (w x (c_i - c_root)) at constant w is w x (V_i - V_root)
-        acceleration = acceleration + torch.linalg.cross(root_velocity[:, None, 3:], velocity - velocity[:, :1])
+    if law.floating:  # the root's axes turn with it: sum_k w_k d/dt (b_k x (c_i - o)) = w x (V_i - v_o)
+        spun = torch.linalg.cross(spin[:, :1], velocity - root_velocity[:, None, :3])
+        acceleration = acceleration + spun
     force = law.mass[:, None] * (acceleration - law.weight)  # (env, nlink, 3)
     torque = inertia @ torch.stack((spin_rate, spin), -1)  # I dw and I w, as two columns
     torque = torque[..., 0] + torch.linalg.cross(spin, torque[..., 1])
@@ -179,11 +194,3 @@ def mass_matrix_and_bias(
     columns = torch.cat((linear, angular), -1).transpose(1, 2).reshape(env, speed.shape[1], -1)
     matrix = rows @ columns.transpose(1, 2) + law.armature_matrix
     return matrix, bias
-
-
-def _cross_rows(r: torch.Tensor) -> torch.Tensor:
-    """(..., 3, 3) whose row k is e_k x r."""
-    x, y, z = r.unbind(-1)
-    zero = torch.zeros_like(x)
-    rows = ((zero, -z, y), (z, zero, -x), (-y, x, zero))
-    return torch.stack([torch.stack(row, -1) for row in rows], -2)

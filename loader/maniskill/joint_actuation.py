@@ -25,7 +25,7 @@ from mani_skill.utils import common
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
-from .inertia import Inertia, mass_matrix_and_bias
+from .inertia import Inertia, free_velocity, mass_matrix_and_bias
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
@@ -201,8 +201,8 @@ class JointActuationController(BaseController):
         self.articulation.set_joint_drive_velocity_targets(target[:, indices].float(), self.joints, indices)
 
     def state(self) -> tuple[torch.Tensor, ...]:
-        """The robot's joint positions and velocities, its root's pose and, where it floats, its centre of mass's
-        velocity and its angular velocity, in the law's dtype (on the device: those of the last physics step)."""
+        """The robot's joint positions and velocities, its root's pose and, where it floats, its free joint's velocity
+        in MuJoCo's convention, in the law's dtype (on the device: those of the last physics step)."""
         px, floating = self.scene.px, self.inertia.floating
         if self.scene.gpu_sim_enabled:
             px.gpu_fetch_articulation_qpos()
@@ -216,7 +216,7 @@ class JointActuationController(BaseController):
         if not floating:
             return q, v, pose, None
         velocity = torch.cat((robot.root_linear_velocity, robot.root_angular_velocity), -1).to(LAW_DTYPE)
-        return q, v, pose, velocity
+        return q, v, pose, free_velocity(self.inertia, pose, velocity)
 
     @torch.inference_mode()  # no autograd bookkeeping: a third of the law's time on the CPU
     def before_simulation_step(self):
