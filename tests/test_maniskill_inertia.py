@@ -15,7 +15,8 @@ from support.corpus import FIXTURES, menagerie_root, suite_path
 torch = pytest.importorskip("torch", reason="torch is not installed (the `maniskill` extra)")
 
 from loader import MJCFLoader
-from loader.maniskill.inertia import Inertia, frames, free_velocity, mass_matrix_and_bias
+from loader.maniskill.free_root import free_velocity
+from loader.maniskill.inertia import Inertia, frames, mass_matrix_and_bias
 from loader.plan.joint_actuation import robot_indices
 from loader.plan.rigid_tree import rigid_tree, rotation
 

@@ -135,24 +135,14 @@ def frames(law: Inertia, q: torch.Tensor, root_pose: torch.Tensor) -> tuple[torc
     return links[..., :3, :3], links[..., :3, 3], joints[..., :3, :3], joints[..., :3, 3]
 
 
-def free_velocity(law: Inertia, root_pose: torch.Tensor, velocity: torch.Tensor) -> torch.Tensor:
-    """MuJoCo's free joint velocity (env, 6: the root frame origin's, in the world frame; the spin, in the root's
-    frame) from PhysX's root link velocity (env, 6: its centre of mass's, and the spin, both in the world frame)."""
-    rotation = root_frame(law, root_pose)[:, :3, :3]
-    spin = velocity[:, 3:]
-    offset = (rotation @ law.centre[0][:, None])[..., 0]  # the centre of mass from the origin, in the world frame
-    origin = velocity[:, :3] - torch.linalg.cross(spin, offset)
-    return torch.cat((origin, (rotation.transpose(-1, -2) @ spin[..., None])[..., 0]), -1)
-
-
 def mass_matrix_and_bias(
     law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, root_velocity: torch.Tensor | None = None
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """M (env, n, n) and c (env, n) at joint positions q and velocities v (env, ndof) and the root's pose (env, 7);
     with a floating root, n = 6 + ndof, its coordinates first, as MuJoCo's free joint has them: `root_velocity`
     (env, 6), the root frame's origin's velocity in the world frame and its angular velocity in its own frame
-    (`free_velocity` converts PhysX's). The Jacobians are laid out (env, nlink, n, 3): row k is what coordinate k
-    adds to the link's velocity."""
+    (`free_root.free_velocity` converts PhysX's). The Jacobians are laid out (env, nlink, n, 3): row k is what
+    coordinate k adds to the link's velocity."""
     env, nlink = q.shape[0], law.mass.shape[0]
     rotation, origin, joint_rotation, joint_origin = frames(law, q, root_pose)
     centre = origin + (rotation @ law.centre[..., None])[..., 0]  # (env, nlink, 3)

@@ -25,7 +25,8 @@ from mani_skill.utils import common
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
-from .inertia import Inertia, free_velocity, mass_matrix_and_bias
+from .free_root import free_velocity
+from .inertia import Inertia, mass_matrix_and_bias
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
