@@ -61,11 +61,11 @@ def tests(session: nox.Session) -> None:
 @nox.session
 def maniskill(session: nox.Session) -> None:
     """`loader.maniskill` inside ManiSkill 3.0.1 (tests/test_maniskill.py, tests/test_maniskill_joint_actuation.py,
-    tests/test_maniskill_inertia.py), the `maniskill_tensor` tier's tests (tests/test_maniskill_tensor_tier.py) and the `maniskill` tier's mutation
-    test, which skip elsewhere, then the `maniskill` and `maniskill_tensor` tiers over the default corpus; with
-    `-- bench`, `Empty-v1`'s throughput under `mujoco_ctrl` against `pd_joint_pos` (`conformance/maniskill_bench.py`).
-    Not part of `tests`: the extra brings torch, whose default Linux wheel pulls CUDA; here its CPU build is installed
-    first."""
+    tests/test_maniskill_inertia.py), the `maniskill_tensor` tier's tests (tests/test_maniskill_tensor_tier.py) and
+    the `maniskill` tier's mutation test, which skip elsewhere, then the `maniskill` and `maniskill_tensor` tiers over
+    the default corpus; with `-- bench`, `Empty-v1`'s throughput under `mujoco_ctrl` against `pd_joint_pos`
+    (`conformance/maniskill_bench.py`). Not part of `tests`: the extra brings torch, whose default Linux wheel pulls
+    CUDA; here its CPU build is installed first."""
     session.install("torch==2.13.0", "--extra-index-url", "https://download.pytorch.org/whl/cpu")
     install(session, "harness", "menagerie", "maniskill", "test")
     if session.posargs[:1] == ["bench"]:  # `nox -s maniskill -- bench`: Empty-v1's throughput per control mode
