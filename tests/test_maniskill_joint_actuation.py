@@ -234,6 +234,18 @@ def test_a_robot_outside_the_law_is_not_offered_the_mode(tmp_path):
             env.close()
 
 
+def test_a_robot_whose_tree_the_law_cannot_read_keeps_the_reason(monkeypatch):
+    """A joint type the rigid-body tree does not take (here: slides, struck from it) keeps the robot out of the mode,
+    its agent saying which joint; the robot registers all the same."""
+    from loader.plan import rigid_tree as tree
+
+    monkeypatch.setattr(tree, "KINDS", {k: v for k, v in tree.KINDS.items() if k != "prismatic"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(suite_path("cartpole"), "tensor_untreed", override=True)
+    assert "prismatic" in agent.joint_actuation and agent.rigid_tree is None
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (ManiSkill's physx_cuda backend)")
 def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
     """On `physx_cuda` with 4 sub-scenes, the mode's `qf` on the device is the law's for each sub-scene's own state

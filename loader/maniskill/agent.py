@@ -193,8 +193,11 @@ def register_agent(
         "motors": motors(reference),
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
-        "joint_actuation": plan_joint_actuation(model, dof_of_joint, articulation.dof, link_of_body),
-        "rigid_tree": rigid_tree(articulation),
     }
+    try:  # the law's M and c need the tree; a joint it does not take keeps the robot out of the mode, saying why
+        attributes["rigid_tree"] = rigid_tree(articulation)
+        attributes["joint_actuation"] = plan_joint_actuation(model, dof_of_joint, articulation.dof, link_of_body)
+    except ValueError as error:
+        attributes["joint_actuation"] = str(error)
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)
     return registration.register_agent(override=override)(agent)
