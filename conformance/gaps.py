@@ -88,7 +88,7 @@ GAPS = {
         ),
         Gap(
             "tendon_springs",
-            "tendon stiffness and damping zeroed (the per-step terms carry them; the joint actuation law does not)",
+            "tendon stiffness and damping zeroed (the per-step terms carry them; the joint actuation law, fixed ones)",
             lambda m: bool(m.ntendon and (m.tendon_stiffness.any() or m.tendon_damping.any())),
             _no_tendon_springs,
             automatic=False,

@@ -11,8 +11,8 @@ from loader.plan import joint_actuation
 from loader.plan.joint_actuation import plan_joint_actuation
 
 # every actuator kind of the law on hinges, a slide and a fixed tendon over two of them, with gears, clamps that
-# bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers; a filter, an integrator within
-# its actrange and an exact filter acting early
+# bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers (the tendon's with a deadband);
+# a filter, an integrator within its actrange and an exact filter acting early
 ACTUATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
   <worldbody><body name="a"><joint name="h1" axis="0 1 0" damping="0.3" stiffness="2" springref="0.2"
       actuatorfrcrange="-40 50"/>
@@ -21,7 +21,8 @@ ACTUATED = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
       <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/>
       <body name="c" pos=".2 0 0"><joint name="s" type="slide" axis="1 0 0" stiffness="5" damping="1"/>
         <geom type="box" size=".03 .03 .03" mass=".2"/></body></body></body></worldbody>
-  <tendon><fixed name="t"><joint joint="h1" coef="0.5"/><joint joint="s" coef="-1"/></fixed></tendon>
+  <tendon><fixed name="t" stiffness="8" damping="0.7" springlength="-0.02 0.03">
+    <joint joint="h1" coef="0.5"/><joint joint="s" coef="-1"/></fixed></tendon>
   <actuator>
     <position joint="h1" kp="40" kv="3" gear="2" ctrlrange="-1 1" forcerange="-30 30"/>
     <velocity joint="h2" kv="5" ctrlrange="-2 2"/>
@@ -112,7 +113,8 @@ def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
     assert FLOATING_ROOT not in fixed.not_carried
 
 
-# a hinge carrying two slides on separate branches (a gripper's fingers), one fixed tendon servo over both
+# a hinge carrying two slides on separate branches (a gripper's fingers), one fixed tendon servo over both, the
+# tendon sprung and damped
 SIBLINGS = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
   <worldbody><body name="hand"><joint name="h" axis="0 0 1" damping="0.2"/>
     <geom type="box" size=".05 .02 .02" mass=".6"/>
@@ -120,29 +122,36 @@ SIBLINGS = """<mujoco><option timestep="0.002" integrator="{integrator}"/>
       <geom type="box" size=".01 .01 .03" mass=".02"/></body>
     <body name="right" pos="0 -.03 0"><joint name="r" type="slide" axis="0 -1 0" damping="1"/>
       <geom type="box" size=".01 .01 .03" mass=".02"/></body></body></worldbody>
-  <tendon><fixed name="split"><joint joint="l" coef="0.5"/><joint joint="r" coef="0.5"/></fixed></tendon>
+  <tendon><fixed name="split" stiffness="5" damping="2"><joint joint="l" coef="0.5"/><joint joint="r" coef="0.5"/>
+  </fixed></tendon>
   <actuator><position tendon="split" kp="100" kv="5" ctrlrange="0 .04" forcerange="-20 20"/>
     <motor joint="h" ctrlrange="-1 1"/></actuator></mujoco>"""
 
 
 def _implicit_matrix(plan, model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     """The plan's D (the negated velocity derivative MuJoCo's step takes implicitly) at `data`: the implicit dampers,
-    and each actuator's velocity gain over the DoF pairs on one chain, but an actuator's on its forcerange."""
+    and each actuator's velocity gain and each tendon's implicit damper over the DoF pairs on one chain, but an
+    actuator's on its forcerange."""
     low, high = plan.force_range
     free = (data.actuator_force > low) & (data.actuator_force < high)
     moment = plan.moment * (plan.velocity_gain * free)[:, None]
-    return (moment.T @ plan.moment) * plan.chained + np.diag(plan.implicit_damping)
+    springs = plan.springs
+    tendons = (springs.moment.T * springs.implicit_damping) @ springs.moment
+    return (moment.T @ plan.moment + tendons) * plan.chained + np.diag(plan.implicit_damping)
 
 
-@pytest.mark.parametrize("mistake", [None, "cross_terms_everywhere", "cross_terms_nowhere", "kv_explicit"])
+@pytest.mark.parametrize(
+    "mistake", [None, "cross_terms_everywhere", "cross_terms_nowhere", "kv_explicit", "tendon_damper_explicit"]
+)
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler"])
 @pytest.mark.parametrize("fixture", ["chain", "siblings"])
 def test_the_planned_implicit_derivative_is_mujocos_step(fixture, integrator, mistake):
     """MuJoCo's step solves (M + dt D) (v1 - v0) = dt (f - c), and the plan's D gives its v1 (MuJoCo's M, f and c;
-    random states, some binding a clamp): its dampers, and under implicitfast each actuator's -b2 m m^T, whose cross
-    terms MuJoCo keeps between DoFs on one chain (the chain's tendon over a hinge and a slide below it) and drops
-    across branches (the fingers' tendon). Each mistake misses one fixture under one integrator at least: the cross
-    terms everywhere (the fingers), nowhere (the chain), the actuators' kv explicit (implicitfast)."""
+    random states, some binding a clamp): its dampers, and under implicitfast each actuator's -b2 m m^T and each
+    tendon's damper d m m^T, whose cross terms MuJoCo keeps between DoFs on one chain (the chain's tendon over a
+    hinge and a slide below it) and drops across branches (the fingers' tendon); under Euler a tendon's damper is
+    explicit. Each mistake misses one fixture under one integrator at least: the cross terms everywhere (the
+    fingers), nowhere (the chain), the actuators' kv or the tendons' dampers explicit (implicitfast)."""
     xml = (ACTUATED if fixture == "chain" else SIBLINGS).format(integrator=integrator)
     model = mujoco.MjModel.from_xml_string(xml)
     dofs = {j: j for j in range(model.njnt)}
@@ -153,6 +162,8 @@ def test_the_planned_implicit_derivative_is_mujocos_step(fixture, integrator, mi
         plan.chained[:] = np.eye(model.nv, dtype=bool)
     elif mistake == "kv_explicit":
         plan.velocity_gain[:] = 0.0
+    elif mistake == "tendon_damper_explicit":
+        plan.springs.implicit_damping[:] = 0.0
     data, rng, worst = mujoco.MjData(model), np.random.default_rng(0), 0.0
     dense = np.zeros((model.nv, model.nv))
     for _ in range(16):
@@ -170,5 +181,38 @@ def test_the_planned_implicit_derivative_is_mujocos_step(fixture, integrator, mi
         "cross_terms_everywhere": fixture == "siblings" and integrator == "implicitfast",
         "cross_terms_nowhere": fixture == "chain" and integrator == "implicitfast",
         "kv_explicit": integrator == "implicitfast",
+        "tendon_damper_explicit": integrator == "implicitfast",
     }.get(mistake, False)
     assert (worst > 1e-9) == wrong, worst
+
+
+SPRUNG = "the springs and dampers of a spatial or nonlinear tendon, or of one with armature"
+
+
+@pytest.mark.parametrize("tendon", ["fixed", "fixed_with_armature", "spatial"])
+def test_a_fixed_tendons_spring_is_carried_and_any_other_is_named(tendon):
+    """The chain's fixed tendon, sprung and damped, is in the law (its coefficients as its moment, its deadband) and
+    not named; given armature, which M would have to hold, it leaves the law and is named; so is a spatial tendon's
+    spring (SPATIAL's, sprung here)."""
+    if tendon == "spatial":
+        spec = mujoco.MjSpec.from_string(SPATIAL)
+        stiffness = np.array(spec.tendons[0].stiffness)
+        stiffness[0] = 3.0
+        spec.tendons[0].stiffness = stiffness
+        model = spec.compile()
+        plan = plan_joint_actuation(model, {0: 0}, 1)
+        assert isinstance(plan, str)  # its actuator pulls the spatial tendon: outside the law, named
+        assert SPRUNG in joint_actuation._not_carried(model, {}, {0: 0})
+        return
+    spec = mujoco.MjSpec.from_string(ACTUATED.format(integrator="implicitfast"))
+    if tendon == "fixed_with_armature":
+        spec.tendons[0].armature = 0.1
+    plan = plan_joint_actuation(spec.compile(), DOF_OF_JOINT, 3)
+    carried = tendon == "fixed"
+    assert (SPRUNG not in plan.not_carried) == carried
+    assert plan.springs.stiffness.tolist() == ([8.0] if carried else [])
+    if carried:
+        assert plan.springs.moment.tolist() == [[0.5, 0.0, -1.0]] and plan.springs.rest.ravel().tolist() == [
+            -0.02,
+            0.03,
+        ]

@@ -46,22 +46,26 @@ def _mujoco_forces(model: mujoco.MjModel, q: np.ndarray, v: np.ndarray, ctrl: np
 
 
 def _mistaken(name: str, plan) -> None:
-    """A small mistake in the plan: the position servo's spring left out, the joint's actuatorfrcrange left out, or
-    every actuator's kv taken explicitly (MuJoCo's implicit step takes it implicitly)."""
+    """A small mistake in the plan: the position servo's spring left out, the joint's actuatorfrcrange left out,
+    every actuator's kv taken explicitly (MuJoCo's implicit step takes it implicitly), or the tendon's spring left
+    out."""
     if name == "no_position_gain":
         plan.bias[1, 0] = 0.0
     elif name == "no_joint_range":
         plan.joint_range[:, 0] = [-np.inf, np.inf]
     elif name == "kv_explicit":
         plan.velocity_gain[:] = 0.0
+    elif name == "tendon_unsprung":
+        plan.springs.stiffness[:] = 0.0
 
 
-@pytest.mark.parametrize("mistake", [None, "no_position_gain", "no_joint_range"])
+@pytest.mark.parametrize("mistake", [None, "no_position_gain", "no_joint_range", "tendon_unsprung"])
 @pytest.mark.parametrize("integrator", ["implicitfast", "Euler", "implicitfast group off"])
 def test_the_law_gives_mujocos_actuator_and_passive_force(integrator, mistake):
     """At 64 random states, activations and ctrls (past ctrlrange, binding forcerange and actuatorfrcrange), the
-    law's joint force at the step's start is MuJoCo's actuator and passive force, to float64 rounding, in float64 on
-    the CPU, also with the motor's actuator group disabled; each mistake breaks it."""
+    law's joint force at the step's start is MuJoCo's actuator and passive force (the fixed tendon's spring in its
+    deadband or out of it, and its damper), to float64 rounding, in float64 on the CPU, also with the motor's
+    actuator group disabled; each mistake breaks it."""
     xml = ACTUATED.format(integrator=integrator.split()[0])
     if integrator.endswith("group off"):
         xml = xml.replace("<motor ", '<motor group="2" ').replace("<option ", '<option actuatorgroupdisable="2" ')
@@ -372,16 +376,13 @@ def _worst_law_error(model: mujoco.MjModel, dofs: dict, plan) -> float:
 @pytest.mark.parametrize("path", corpus_params())
 def test_the_law_is_mujocos_on_every_corpus_robot_it_takes(path):
     """Robot by robot over the default corpus: where the law takes the model, its force is MuJoCo's to float64
-    rounding (`_worst_law_error`); where it does not, it says why in words. Models whose tendons have springs or
-    dampers are skipped."""
+    rounding (`_worst_law_error`), the fish's fin tendon spring included; where it does not, it says why in words."""
     model, dofs, plan = _planned(path)
     if not model.nu or not dofs:
         pytest.skip("no actuator, or no hinge or slide: nothing for the law")
     if isinstance(plan, str):
         assert plan.startswith("actuator '"), plan  # names the actuator, and why
         return
-    if np.any(model.tendon_stiffness) or np.any(model.tendon_damping):
-        pytest.skip("tendon springs and dampers: listed as not carried")
     assert _worst_law_error(model, dofs, plan) < 1e-10
 
 

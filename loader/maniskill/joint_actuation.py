@@ -48,6 +48,14 @@ class Law:
         self.stiffness, self.spring_ref = tensor(plan.stiffness), tensor(plan.spring_ref)
         self.damping, self.implicit_damping = tensor(plan.damping), tensor(plan.implicit_damping)
         self.velocity_gain, self.chained = tensor(plan.velocity_gain), tensor(plan.chained)
+        springs = plan.springs
+        self.tendon_moment, self.tendon_stiffness = tensor(springs.moment), tensor(springs.stiffness)
+        self.tendon_low, self.tendon_high = tensor(springs.rest[0]), tensor(springs.rest[1])
+        self.tendon_damping = tensor(springs.damping)
+        # (DoF, DoF): the tendons' dampers MuJoCo's step takes implicitly, on the DoF pairs of one chain
+        implicit = (springs.moment.T * springs.implicit_damping) @ springs.moment
+        self.tendon_implicit = tensor(implicit * plan.chained)
+        self.any_tendon = bool(springs.stiffness.size)  # read on the host
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
         self.any_activated = bool(np.any(dynamics != NO_DYNAMICS))  # read on the host, never synced from a device
@@ -93,17 +101,28 @@ def start_force(
 ) -> torch.Tensor:
     """MuJoCo's actuator and passive force (env, DoF) at the state (q, v) (env, DoF) under `ctrl` (env, nu): the
     actuators' joint forces, each DoF's spring and its damper at v."""
-    actuated = _actuation(law, ctrl, q, v, act)[0]
-    return actuated + law.stiffness * (law.spring_ref - q) - law.damping * v
+    return _passive(law, q, v) + _actuation(law, ctrl, q, v, act)[0]
+
+
+def _passive(law: Law, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's passive force (env, DoF) at the state: each DoF's spring and damper, and each carried fixed tendon's
+    spring (its deadband between its two rest lengths) and damper, through its coefficients."""
+    force = law.stiffness * (law.spring_ref - q) - law.damping * v
+    if law.any_tendon:
+        length, rate = q @ law.tendon_moment.T, v @ law.tendon_moment.T
+        stretched = torch.clamp(length, law.tendon_low, law.tendon_high) - length
+        force = force + (law.tendon_stiffness * stretched - law.tendon_damping * rate) @ law.tendon_moment
+    return force
 
 
 def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:
     """D (env, DoF, DoF), the velocity derivative MuJoCo's step takes implicitly, negated: the dampers it integrates
-    implicitly, and under the implicit integrators each actuator's -b2 m m^T where its DoFs share a chain of the
-    tree, but where its forcerange binds (a joint's actuatorfrcrange binding leaves it in, as in MuJoCo)."""
+    implicitly, and under the implicit integrators each actuator's -b2 m m^T and each carried tendon's damper
+    d m m^T where the DoFs share a chain of the tree, an actuator's but where its forcerange binds (a joint's
+    actuatorfrcrange binding leaves it in, as in MuJoCo)."""
     gains = law.velocity_gain * (~clamped).to(law.velocity_gain.dtype)  # (env, nu)
     actuators = ((law.moment.T * gains[:, None, :]) @ law.moment) * law.chained
-    return actuators + torch.diag_embed(law.implicit_damping)
+    return actuators + torch.diag_embed(law.implicit_damping) + law.tendon_implicit
 
 
 def implicit_step(
@@ -124,7 +143,7 @@ def implicit_step(
     the state (`inertia.py`; a floating root's six coordinates first, no force on them), and the joint force
     `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver."""
     actuated, clamped = _actuation(law, ctrl, q, v, act)
-    force = actuated + law.stiffness * (law.spring_ref - q) - law.damping * v
+    force = actuated + _passive(law, q, v)
     matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity)
     root = matrix.shape[-1] - q.shape[-1]  # 6 for a floating root, else 0
     damping = law.timestep * implicit_damping(law, clamped)

@@ -9,11 +9,12 @@ the tendon's coefficients), with a fixed gain and a bias that is none or affine,
 
 with u the clamped ctrl, or the activation where the actuator has one (an integrator or a filter: the per-step half
 steps it as MuJoCo does); the sum of a joint's actuator forces clamped to its actuatorfrcrange; and each DoF adds
-its spring k (springref - q) and damper -d v; a body compensated fully (gravcomp 1) weighs nothing. MuJoCo's step
-takes the dampers implicitly (unless eulerdamp is off), and under the implicit integrators each actuator's
--b2 m m^T too, but where its forcerange binds, and only between DoFs on one chain of the tree (a tendon's cross term
-between two branches, a gripper's fingers, is dropped: the mass matrix's pattern). The per-step half solves that
-step with the robot's M and c
+its spring k (springref - q) and damper -d v, and each fixed tendon over the robot's joints its linear spring (zero
+between its two rest lengths) and damper through its coefficients; a body compensated fully (gravcomp 1) weighs
+nothing. MuJoCo's step takes the joints' dampers implicitly (unless eulerdamp is off), and under the implicit
+integrators each actuator's -b2 m m^T (but where its forcerange binds) and each tendon's damper d m m^T too, only
+between DoFs on one chain of the tree (a cross term between two branches, a gripper's fingers, is dropped: the mass
+matrix's pattern). The per-step half solves that step with the robot's M and c
 (tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
 tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
@@ -45,6 +46,23 @@ EXPLICIT_ACTUATORS = mj.EULER_LIKE  # an actuator's kv is explicit there (RK4: s
 
 
 @dataclass
+class TendonSprings:
+    """The fixed tendons over the robot's joints with a (linear) spring or damper: per tendon its moment over the
+    DoFs (its coefficients), its stiffness, its spring's rest lengths (a deadband between them), its damper, and the
+    damper MuJoCo's step takes implicitly (under the implicit integrators; Euler's is explicit)."""
+
+    moment: np.ndarray  # (nt, ndof)
+    stiffness: np.ndarray  # (nt,)
+    rest: np.ndarray  # (2, nt): lengthspring, low and high
+    damping: np.ndarray  # (nt,)
+    implicit_damping: np.ndarray  # (nt,)
+
+    @classmethod
+    def none(cls, ndof: int) -> TendonSprings:
+        return cls(np.zeros((0, ndof)), np.zeros(0), np.zeros((2, 0)), np.zeros(0), np.zeros(0))
+
+
+@dataclass
 class JointActuation:
     """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
     the law leaves out (`not_carried`)."""
@@ -68,6 +86,7 @@ class JointActuation:
     # (ndof, ndof): the DoF pairs on one chain of the tree (one moves the other), where MuJoCo's implicit step keeps
     # an actuator's velocity cross term; it drops those between DoFs on separate branches (the mass matrix's pattern)
     chained: np.ndarray
+    springs: TendonSprings = field(default_factory=lambda: TendonSprings.none(0))
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -76,9 +95,10 @@ class JointActuation:
     @property
     def drive_damping(self) -> np.ndarray:
         """Per DoF, the damping its PhysX drive holds: the diagonal of MuJoCo's implicit derivative where no clamp
-        binds (the implicit dampers, each actuator's -b2 m^2), its negative actuator terms left out (PhysX's damping
-        cannot be negative)."""
-        return np.maximum(self.velocity_gain, 0.0) @ self.moment**2 + self.implicit_damping
+        binds (the implicit dampers, each actuator's -b2 m^2, each tendon's implicit damper d m^2), its negative
+        actuator terms left out (PhysX's damping cannot be negative)."""
+        tendons = self.springs.implicit_damping @ self.springs.moment**2
+        return np.maximum(self.velocity_gain, 0.0) @ self.moment**2 + tendons + self.implicit_damping
 
 
 def plan_joint_actuation(
@@ -124,8 +144,9 @@ def plan_joint_actuation(
         np.zeros(ndof) if damped_explicitly else damping,
         -bias[2] if implicit else np.zeros(model.nu),
         _chained(model, dof_of_joint, ndof),
+        _tendon_springs(model, dof_of_joint, ndof, implicit),
         _weightless(model, link_of_body or {}),
-        _not_carried(model, link_of_body or {}),
+        _not_carried(model, link_of_body or {}, dof_of_joint),
     )
 
 
@@ -166,6 +187,41 @@ def _joint_arrays(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
         spring_ref[robot_dof] = model.qpos_spring[model.jnt_qposadr[joint]]
         damping[robot_dof] = dof_damping(model, int(model.jnt_dofadr[joint]))
     return stiffness, spring_ref, damping, joint_range
+
+
+def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
+    """The tendons the law carries: fixed over the robot's hinges and slides, with a spring or a damper, linear (no
+    polynomial term) and with no armature."""
+    carried = []
+    for tendon in range(model.ntendon):
+        if not (model.tendon_stiffness[tendon] or model.tendon_damping[tendon]):
+            continue
+        wraps = range(int(model.tendon_adr[tendon]), int(model.tendon_adr[tendon] + model.tendon_num[tendon]))
+        fixed = all(int(model.wrap_type[w]) == JOINT_WRAP and int(model.wrap_objid[w]) in dof_of_joint for w in wraps)
+        linear = not (np.any(model.tendon_stiffnesspoly[tendon]) or np.any(model.tendon_dampingpoly[tendon]))
+        if fixed and linear and not model.tendon_armature[tendon]:
+            carried.append(tendon)
+    return carried
+
+
+def _tendon_springs(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, implicit: bool) -> TendonSprings:
+    """The carried tendons' springs and dampers (`_carried_tendons`), their moments from MuJoCo's tendon pass at
+    qpos0 (constant for a fixed tendon)."""
+    tendons = _carried_tendons(model, dof_of_joint)
+    if not tendons:
+        return TendonSprings.none(ndof)
+    data = mujoco.MjData(model)
+    mujoco.mj_fwdPosition(model, data)
+    dense = np.zeros((model.ntendon, model.nv))
+    mujoco.mju_sparse2dense(dense, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
+    moment = np.zeros((len(tendons), ndof))
+    for joint, robot_dof in dof_of_joint.items():
+        moment[:, robot_dof] = dense[tendons, model.jnt_dofadr[joint]]
+    stiffness = 0.0 if mj.disabled(model, "spring") else model.tendon_stiffness[tendons]
+    damping = 0.0 if mj.disabled(model, "damper") else model.tendon_damping[tendons]
+    stiffness, damping = stiffness + np.zeros(len(tendons)), damping + np.zeros(len(tendons))
+    rest = model.tendon_lengthspring[tendons].T.copy()
+    return TendonSprings(moment, stiffness, rest, damping, damping * implicit)
 
 
 def _chained(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> np.ndarray:
@@ -223,8 +279,9 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
     return [int(model.wrap_objid[w]) for w in wraps]
 
 
-def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[str]:
+def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int]) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
+    sprung = int(np.count_nonzero((model.tendon_stiffness != 0) | (model.tendon_damping != 0)))
     free = int(mujoco.mjtJoint.mjJNT_FREE)
     floating = any(
         int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in link_of_body for j in range(model.njnt)
@@ -237,11 +294,10 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[st
         ),
         (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss", "constraint"), "frictionloss"),
         (
-            np.any(model.tendon_stiffness)
-            or np.any(model.tendon_damping)
-            or (np.any(model.tendon_limited) and not mj.disabled(model, "limit", "constraint")),
-            "tendon springs, dampers and limits",
+            sprung > len(_carried_tendons(model, dof_of_joint)),
+            "the springs and dampers of a spatial or nonlinear tendon, or of one with armature",
         ),
+        (np.any(model.tendon_limited) and not mj.disabled(model, "limit", "constraint"), "tendon limits"),
         (np.any(model.tendon_frictionloss > 0), "tendon frictionloss"),
         (model.neq > 0 and not mj.disabled(model, "equality", "constraint"), "equality constraints"),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
