@@ -17,8 +17,9 @@ torch = pytest.importorskip("torch", reason="torch is not installed (the `manisk
 from loader import MJCFLoader
 from loader.maniskill.free_root import free_velocity
 from loader.maniskill.inertia import Inertia, frames, mass_matrix_and_bias
+from loader.model.frames import quat_to_mat as rotation
 from loader.plan.joint_actuation import robot_indices
-from loader.plan.rigid_tree import rigid_tree, rotation
+from loader.plan.rigid_tree import rigid_tree
 
 # relative, the largest |law - MuJoCo| of M, c and the accelerations over 8 random states (mujoco 3.17.0, sapien 3.0.3,
 # torch 2.13.0): measured 6.6e-6 (the panda's c; PhysX's float32 masses, inertias and frames); the link origins

@@ -161,6 +161,17 @@ def test_mujoco_ctrl_tensor_follows_mujoco_on_the_cpu_backend(solver, mistake):
     assert (worst < TENSOR_FOLLOW_TOLERANCE[solver]) == (mistake is None), worst
 
 
+def _ignore_clamps(monkeypatch) -> None:
+    """The mistake of taking a clamped actuator's kv implicitly all the same: the law sees no clamp bind."""
+    actuation = joint_actuation._actuation
+
+    def unclamped(*args):
+        actuated, clamped = actuation(*args)
+        return actuated, torch.zeros_like(clamped)
+
+    monkeypatch.setattr(joint_actuation, "_actuation", unclamped)
+
+
 def _loaded_law(xml: str):
     """A model loaded from `xml`, its law planned over its one articulation and its tree's M and c."""
     with warnings.catch_warnings():
@@ -189,13 +200,7 @@ def test_the_laws_step_is_mujocos(monkeypatch, fixture, mistake):
         plan.chained[:] = True
     law = Law(plan, model.opt.timestep, "cpu", torch.float64)
     if mistake == "clamps_ignored":
-        actuation = joint_actuation._actuation
-
-        def unclamped(*args):
-            actuated, clamped = actuation(*args)
-            return actuated, torch.zeros_like(clamped)
-
-        monkeypatch.setattr(joint_actuation, "_actuation", unclamped)
+        _ignore_clamps(monkeypatch)
     joints = sorted(dofs, key=dofs.get)
     qpos, qvel = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
     root = result.articulations[0].get_root_pose()
@@ -325,13 +330,7 @@ def test_a_saturated_arm_follows_mujoco(monkeypatch, mistake):
         warnings.simplefilter("ignore")
         agent = register_agent(path, f"tensor_panda_{mistake}", override=True)
     if mistake:
-        actuation = joint_actuation._actuation
-
-        def unclamped(*args):
-            actuated, clamped = actuation(*args)
-            return actuated, torch.zeros_like(clamped)
-
-        monkeypatch.setattr(joint_actuation, "_actuation", unclamped)
+        _ignore_clamps(monkeypatch)
     worst = _follow(agent.uid, model, joints=slice(0, 7))
     assert (worst < SATURATED_TOLERANCE) == (mistake is None), worst
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import sapien
 
+from ..model.frames import quat_to_mat
+
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
 KINDS = {"fixed": FIXED, "revolute": REVOLUTE, "revolute_unwrapped": REVOLUTE, "prismatic": PRISMATIC}
 
@@ -42,18 +44,6 @@ class RigidTree:
     floating: bool  # the root moves freely (six more coordinates: its centre's velocity, its angular velocity)
 
 
-def rotation(quaternion) -> np.ndarray:
-    """The rotation matrix of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = (float(c) for c in quaternion)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def rigid_tree(articulation: sapien.physx.PhysxArticulation, floating: bool | None = None) -> RigidTree:
     """The tree of a built articulation (`floating`: whether its root moves; None: as its root link says)."""
     links = list(articulation.links)
@@ -74,9 +64,9 @@ def rigid_tree(articulation: sapien.physx.PhysxArticulation, floating: bool | No
         kind[child] = KINDS.get(joint.type, -1)
         if kind[child] < 0:
             raise ValueError(f"joint {joint.name!r} is a {joint.type} joint: the tree takes fixed, revolute, prismatic")
-        joint_position[child], joint_rotation[child] = joint.pose_in_parent.p, rotation(joint.pose_in_parent.q)
+        joint_position[child], joint_rotation[child] = joint.pose_in_parent.p, quat_to_mat(joint.pose_in_parent.q)
         inverse = joint.pose_in_child.inv()
-        link_position[child], link_rotation[child] = inverse.p, rotation(inverse.q)
+        link_position[child], link_rotation[child] = inverse.p, quat_to_mat(inverse.q)
         if joint.dof:
             dof[child] = len(link_of_dof)
             link_of_dof.append(child)
@@ -85,7 +75,7 @@ def rigid_tree(articulation: sapien.physx.PhysxArticulation, floating: bool | No
     centre = np.array([np.asarray(link.cmass_local_pose.p, np.float64) for link in links]).reshape(n, 3)
     inertia = np.zeros((n, 3, 3))
     for i, link in enumerate(links):
-        principal = rotation(link.cmass_local_pose.q)
+        principal = quat_to_mat(link.cmass_local_pose.q)
         inertia[i] = principal @ np.diag(np.asarray(link.inertia, np.float64)) @ principal.T
     link_of_dof = np.array(link_of_dof, dtype=int)
     ancestors = np.zeros((n, link_of_dof.size), dtype=bool)
