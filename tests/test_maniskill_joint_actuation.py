@@ -287,10 +287,10 @@ def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
         q, v, pose, velocity = controller.state()
         act = controller.act.clone()
         controller.before_simulation_step()
-        expected, end = implicit_step(controller.law, controller.inertia, controller.ctrl, q, v, pose, velocity, act)
-        assert torch.allclose(robot.get_qf(), expected.float())
-        assert torch.allclose(robot.get_drive_velocities(), end.float())  # ManiSkill's own reader
-        assert not torch.allclose(expected[0], expected[1])  # each sub-scene its own ctrl and state
+        step = implicit_step(controller.law, controller.inertia, controller.ctrl, q, v, pose, velocity, act)
+        assert torch.allclose(robot.get_qf(), step.qf.float())
+        assert torch.allclose(robot.get_drive_velocities(), step.end.float())  # ManiSkill's own reader
+        assert not torch.allclose(step.qf[0], step.qf[1])  # each sub-scene its own ctrl and state
     finally:
         env.close()
 
@@ -480,3 +480,196 @@ def test_a_filtered_arm_follows_mujoco_with_its_activations_stepped(tmp_path, mo
         monkeypatch.setattr(joint_actuation, "next_activation", lambda law, ctrl, act: act)
     worst = _follow(agent.uid, model)
     assert (worst < TENSOR_FOLLOW_TOLERANCE["pgs"]) == (mistake is None), worst
+
+
+SWINGING_LEGS = """
+<mujoco model="swinging_legs">
+  <option timestep="0.01"/>
+  <default><geom contype="0" conaffinity="0"/></default>
+  <worldbody>
+    <body name="torso" pos="0 0 {height}">
+      <freejoint name="root"/>
+      <geom type="sphere" size="0.2" mass="2" contype="{contype}" conaffinity="{contype}"/>
+      <body name="left" pos="0.2 0 0">
+        <joint name="left" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.05" mass="0.5"/>
+      </body>
+      <body name="right" pos="-0.2 0 0">
+        <joint name="right" axis="0 0.3 1"/>
+        <geom type="capsule" fromto="0 0 0 -0.4 0.1 0" size="0.05" mass="0.5"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="left" gear="3"/><motor joint="right" gear="2"/></actuator>
+</mujoco>
+"""
+# m or rad, m/s or rad/s: the largest |ManiSkill - MuJoCo| of the swinging legs' qpos and qvel (the free joint's
+# among them) over 0.5 s under mujoco_ctrl_tensor and TGS (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch
+# 2.13.0): measured 7.2e-6; with the root left to PhysX's step 7.5e-2
+ROOT_TOLERANCE = 1e-4
+
+
+def _swinging_legs(tmp_path, uid: str, contype: int = 0, height: float = 2.0):
+    path = tmp_path / f"{uid}.xml"
+    path.write_text(SWINGING_LEGS.format(contype=contype, height=height))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, uid, override=True)
+    return mujoco.MjModel.from_xml_path(str(path)), agent
+
+
+@pytest.mark.parametrize("mistake", [None, "root_left_to_physx"])
+def test_a_floating_robot_keeps_mujocos_root(tmp_path, monkeypatch, mistake):
+    """A floating body swinging two legs on their motors, contact-free, follows MuJoCo root and joints under TGS:
+    after each physics step the root takes the velocity MuJoCo's step on the free joint's rows gives and the pose its
+    position update gives. Left to PhysX's step, which conserves the tree's momentum, the root parts from MuJoCo's."""
+    from loader.maniskill.joint_actuation import JointActuationController
+
+    model, agent = _swinging_legs(tmp_path, f"tensor_legs_{mistake}")
+    if mistake == "root_left_to_physx":
+        monkeypatch.setattr(JointActuationController, "touched", lambda self: torch.ones(1, dtype=torch.bool))
+    data = mujoco.MjData(model)
+    env = empty_env(agent.uid, "mujoco_ctrl_tensor", 100, 100)
+    try:
+        env.reset(seed=0)
+        (result,) = env.unwrapped.agent.results
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        result.set_state(data.qpos, data.qvel)
+        worst = 0.0
+        for step in range(50):
+            data.ctrl[:] = np.float32([np.sin(0.5 * step), np.cos(0.3 * step)])
+            env.step(data.ctrl.astype(np.float32))
+            mujoco.mj_step(model, data)
+            controller.settle()
+            qpos, qvel = result.get_state()
+            worst = max(worst, float(np.abs(qpos - data.qpos).max()), float(np.abs(qvel - data.qvel).max()))
+    finally:
+        env.close()
+    assert (worst < ROOT_TOLERANCE) == (mistake is None), worst
+
+
+@pytest.mark.parametrize("mistake", [None, "blind"])
+@pytest.mark.parametrize("case", ["contact", "state_set"])
+def test_the_root_stays_physxs_where_the_law_cannot_know_its_step(tmp_path, monkeypatch, case, mistake):
+    """The root keeps PhysX's end of a step where MuJoCo's step on its rows would miss a force: where the robot rests
+    on the ground (the contact's impulse is not the law's; under PGS, whose position update leaves the joints where
+    their velocities take them, so that only the contact check sees it), or where its state was set from outside
+    after the step. Mutation: the check blind to it (no contact seen; every env taken as stepped), and the root is
+    rewritten."""
+    from loader.maniskill import free_root
+    from loader.maniskill.joint_actuation import JointActuationController
+
+    contact = case == "contact"
+    _, agent = _swinging_legs(tmp_path, f"tensor_kept_{case}_{mistake}", 1 if contact else 0, 0.2)
+    if mistake == "blind" and contact:
+        monkeypatch.setattr(JointActuationController, "touched", lambda self: torch.zeros(1, dtype=torch.bool))
+    elif mistake == "blind":
+        monkeypatch.setattr(free_root.RootRows, "stepped", lambda self, q, v: self.pending)
+    env = empty_env(agent.uid, "mujoco_ctrl_tensor", 100, 100, {"enable_tgs": False} if contact else None)
+    try:
+        env.reset(seed=0)
+        robot = env.unwrapped.agent.robot
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        for _ in range(1 if contact else 3):  # from rest on the ground, the first step's joints step as PhysX's do
+            env.step(np.float32([1.0, -1.0]))
+        if not contact:
+            robot.set_qpos(robot.get_qpos() + 0.1)
+        before = torch.cat((robot.root_pose.raw_pose, robot.root_linear_velocity), -1).clone()
+        controller.settle()
+        after = torch.cat((robot.root_pose.raw_pose, robot.root_linear_velocity), -1)
+    finally:
+        env.close()
+    assert torch.equal(before, after) == (mistake is None), (before - after).abs().max()
+
+
+@pytest.mark.parametrize("mistake", [None, "pgs_position_update"])
+def test_every_contact_free_tgs_step_of_a_damped_dog_is_settled(monkeypatch, mistake):
+    """dm_control's dog in `Empty-v1` under TGS, without gravity, contact-free, under a sine on every ctrl: its light
+    limbs under heavy damping (the elbow's 0.3 N m s on 0.17 kg) stray, within TGS's substeps, from where timestep
+    times their end velocity takes them, by more than float32's rounding. Every step is still taken as PhysX's step,
+    and its root settled. Mutation: PGS's position update demanded (the joints at timestep x end velocity, to float32),
+    and most steps keep PhysX's root."""
+    from mani_skill.utils.structs.pose import Pose
+
+    from loader.maniskill import free_root
+
+    path = suite_path("humanoid").parents[1] / "locomotion/walkers/assets/dog_v2/dog.xml"
+    stepped = free_root.RootRows.stepped
+    if mistake:
+
+        def stepped(self, q, v):  # the joints exactly at timestep x end velocity, to float32
+            strayed = torch.abs(q - self.q0 - self.timestep * v).amax(-1)
+            return self.pending & (strayed <= 1e-6 * (1 + q.abs().amax(-1)))
+
+    taken = []
+    monkeypatch.setattr(
+        free_root.RootRows, "stepped", lambda self, q, v: taken.append(stepped(self, q, v)) or taken[-1]
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, f"tensor_dog_{mistake}", override=True)
+    low, high = np.array(agent.ctrl_low), np.array(agent.ctrl_high)
+    env = empty_env(agent.uid, "mujoco_ctrl_tensor", 200, 200, {"gravity": [0.0, 0.0, 0.0]})
+    try:
+        env.reset(seed=0)
+        robot = env.unwrapped.agent.robot
+        raised = robot.root_pose.raw_pose.clone()
+        raised[:, 2] += 3.0  # clear of the ground
+        robot.set_root_pose(Pose.create(raised))
+        for t in range(40):
+            env.step(
+                (0.5 * (low + high) + 0.4 * (high - low) * np.sin(0.3 * t + np.arange(low.size))).astype(np.float32)
+            )
+        assert not bool(env.unwrapped.agent.controller.controllers["ctrl"].touched().any())
+    finally:
+        env.close()
+    settled = int(torch.cat(taken).sum())
+    assert (settled == len(taken) == 39) == (mistake is None), (settled, len(taken))
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (ManiSkill's physx_cuda backend)")
+def test_every_sub_scenes_floating_root_keeps_mujocos_on_the_gpu(tmp_path):
+    """On `physx_cuda` with 4 sub-scenes, each under its own ctrl, the swinging legs' root and joints follow MuJoCo
+    stepped with that sub-scene's ctrl, within `ROOT_TOLERANCE`: the root rows, the contact query and the root's write
+    on the device."""
+    import gymnasium as gym
+
+    from loader.maniskill.free_root import free_velocity
+
+    model, agent = _swinging_legs(tmp_path, "tensor_legs_gpu")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = gym.make(
+            "Empty-v1",
+            robot_uids=agent.uid,
+            num_envs=4,
+            sim_backend="physx_cuda",
+            render_backend="none",
+            obs_mode="state",
+            control_mode="mujoco_ctrl_tensor",
+            sim_config={"sim_freq": 100, "control_freq": 100},
+        )
+    datas = [mujoco.MjData(model) for _ in range(4)]
+    try:
+        env.reset(seed=0)
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        q, _, pose, _ = controller.state()
+        for data, start, root in zip(datas, q.cpu().numpy(), pose.cpu().numpy()):
+            data.qpos[:7], data.qpos[7:] = root, start  # each sub-scene's start, as ManiSkill placed it
+        worst = 0.0
+        for step in range(50):
+            ctrl = np.float32([[np.sin(0.5 * step + k), np.cos(0.3 * step - k)] for k in range(4)])
+            env.step(torch.as_tensor(ctrl, device=env.unwrapped.device))
+            controller.settle()
+            q, v, pose, velocity = controller.state()
+            free = free_velocity(controller.inertia, pose, velocity)
+            ours = torch.cat((pose, q), -1).cpu().numpy(), torch.cat((free, v), -1).cpu().numpy()
+            for k, data in enumerate(datas):
+                data.ctrl[:] = ctrl[k]
+                mujoco.mj_step(model, data)
+                worst = max(
+                    worst, float(np.abs(ours[0][k] - data.qpos).max()), float(np.abs(ours[1][k] - data.qvel).max())
+                )
+    finally:
+        env.close()
+    assert worst < ROOT_TOLERANCE, worst

@@ -76,8 +76,8 @@ class ThroughEnv:
 
 class ThroughTensorEnv(ThroughEnv):
     """`ThroughEnv` under `mujoco_ctrl_tensor`, whose controller (`law`) keeps its own activations and last step:
-    a state set from outside sets its activations too and starts its next step afresh, and the drives stay the
-    law's whenever the result's own `set_ctrl` wrote them (`disable_actuators`)."""
+    a state set from outside sets its activations too and leaves no step to settle, a state read settles the last
+    one, and the drives stay the law's whenever the result's own `set_ctrl` wrote them (`disable_actuators`)."""
 
     def __init__(self, result, env):
         super().__init__(result, env)
@@ -85,7 +85,12 @@ class ThroughTensorEnv(ThroughEnv):
 
     def set_state(self, qpos, qvel=None) -> None:
         self.result.set_state(qpos, qvel)
-        self.law.previous = self.law.fresh = None
+        self.law.rows = None  # no step of the law's to settle
+
+    def get_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The state after the last physics step, its floating root settled as the law's next step would."""
+        self.law.settle()
+        return self.result.get_state()
 
     def set_act(self, act) -> None:
         """MuJoCo's act (na) into the law's activations (one env x nu: an actuator's column is its act)."""

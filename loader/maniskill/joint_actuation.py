@@ -10,22 +10,25 @@ velocity v1, `qf = M (v1 - v0) / dt + c`: PhysX steps a joint force explicitly u
 follows MuJoCo under ManiSkill's default TGS as under PGS. The drives keep the implicit damping's diagonal, aimed at
 v1, where they hold nothing if PhysX's M is the law's; where float32 makes them differ (light links under heavy
 servos) they hold the joints to v1. A slide on a turning link keeps no drive: PhysX's drive measures its velocity
-short of the centripetal term (tests/test_maniskill_joint_actuation.py)."""
+short of the centripetal term (tests/test_maniskill_joint_actuation.py). A floating root ends each step where MuJoCo's
+step leaves it, written before the next, wherever no contact pushed the tree (`free_root.py`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 import torch
 from gymnasium import spaces
 from mani_skill.agents.controllers.base_controller import BaseController, ControllerConfig
 from mani_skill.utils import common
+from mani_skill.utils.structs.pose import Pose
 
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
-from .free_root import free_velocity
+from .free_root import RootRows, free_velocity, physx_velocity
 from .inertia import Inertia, mass_matrix_and_bias
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
@@ -125,6 +128,13 @@ def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:
     return actuators + torch.diag_embed(law.implicit_damping) + law.tendon_implicit
 
 
+class ImplicitStep(NamedTuple):
+    qf: torch.Tensor  # (env, DoF)
+    end: torch.Tensor  # (env, DoF): v1
+    matrix: torch.Tensor  # (env, n, n): M at the start, a floating root's six coordinates first
+    bias: torch.Tensor  # (env, n): c
+
+
 def implicit_step(
     law: Law,
     inertia: Inertia,
@@ -134,14 +144,15 @@ def implicit_step(
     root_pose: torch.Tensor,
     root_velocity: torch.Tensor | None = None,
     act: torch.Tensor | None = None,
-) -> tuple[torch.Tensor, torch.Tensor]:
+) -> ImplicitStep:
     """MuJoCo's step of the joints from (q, v) under `ctrl` (no constraint rows): its end velocity v1 (env, DoF) from
 
         (M + dt D) (v1 - v0) = dt (f - c),
 
     f the actuator and passive force at the start, D its implicit derivative, M and c PhysX's inertia and bias at
     the state (`inertia.py`; a floating root's six coordinates first, no force on them), and the joint force
-    `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver."""
+    `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver; M and c
+    with them."""
     actuated, clamped = _actuation(law, ctrl, q, v, act)
     force = actuated + _passive(law, q, v)
     matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity)
@@ -152,7 +163,7 @@ def implicit_step(
         force = torch.nn.functional.pad(force, (root, 0))
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
-    return qf[:, root:], v + change[:, root:]
+    return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)
 
 
 class JointActuationController(BaseController):
@@ -172,12 +183,14 @@ class JointActuationController(BaseController):
         self.act = torch.zeros_like(self.ctrl)  # the actuators' activations (MuJoCo's act), per env
         self.inertia: Inertia | None = None  # the robot's M and c (`set_drive_property`)
         self.physx_joints: list | None = None  # on the CPU backend, the sub-scene's PhysX joints (`aim`)
+        self.rows: RootRows | None = None  # a floating root's rows of the step under way (`settle`)
+        self.link_names: tuple[str, ...] | None = None  # the robot's links, for their contacts (`touched`)
 
     def set_drive_property(self):
         """The drives hold the implicit damping alone (no stiffness; a velocity target each step); gravity on, as in
         MuJoCo, but on the links of fully compensated bodies, which the robot's M and c leave weightless too. The
-        mode starts afresh: activations at zero."""
-        self.act = torch.zeros_like(self.act)
+        mode starts afresh: activations at zero, no step to settle."""
+        self.act, self.rows = torch.zeros_like(self.act), None
         weightless = set(self.config.plan.weightless)
         for index, link in enumerate(self.articulation.links):
             link.disable_gravity = index in weightless
@@ -200,10 +213,12 @@ class JointActuationController(BaseController):
         (tests/test_maniskill_joint_actuation.py::test_a_partial_reset_restarts_only_its_envs)."""
         envs, self.resetting = self.resetting, None
         if envs is None or bool(envs.all()):
-            self.ctrl, self.act = torch.zeros_like(self.ctrl), torch.zeros_like(self.act)
+            self.ctrl, self.act, self.rows = torch.zeros_like(self.ctrl), torch.zeros_like(self.act), None
             return
         envs = envs.to(self.device)
         self.ctrl[envs], self.act[envs] = 0.0, 0.0
+        if self.rows is not None:  # a reset env's root stays where the reset put it
+            self.rows.pending &= ~envs
 
     def set_action(self, action):
         self.ctrl = common.to_tensor(self._preprocess_action(action), device=self.device).to(LAW_DTYPE)
@@ -221,8 +236,8 @@ class JointActuationController(BaseController):
         self.articulation.set_joint_drive_velocity_targets(target[:, indices].float(), self.joints, indices)
 
     def state(self) -> tuple[torch.Tensor, ...]:
-        """The robot's joint positions and velocities, its root's pose and, where it floats, its free joint's velocity
-        in MuJoCo's convention, in the law's dtype (on the device: those of the last physics step)."""
+        """The robot's joint positions and velocities, its root's pose and, where it floats, its root link's velocity
+        (PhysX's convention), in the law's dtype (on the device: those of the last physics step)."""
         px, floating = self.scene.px, self.inertia.floating
         if self.scene.gpu_sim_enabled:
             px.gpu_fetch_articulation_qpos()
@@ -235,17 +250,62 @@ class JointActuationController(BaseController):
         pose = robot.root_pose.raw_pose.to(LAW_DTYPE)
         if not floating:
             return q, v, pose, None
-        velocity = torch.cat((robot.root_linear_velocity, robot.root_angular_velocity), -1).to(LAW_DTYPE)
-        return q, v, pose, free_velocity(self.inertia, pose, velocity)
+        return q, v, pose, torch.cat((robot.root_linear_velocity, robot.root_angular_velocity), -1).to(LAW_DTYPE)
+
+    def settle(self) -> None:
+        """The floating root of the last physics step as MuJoCo's step leaves it (`free_root.py`), in PhysX; the next
+        physics step does it before it begins, a reader of the root's end state calls it first. Nothing where no
+        step is pending."""
+        if self.rows is not None:
+            self._settled(*self.state())
+
+    def _settled(self, q, v, pose, velocity) -> tuple[torch.Tensor, torch.Tensor]:
+        """The root's pose and PhysX velocity after the pending step settled: MuJoCo's root in every env whose
+        joints moved as PhysX's step moves them and whose tree no contact pushed, written into PhysX; PhysX's own
+        elsewhere."""
+        rows, self.rows = self.rows, None
+        if rows is None:
+            return pose, velocity
+        gpu = self.scene.gpu_sim_enabled
+        kept = rows.stepped(q, v) & ~self.touched()
+        if not gpu and not bool(kept.any()):  # on the device, no host sync: every env is written
+            return pose, velocity
+        end_pose, end_velocity = rows.end(v)
+        pose = torch.where(kept[:, None], end_pose, pose)
+        velocity = torch.where(kept[:, None], physx_velocity(self.inertia, pose, end_velocity), velocity)
+        robot = self.articulation
+        robot.set_root_pose(Pose.create(pose.float()))
+        robot.set_root_linear_velocity(velocity[:, :3].float())
+        robot.set_root_angular_velocity(velocity[:, 3:].float())
+        if gpu:
+            px = self.scene.px
+            px.gpu_apply_articulation_root_pose()
+            px.gpu_apply_articulation_root_velocity()
+            px.gpu_update_articulation_kinematics()
+        else:
+            robot.set_qvel(robot.get_qvel())  # the links' velocities follow the root's
+        return pose, velocity
+
+    def touched(self) -> torch.Tensor:
+        """(env,) whether a contact pushed one of the robot's links in the last physics step."""
+        if self.link_names is None:
+            self.link_names = tuple(link.name for link in self.articulation.links)
+        impulses = self.articulation.get_net_contact_impulses(self.link_names)
+        return (impulses != 0).flatten(1).any(-1).to(self.device)
 
     @torch.inference_mode()  # no autograd bookkeeping: a third of the law's time on the CPU
     def before_simulation_step(self):
-        """The state in; MuJoCo's step from it: `qf` out, and the drives aimed at its end velocity; the activations
-        one step on."""
+        """The last step settled; the state in; MuJoCo's step from it: `qf` out, and the drives aimed at its end
+        velocity; the activations one step on."""
         q, v, pose, velocity = self.state()
-        qf, end = implicit_step(self.law, self.inertia, self.ctrl, q, v, pose, velocity, self.act)
-        self.aim(end)
-        self.articulation.set_qf(qf.float())
+        if velocity is not None:
+            pose, velocity = self._settled(q, v, pose, velocity)
+            velocity = free_velocity(self.inertia, pose, velocity)
+        step = implicit_step(self.law, self.inertia, self.ctrl, q, v, pose, velocity, self.act)
+        if velocity is not None:
+            self.rows = RootRows.solve(step.matrix, step.bias, q, v, pose, velocity, self.law.timestep)
+        self.aim(step.end)
+        self.articulation.set_qf(step.qf.float())
         self.act = next_activation(self.law, self.ctrl, self.act)
         if self.scene.gpu_sim_enabled:
             px = self.scene.px
