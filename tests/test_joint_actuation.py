@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from loader.plan import joint_actuation
-from loader.plan.joint_actuation import plan_joint_actuation
+from loader.plan.joint_actuation import FLOATING_ROOT, plan_joint_actuation
 
 # every actuator kind of the law on hinges, a slide and a fixed tendon over two of them, with gears, clamps that
 # bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers (the tendon's with a deadband);
@@ -95,13 +95,12 @@ def test_the_drives_hold_mujocos_velocity_derivative_under_implicitfast(monkeypa
 FLOATING = """<mujoco><worldbody><body name="root"><freejoint/><geom size=".1"/>
   <body name="arm"><joint name="j" axis="0 1 0" limited="true" range="-1 1"/><geom size=".05" pos=".2 0 0"/></body>
   </body></worldbody><equality><joint joint1="j"/></equality><actuator><motor joint="j"/></actuator></mujoco>"""
-FLOATING_ROOT = "a floating root's velocity in MuJoCo's convention (PhysX's step conserves momentum)"
 
 
 @pytest.mark.parametrize("flags", [(), ("limit", "equality"), ("constraint",)])
 def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
-    """A robot on a free joint names its floating root (the per-step terms' momentum settle, which the law lacks);
-    its limits and its equality are named unless the model disables them."""
+    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); its limits and its
+    equality are named unless the model disables them."""
     disabled = " ".join(f'{flag}="disable"' for flag in flags)
     xml = FLOATING.replace("<worldbody>", f"<option><flag {disabled}/></option><worldbody>", 1)
     model = mujoco.MjModel.from_xml_string(xml)
@@ -111,6 +110,15 @@ def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
     assert rows & set(plan.not_carried) == (set() if flags else rows)
     fixed = plan_joint_actuation(model, {1: 0}, 1, {2: 0})  # the robot is the arm alone: no root of its own floats
     assert FLOATING_ROOT not in fixed.not_carried
+    assert "a free joint's damping or armature" not in plan.not_carried
+
+
+@pytest.mark.parametrize("attribute", ["damping", "armature"])
+def test_a_free_joints_damping_or_armature_is_named(attribute):
+    """The law's root rows hold neither: a free joint with either is named."""
+    model = mujoco.MjModel.from_xml_string(FLOATING.replace("<freejoint/>", f'<joint type="free" {attribute}="0.1"/>'))
+    plan = plan_joint_actuation(model, {1: 0}, 1, {1: 0, 2: 1})
+    assert "a free joint's damping or armature" in plan.not_carried
 
 
 # a hinge carrying two slides on separate branches (a gripper's fingers), one fixed tendon servo over both, the

@@ -279,15 +279,24 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
     return [int(model.wrap_objid[w]) for w in wraps]
 
 
+# the law takes a floating root's step from MuJoCo's rows where every force on the tree is its own
+FLOATING_ROOT = "a floating root's step where a contact pushed the tree: PhysX's, which conserves its momentum"
+
+
 def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int]) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
     sprung = int(np.count_nonzero((model.tendon_stiffness != 0) | (model.tendon_damping != 0)))
     free = int(mujoco.mjtJoint.mjJNT_FREE)
-    floating = any(
-        int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in link_of_body for j in range(model.njnt)
-    )
+    roots = [
+        j for j in range(model.njnt) if int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in link_of_body
+    ]
+    root_dofs = [int(model.jnt_dofadr[j]) + k for j in roots for k in range(6)]
     checks = [
-        (floating, "a floating root's velocity in MuJoCo's convention (PhysX's step conserves momentum)"),
+        (bool(roots), FLOATING_ROOT),
+        (
+            np.any(model.dof_damping[root_dofs]) or np.any(model.dof_armature[root_dofs]),
+            "a free joint's damping or armature",
+        ),
         (
             np.any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"),
             "soft joint limits (PhysX's hard limits)",
