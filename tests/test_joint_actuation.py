@@ -99,15 +99,15 @@ FLOATING = """<mujoco><worldbody><body name="root"><freejoint/><geom size=".1"/>
 
 @pytest.mark.parametrize("flags", [(), ("limit", "equality"), ("constraint",)])
 def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
-    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); its limits and its
-    equality are named unless the model disables them."""
+    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); its equality is named
+    unless the model disables it. Its joint limit is carried (the law's limit rows) unless the model disables it."""
     disabled = " ".join(f'{flag}="disable"' for flag in flags)
     xml = FLOATING.replace("<worldbody>", f"<option><flag {disabled}/></option><worldbody>", 1)
     model = mujoco.MjModel.from_xml_string(xml)
     plan = plan_joint_actuation(model, {1: 0}, 1, {1: 0, 2: 1})
-    rows = {"soft joint limits (PhysX's hard limits)", "equality constraints"}
     assert FLOATING_ROOT in plan.not_carried
-    assert rows & set(plan.not_carried) == (set() if flags else rows)
+    assert ("equality constraints" in plan.not_carried) == (not flags)
+    assert bool(plan.limits.limited[0]) == (not flags)
     fixed = plan_joint_actuation(model, {1: 0}, 1, {2: 0})  # the robot is the arm alone: no root of its own floats
     assert FLOATING_ROOT not in fixed.not_carried
     assert "a free joint's damping or armature" not in plan.not_carried
@@ -224,3 +224,27 @@ def test_a_fixed_tendons_spring_is_carried_and_any_other_is_named(tendon):
             -0.02,
             0.03,
         ]
+
+
+@pytest.mark.parametrize("refsafe", [True, False])
+def test_a_joint_limits_row_is_mujocos(refsafe):
+    """The planned limit row's reference stiffness and damping (solreflimit with refsafe's floor of two timesteps,
+    or the direct negative form) and its diagApprox are MuJoCo's own row's, read from MuJoCo's efc arrays at a state
+    past the range: aref = -B J v - K imp (r - margin), R = (1 - imp) / imp diagApprox."""
+    flag = "" if refsafe else '<flag refsafe="disable"/>'
+    xml = f"""<mujoco><compiler angle="radian"/><option timestep="0.02">{flag}</option><worldbody><body>
+      <joint name="a" axis="0 1 0" range="-0.5 0.5" solreflimit="0.01 0.7" margin="0.1"/><geom size=".1"/>
+      <body pos=".3 0 0"><joint name="b" type="slide" range="-0.2 0.2" solreflimit="-300 -20"/><geom size=".1"/>
+      </body></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    limits = plan_joint_actuation(model, {0: 0, 1: 1}, 2).limits
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = [0.45, -0.3], [0.7, -1.1]  # hinge within its margin of the upper end, slide past
+    mujoco.mj_forward(model, data)
+    assert data.nefc == 2
+    sign, distance = np.array([-1.0, 1.0]), np.array([0.5 - 0.45, -0.3 + 0.2])
+    imp = data.efc_KBIP[:, 2]
+    violation = distance - limits.margin
+    aref = -limits.damping * sign * data.qvel - limits.stiffness * imp * violation
+    np.testing.assert_allclose(aref, data.efc_aref, rtol=1e-12)
+    np.testing.assert_allclose((1 - imp) / imp * limits.diag_approx, data.efc_R, rtol=1e-12)

@@ -673,3 +673,58 @@ def test_every_sub_scenes_floating_root_keeps_mujocos_on_the_gpu(tmp_path):
     finally:
         env.close()
     assert worst < ROOT_TOLERANCE, worst
+
+
+LIMITED = """
+<mujoco model="limited_chain">
+  <option timestep="0.01"><flag contact="disable"/></option>
+  <default><joint limited="true" damping="0.1"/></default>
+  <worldbody>
+    <body>
+      <joint name="a" axis="0 1 0" range="-0.5 0.5" solreflimit="0.03 0.8" solimplimit="0.8 0.97 0.01 0.3 3"
+             margin="0.02"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body pos="0.3 0 0">
+        <joint name="b" axis="0 1 0" range="-1 0.2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <body pos="0.3 0 0">
+          <joint name="c" type="slide" axis="1 0 0" range="-0.05 0.05" solreflimit="-2000 -30"/>
+          <geom type="box" size="0.05 0.05 0.05"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("mistake", [None, "no_margin", "impedance_flat", "two_passes"])
+def test_the_laws_limit_rows_are_mujocos(monkeypatch, mistake):
+    """At 32 random states about and past the ranges' ends (a margin, a solimp sigmoid, the direct solref form on the
+    slide), the law's end velocity is MuJoCo's step's with its limit rows: measured 3.5e-7 relative (`STEP_TOLERANCE`).
+    Each mistake misses: the margin left out (2.6), the impedance taken as dmax everywhere (0.23), the rows' set taken
+    again only twice (0.80; three passes settle it here)."""
+    result, dofs, plan, inertia = _loaded_law(LIMITED)
+    model = result.model
+    if mistake == "no_margin":
+        plan.limits.margin[:] = 0.0
+    elif mistake == "impedance_flat":
+        plan.limits.solimp[0] = plan.limits.solimp[1]
+    elif mistake == "two_passes":
+        monkeypatch.setattr(joint_actuation, "LIMIT_PASSES", 2)
+    law = Law(plan, model.opt.timestep, "cpu", torch.float64)
+    joints = sorted(dofs, key=dofs.get)
+    qpos, qvel = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
+    root = result.articulations[0].get_root_pose()
+    pose = torch.tensor(np.r_[root.p, root.q], dtype=torch.float64)[None]
+    data, rng, worst = mujoco.MjData(model), np.random.default_rng(0), 0.0
+    for _ in range(32):
+        mujoco.mj_resetData(model, data)
+        data.qpos[qpos] = rng.uniform(model.jnt_range[joints, 0] - 0.06, model.jnt_range[joints, 1] + 0.06)
+        data.qvel[qvel], data.ctrl[:] = rng.uniform(-2, 2, len(joints)), rng.uniform(-1, 1, model.nu)
+        q, v = torch.tensor(data.qpos[qpos])[None], torch.tensor(data.qvel[qvel])[None]
+        end = implicit_step(law, inertia, torch.tensor(data.ctrl)[None], q, v, pose).end[0].numpy()
+        mujoco.mj_step(model, data)
+        worst = max(worst, float(np.abs(end - data.qvel[qvel]).max() / max(1.0, np.abs(data.qvel[qvel]).max())))
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst

@@ -8,9 +8,9 @@ import importlib
 import warnings
 
 import pytest
-from support.corpus import suite_path
+from support.corpus import menagerie_root, suite_path
 
-pytest.importorskip("torch", reason="torch is not installed (the `maniskill` extra)")
+torch = pytest.importorskip("torch", reason="torch is not installed (the `maniskill` extra)")
 pytest.importorskip("mani_skill", reason="mani_skill is not installed (the `maniskill` extra)")
 
 from conformance import tolerances
@@ -33,16 +33,28 @@ def _judged(name: str):
     return TIERS[TIER](session.result, session.model, 0, TOL)
 
 
-@pytest.mark.parametrize("mistake", [None, "limits_left_in"])
-def test_the_tier_takes_the_limits_out_of_both_sides(monkeypatch, mistake):
-    """The hopper folds into its joint limits within the tier's run: MuJoCo's soft limits against PhysX's hard ones,
-    which the law does not carry. With them taken out of both sides (and said so), the law passes; left in, it
-    fails."""
-    if mistake:
-        monkeypatch.setattr(tier_module, "TENSOR_GAPS", ())
+@pytest.mark.parametrize("mistake", [None, "hard_limits", "no_limit_rows"])
+def test_the_law_carries_the_joint_limits(monkeypatch, mistake):
+    """The hopper folds into its joint limits within the tier's run, which leaves them in on both sides: the law
+    solves MuJoCo's soft limit rows, and the robot, built in the mode, holds no PhysX limit in their way. Each mistake
+    fails it: the limits left to PhysX's hard ones (the plan without them), or PhysX's out of the way with no rows
+    solved."""
+    from loader.maniskill import agent, joint_actuation
+
+    if mistake == "hard_limits":
+        plan = agent.plan_joint_actuation
+
+        def hard(*args, **kwargs):
+            law = plan(*args, **kwargs)
+            law.limits.limited[:] = False
+            return law
+
+        monkeypatch.setattr(agent, "plan_joint_actuation", hard)
+    elif mistake == "no_limit_rows":
+        monkeypatch.setattr(joint_actuation, "limit_force", lambda law, matrix, q, v, smooth: torch.zeros_like(smooth))
     report = _judged("hopper")
     assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
-    assert any("taken out of both sides" in note and "limits" in note for note in report.notes) == (mistake is None)
+    assert not any("limits" in note for note in report.notes if "taken out" in note)
 
 
 @pytest.mark.parametrize("mistake", [None, "gain_off"])
@@ -65,15 +77,21 @@ def test_the_tier_catches_a_law_with_its_gains_two_percent_off(monkeypatch, mist
 
 @pytest.mark.parametrize("mistake", [None, "root_left_to_physx"])
 def test_a_floating_robot_passes_with_mujocos_root(monkeypatch, mistake):
-    """The humanoid passes the tier: after each physics step its floating root takes MuJoCo's step on the free
-    joint's rows (loader/maniskill/free_root.py), and a read of the state settles the last one. Mutation: every step
-    taken as pushed by a contact, so the root keeps PhysX's step, which conserves the tree's momentum where MuJoCo
-    keeps qvel: the tier fails."""
+    """go1 passes the tier: after each physics step its floating root takes MuJoCo's step on the free joint's rows
+    (loader/maniskill/free_root.py), and a read of the state settles the last one. Mutation: every step taken as
+    pushed by a contact, so the root keeps PhysX's step, which conserves the tree's momentum where MuJoCo keeps qvel:
+    the tier fails (its one-step root velocity)."""
     from loader.maniskill.joint_actuation import JointActuationController
 
+    root = menagerie_root()
+    if root is None:
+        pytest.skip("Menagerie slice not installed (extra 'menagerie')")
     if mistake:
         monkeypatch.setattr(JointActuationController, "touched", lambda self: self.ctrl.new_ones(1).bool())
-    report = _judged("humanoid")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = open_session(str(root / "unitree_go1/go1.xml"))
+    report = TIERS[TIER](session.result, session.model, 0, TOL)
     assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
 
 

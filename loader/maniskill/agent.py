@@ -29,6 +29,7 @@ from .joint_actuation import JointActuationConfig, JointActuationController
 from .mujoco_ctrl import MujocoCtrlConfig
 from .scene_loader import MJCFLoader
 
+UNREACHED = 1e4  # rad or m: the PhysX limits of a joint whose limits `mujoco_ctrl_tensor`'s law carries
 DELTA = 0.1  # pd_joint_delta_pos: ManiSkill's usual bound on a step's change of target (rad or m)
 
 
@@ -42,6 +43,14 @@ class MJCFAgent(BaseAgent):
     # `mujoco_ctrl_tensor`'s law, or why the model's actuators are outside it
     joint_actuation: ClassVar[JointActuation | str] = "not planned"
     rigid_tree: ClassVar[RigidTree | None] = None  # the robot's tree as built, for the law's M and c
+    # the joints whose limits the law carries as MuJoCo's soft rows: built free of PhysX's hard limits in an env made
+    # in `mujoco_ctrl_tensor`
+    law_limited: ClassVar[list[str]] = []
+    law_limited_dofs: ClassVar[list[int]] = []  # their DoFs
+
+    def __init__(self, scene, control_freq: int, control_mode: str | None = None, *args, **kwargs):
+        self.built_mode = control_mode  # the env's control mode, which decides the build (`_load_articulation`)
+        super().__init__(scene, control_freq, control_mode, *args, **kwargs)
 
     def _load_articulation(self, initial_pose=None):
         """The env's `initial_pose` places the file's world frame; the robot's root keeps its pose in it."""
@@ -53,6 +62,12 @@ class MJCFAgent(BaseAgent):
         loader.fix_root_link = self.fix_root_link
         loader.disable_self_collisions = self.disable_self_collisions
         builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
+        tensor = self.built_mode == "mujoco_ctrl_tensor"
+        if tensor:  # the law's soft limit rows, not PhysX's hard limits (a band no joint reaches: PhysX keeps a
+            # joint built limited so, while the loader's own reset holds its limits wide of MuJoCo's range)
+            for link in builder.link_builders:
+                if link.joint_record.name in self.law_limited:
+                    link.joint_record.limits = [[-UNREACHED, UNREACHED]]
         if initial_pose is None:
             builder.initial_pose = Pose.create(builder.initial_pose)
         else:  # on the device of the env's pose (a batched pose may live on the GPU)
@@ -63,6 +78,9 @@ class MJCFAgent(BaseAgent):
         self.results = loader.results
         for result in self.results:
             result.release()  # PD modes drive the joints; mujoco_ctrl takes them back
+            joints = result.articulations[0].get_active_joints()
+            for dof in self.law_limited_dofs if tensor else ():  # the release held MuJoCo's range: out of the way
+                joints[dof].set_limit(np.array([[-UNREACHED, UNREACHED]], np.float32))
 
     def reset(self, init_qpos=None):
         """ManiSkill's reset, and the envs it resets handed to `mujoco_ctrl_tensor`'s controller: ManiSkill marks them
@@ -196,7 +214,10 @@ def register_agent(
     }
     try:  # the law's M and c need the tree; a joint it does not take keeps the robot out of the mode, saying why
         attributes["rigid_tree"] = rigid_tree(articulation)
-        attributes["joint_actuation"] = plan_joint_actuation(model, dof_of_joint, articulation.dof, link_of_body)
+        attributes["joint_actuation"] = plan = plan_joint_actuation(model, dof_of_joint, articulation.dof, link_of_body)
+        if isinstance(plan, JointActuation):
+            joints, limited = articulation.get_active_joints(), np.flatnonzero(plan.limits.limited).tolist()
+            attributes["law_limited"], attributes["law_limited_dofs"] = [joints[dof].name for dof in limited], limited
     except ValueError as error:
         attributes["joint_actuation"] = str(error)
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)

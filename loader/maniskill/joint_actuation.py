@@ -25,6 +25,7 @@ from mani_skill.agents.controllers.base_controller import BaseController, Contro
 from mani_skill.utils import common
 from mani_skill.utils.structs.pose import Pose
 
+from ..model.mj import MJMINVAL
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
@@ -34,6 +35,10 @@ from .inertia import Inertia, mass_matrix_and_bias
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
+MINIMP, MAXIMP = 0.0001, 0.9999  # MuJoCo's bounds on a row's impedance
+# the limit rows' solve: passes of taking the rows an acceleration breaks and solving on them, a fixed count so that
+# the device never waits on the host (the three-joint test chain, every joint past an end, settles in three)
+LIMIT_PASSES = 6
 
 
 class Law:
@@ -59,6 +64,20 @@ class Law:
         implicit = (springs.moment.T * springs.implicit_damping) @ springs.moment
         self.tendon_implicit = tensor(implicit * plan.chained)
         self.any_tendon = bool(springs.stiffness.size)  # read on the host
+        limits = plan.limits
+        self.any_limited = bool(limits.limited.any())  # read on the host
+        self.limited = torch.as_tensor(limits.limited, device=device)
+        self.limit_low, self.limit_high, self.limit_margin = (tensor(x) for x in (*limits.range, limits.margin))
+        self.limit_stiffness, self.limit_damping = tensor(limits.stiffness), tensor(limits.damping)
+        self.limit_diag = tensor(limits.diag_approx)
+        solimp = np.clip(
+            limits.solimp,
+            [[MINIMP], [MINIMP], [-np.inf], [MJMINVAL], [1.0]],
+            [[MAXIMP], [MAXIMP], [np.inf], [1 - MJMINVAL], [np.inf]],
+        )
+        self.imp_low, self.imp_high, self.imp_width, self.imp_midpoint, self.imp_power = (tensor(x) for x in solimp)
+        self.imp_flat = torch.as_tensor((solimp[0] == solimp[1]) | (solimp[2] <= MJMINVAL), device=device)
+        self.limit_sign = tensor([[1.0], [-1.0]])  # (2, 1): a lower row pushes up, an upper row down
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
         self.any_activated = bool(np.any(dynamics != NO_DYNAMICS))  # read on the host, never synced from a device
@@ -118,6 +137,51 @@ def _passive(law: Law, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     return force
 
 
+def _impedance(law: Law, violation: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's impedance imp(|r|) of each limit row (env, 2, DoF): solimp's sigmoid from dmin at r = 0 to dmax at
+    |r| >= width."""
+    x = torch.clamp(torch.abs(violation) / torch.clamp(law.imp_width, min=MJMINVAL), max=1.0)
+    midpoint, power = law.imp_midpoint, law.imp_power
+    rising = x**power / midpoint ** (power - 1.0)
+    falling = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
+    imp = law.imp_low + torch.where(x <= midpoint, rising, falling) * (law.imp_high - law.imp_low)
+    return torch.where(law.imp_flat, 0.5 * (law.imp_low + law.imp_high), imp)
+
+
+def limit_force(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's joint limit force (env, n) at the state: each limited DoF's rows at its range's ends, present within
+    the margin, with reference acceleration aref = -B J v - K imp (r - margin) and weight D = imp / ((1 - imp)
+    diagApprox), solved as MuJoCo's solver minimises M's norm of the acceleration's change plus D/2 (J a - aref)^2 on
+    the rows it would break (J a < aref), from the smooth force `smooth` (env, n: f - c, a floating root's six
+    coordinates first): on a fixed set of those rows the minimum is (M + J^T D J) a = smooth + J^T D aref, and the set
+    is taken again from each solution, LIMIT_PASSES times; on the CPU, where a check costs no wait on a device, until
+    the set repeats, and not at all where no row is present (tests/test_maniskill_joint_actuation.py)."""
+    root = matrix.shape[-1] - q.shape[-1]
+    sign = law.limit_sign
+    distance = torch.stack((q - law.limit_low, law.limit_high - q), 1)  # (env, 2, DoF)
+    present = law.limited & (distance < law.limit_margin)
+    host = matrix.device.type == "cpu"  # where a check costs no wait on a device
+    if host and not bool(present.any()):
+        return torch.zeros_like(smooth)
+    violation = distance - law.limit_margin
+    imp = _impedance(law, violation)
+    aref = -law.limit_damping * sign * v[:, None] - law.limit_stiffness * imp * violation
+    weight = present / torch.clamp((1.0 - imp) * law.limit_diag / imp, min=MJMINVAL)  # D, zero off the rows
+    pad = torch.nn.functional.pad
+    acceleration, taken = torch.linalg.solve_ex(matrix, smooth)[0], None
+    for _ in range(LIMIT_PASSES):
+        breaking = weight * (sign * acceleration[:, None, root:] < aref)
+        if host and taken is not None and torch.equal(breaking, taken):
+            break  # the same rows again: the solution stands
+        taken = breaking
+        stiffened = matrix + torch.diag_embed(pad(breaking.sum(1), (root, 0)))
+        pulled = smooth + pad((sign * breaking * aref).sum(1), (root, 0))
+        acceleration = torch.linalg.solve_ex(stiffened, pulled)[0]
+    residual = sign * acceleration[:, None, root:] - aref
+    force = (sign * -weight * torch.clamp(residual, max=0.0)).sum(1)
+    return pad(force, (root, 0))
+
+
 def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:
     """D (env, DoF, DoF), the velocity derivative MuJoCo's step takes implicitly, negated: the dampers it integrates
     implicitly, and under the implicit integrators each actuator's -b2 m m^T and each carried tendon's damper
@@ -161,6 +225,8 @@ def implicit_step(
     if root:  # no force and no damping on the root's coordinates
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
+    if law.any_limited:
+        force = force + limit_force(law, matrix, q, v, force - bias)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
     return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)

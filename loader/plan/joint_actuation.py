@@ -14,7 +14,8 @@ between its two rest lengths) and damper through its coefficients; a body compen
 nothing. MuJoCo's step takes the joints' dampers implicitly (unless eulerdamp is off), and under the implicit
 integrators each actuator's -b2 m m^T (but where its forcerange binds) and each tendon's damper d m m^T too, only
 between DoFs on one chain of the tree (a cross term between two branches, a gripper's fingers, is dropped: the mass
-matrix's pattern). The per-step half solves that step with the robot's M and c
+matrix's pattern). Each limited hinge and slide adds MuJoCo's soft limit rows (`JointLimits`: solref, solimp,
+margin). The per-step half solves that step with the robot's M and c
 (tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
 tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
@@ -29,6 +30,7 @@ import numpy as np
 from ..model import mj
 from ..model.joints import dof_damping, joint_stiffness
 from ..model.mapping import Mapping
+from ..model.soft_row import SoftRow
 
 TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_TENDON))
 JOINT_WRAP = int(mujoco.mjtWrap.mjWRAP_JOINT)
@@ -63,6 +65,29 @@ class TendonSprings:
 
 
 @dataclass
+class JointLimits:
+    """MuJoCo's joint limit rows, per robot DoF (`limited` where its joint has one the law carries): each a soft
+    one-sided row at the range's ends, active within `margin`, with MuJoCo's reference stiffness and damping
+    (solreflimit, refsafe applied at the model's timestep), solimplimit (5, ndof) and the row's diagApprox (the DoF's
+    invweight0)."""
+
+    limited: np.ndarray  # (ndof,) bool
+    range: np.ndarray  # (2, ndof)
+    margin: np.ndarray
+    stiffness: np.ndarray  # K
+    damping: np.ndarray  # B
+    solimp: np.ndarray  # (5, ndof): dmin, dmax, width, midpoint, power
+    diag_approx: np.ndarray
+
+    @classmethod
+    def none(cls, ndof: int) -> JointLimits:
+        row = np.zeros(ndof)
+        return cls(
+            np.zeros(ndof, bool), np.zeros((2, ndof)), row.copy(), row.copy(), row.copy(), np.zeros((5, ndof)), row
+        )
+
+
+@dataclass
 class JointActuation:
     """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
     the law leaves out (`not_carried`)."""
@@ -87,6 +112,7 @@ class JointActuation:
     # an actuator's velocity cross term; it drops those between DoFs on separate branches (the mass matrix's pattern)
     chained: np.ndarray
     springs: TendonSprings = field(default_factory=lambda: TendonSprings.none(0))
+    limits: JointLimits = field(default_factory=lambda: JointLimits.none(0))
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -145,6 +171,7 @@ def plan_joint_actuation(
         -bias[2] if implicit else np.zeros(model.nu),
         _chained(model, dof_of_joint, ndof),
         _tendon_springs(model, dof_of_joint, ndof, implicit),
+        _joint_limits(model, dof_of_joint, ndof),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -187,6 +214,24 @@ def _joint_arrays(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
         spring_ref[robot_dof] = model.qpos_spring[model.jnt_qposadr[joint]]
         damping[robot_dof] = dof_damping(model, int(model.jnt_dofadr[joint]))
     return stiffness, spring_ref, damping, joint_range
+
+
+def _joint_limits(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointLimits:
+    """The limit rows of the robot's limited hinges and slides, none where the model disables limits."""
+    limits = JointLimits.none(ndof)
+    if mj.disabled(model, "limit", "constraint"):
+        return limits
+    for joint, dof in dof_of_joint.items():
+        if not model.jnt_limited[joint]:
+            continue
+        row = SoftRow.of(model, model.jnt_solref[joint], model.jnt_solimp[joint])
+        limits.limited[dof] = True
+        limits.range[:, dof] = model.jnt_range[joint]
+        limits.margin[dof] = model.jnt_margin[joint]
+        limits.stiffness[dof], limits.damping[dof] = row.stiffness, row.damping
+        limits.solimp[:, dof] = row.solimp
+        limits.diag_approx[dof] = model.dof_invweight0[model.jnt_dofadr[joint]]
+    return limits
 
 
 def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
@@ -297,10 +342,7 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
             np.any(model.dof_damping[root_dofs]) or np.any(model.dof_armature[root_dofs]),
             "a free joint's damping or armature",
         ),
-        (
-            np.any(model.jnt_limited) and not mj.disabled(model, "limit", "constraint"),
-            "soft joint limits (PhysX's hard limits)",
-        ),
+        (bool(model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE), "the override flag's solref and solimp"),
         (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss", "constraint"), "frictionloss"),
         (
             sprung > len(_carried_tendons(model, dof_of_joint)),
