@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from loader.plan import joint_actuation
-from loader.plan.joint_actuation import FLOATING_ROOT, plan_joint_actuation
+from loader.plan.joint_actuation import FLOATING_ROOT, FREE_JOINT_TERMS, plan_joint_actuation
 
 # every actuator kind of the law on hinges, a slide and a fixed tendon over two of them, with gears, clamps that
 # bind (ctrlrange, forcerange and a joint's actuatorfrcrange), springs and dampers (the tendon's with a deadband);
@@ -110,15 +110,15 @@ def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
     assert bool(plan.limits.limited[0]) == (not flags)
     fixed = plan_joint_actuation(model, {1: 0}, 1, {2: 0})  # the robot is the arm alone: no root of its own floats
     assert FLOATING_ROOT not in fixed.not_carried
-    assert "a free joint's damping or armature" not in plan.not_carried
+    assert FREE_JOINT_TERMS not in plan.not_carried
 
 
-@pytest.mark.parametrize("attribute", ["damping", "armature"])
-def test_a_free_joints_damping_or_armature_is_named(attribute):
-    """The law's root rows hold neither: a free joint with either is named."""
+@pytest.mark.parametrize("attribute", ["damping", "armature", "frictionloss"])
+def test_a_free_joints_damping_armature_or_frictionloss_is_named(attribute):
+    """The law's root rows hold none of them: a free joint with one is named."""
     model = mujoco.MjModel.from_xml_string(FLOATING.replace("<freejoint/>", f'<joint type="free" {attribute}="0.1"/>'))
     plan = plan_joint_actuation(model, {1: 0}, 1, {1: 0, 2: 1})
-    assert "a free joint's damping or armature" in plan.not_carried
+    assert FREE_JOINT_TERMS in plan.not_carried
 
 
 # a hinge carrying two slides on separate branches (a gripper's fingers), one fixed tendon servo over both, the

@@ -141,7 +141,8 @@ TENSOR_FOLLOW_TOLERANCE = {"pgs": 1e-5, "tgs": 1e-4}
 # to PhysX, stay in); with the clamps' kv still taken implicitly 0.13
 SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
-# (PhysX's float32 masses and frames in M and c); each mistake misses by 5e-2 or more
+# (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7;
+# each mistake misses by 5e-4 or more
 STEP_TOLERANCE = 1e-4
 
 
@@ -699,32 +700,70 @@ LIMITED = """
 """
 
 
-@pytest.mark.parametrize("mistake", [None, "no_margin", "impedance_flat", "two_passes"])
-def test_the_laws_limit_rows_are_mujocos(monkeypatch, mistake):
-    """At 32 random states about and past the ranges' ends (a margin, a solimp sigmoid, the direct solref form on the
-    slide), the law's end velocity is MuJoCo's step's with its limit rows: measured 3.5e-7 relative (`STEP_TOLERANCE`).
-    Each mistake misses: the margin left out (2.6), the impedance taken as dmax everywhere (0.23), the rows' set taken
-    again only twice (0.80; three passes settle it here)."""
-    result, dofs, plan, inertia = _loaded_law(LIMITED)
+def _worst_rows_step(result, dofs, plan, inertia, slow: float) -> float:
+    """The largest relative |law - MuJoCo| end velocity over 32 random states about and past the ranges' ends and
+    ctrls (a share `slow` of them nearly still and barely pushed, where frictionloss holds a joint), MuJoCo's rows
+    on."""
     model = result.model
-    if mistake == "no_margin":
-        plan.limits.margin[:] = 0.0
-    elif mistake == "impedance_flat":
-        plan.limits.solimp[0] = plan.limits.solimp[1]
-    elif mistake == "two_passes":
-        monkeypatch.setattr(joint_actuation, "LIMIT_PASSES", 2)
     law = Law(plan, model.opt.timestep, "cpu", torch.float64)
     joints = sorted(dofs, key=dofs.get)
     qpos, qvel = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
     root = result.articulations[0].get_root_pose()
     pose = torch.tensor(np.r_[root.p, root.q], dtype=torch.float64)[None]
     data, rng, worst = mujoco.MjData(model), np.random.default_rng(0), 0.0
-    for _ in range(32):
+    for sample in range(32):
         mujoco.mj_resetData(model, data)
+        push = 0.01 if sample < slow * 32 else 1.0
         data.qpos[qpos] = rng.uniform(model.jnt_range[joints, 0] - 0.06, model.jnt_range[joints, 1] + 0.06)
-        data.qvel[qvel], data.ctrl[:] = rng.uniform(-2, 2, len(joints)), rng.uniform(-1, 1, model.nu)
+        data.qvel[qvel] = rng.uniform(-2.0 * push, 2.0 * push, len(joints))
+        data.ctrl[:] = rng.uniform(-push, push, model.nu)
         q, v = torch.tensor(data.qpos[qpos])[None], torch.tensor(data.qvel[qvel])[None]
         end = implicit_step(law, inertia, torch.tensor(data.ctrl)[None], q, v, pose).end[0].numpy()
         mujoco.mj_step(model, data)
         worst = max(worst, float(np.abs(end - data.qvel[qvel]).max() / max(1.0, np.abs(data.qvel[qvel]).max())))
+    return worst
+
+
+@pytest.mark.parametrize("mistake", [None, "no_margin", "impedance_flat", "two_passes"])
+def test_the_laws_limit_rows_are_mujocos(monkeypatch, mistake):
+    """At 32 random states about and past the ranges' ends (a margin, a solimp sigmoid, the direct solref form on the
+    slide), the law's end velocity is MuJoCo's step's with its limit rows: measured 3.5e-7 relative (`STEP_TOLERANCE`).
+    Each mistake misses: the margin left out (2.6), the impedance taken as dmax everywhere (0.23), the rows' zones
+    taken again only twice (0.41; three passes settle it here)."""
+    result, dofs, plan, inertia = _loaded_law(LIMITED)
+    if mistake == "no_margin":
+        plan.limits.margin[:] = 0.0
+    elif mistake == "impedance_flat":
+        plan.limits.solimp[0] = plan.limits.solimp[1]
+    elif mistake == "two_passes":
+        monkeypatch.setattr(joint_actuation, "ROW_PASSES", 2)
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+FRICTIONAL = LIMITED.replace(
+    'margin="0.02"/>',
+    'margin="0.02" frictionloss="0.3" solreffriction="0.03 0.8" solimpfriction="0.7 0.95 0.01 0.5 2"/>',
+).replace(
+    '<joint name="b" axis="0 1 0" range="-1 0.2"/>', '<joint name="b" axis="0 1 0" range="-1 0.2" frictionloss="0.05"/>'
+)
+FRICTIONAL = FRICTIONAL.replace(
+    'solreflimit="-2000 -30"/>', 'solreflimit="-2000 -30" frictionloss="2" solreffriction="-100 -30"/>'
+)
+
+
+@pytest.mark.parametrize("mistake", [None, "unbounded", "weight_at_dmax"])
+def test_the_laws_frictionloss_rows_are_mujocos(mistake):
+    """The limited chain with frictionloss on every joint (its own solreffriction and solimpfriction on the hinge, the
+    direct solref form on the slide), at 32 random states, half of them nearly still and barely pushed: the law's end
+    velocity is MuJoCo's step's with its limit and frictionloss rows, measured 4.0e-7 relative (`STEP_TOLERANCE`;
+    four passes settle it, five where every state is still). Each mistake misses: frictionloss's force left unbounded
+    (a damper: 0.66), its weight taken at solimp's dmax rather than at zero violation (5.1e-4)."""
+    result, dofs, plan, inertia = _loaded_law(FRICTIONAL)
+    assert np.count_nonzero(plan.friction.loss) == 3
+    if mistake == "unbounded":
+        plan.friction.loss[:] = np.inf
+    elif mistake == "weight_at_dmax":
+        plan.friction.weight *= [(0.95 / 0.05) / (0.7 / 0.3), (0.95 / 0.05) / (0.9 / 0.1), (0.95 / 0.05) / (0.9 / 0.1)]
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.5)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst

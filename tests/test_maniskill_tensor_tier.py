@@ -33,6 +33,13 @@ def _judged(name: str):
     return TIERS[TIER](session.result, session.model, 0, TOL)
 
 
+def _judged_path(path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        session = open_session(str(path))
+    return TIERS[TIER](session.result, session.model, 0, TOL)
+
+
 @pytest.mark.parametrize("mistake", [None, "hard_limits", "no_limit_rows"])
 def test_the_law_carries_the_joint_limits(monkeypatch, mistake):
     """The hopper folds into its joint limits within the tier's run, which leaves them in on both sides: the law
@@ -51,10 +58,32 @@ def test_the_law_carries_the_joint_limits(monkeypatch, mistake):
 
         monkeypatch.setattr(agent, "plan_joint_actuation", hard)
     elif mistake == "no_limit_rows":
-        monkeypatch.setattr(joint_actuation, "limit_force", lambda law, matrix, q, v, smooth: torch.zeros_like(smooth))
+        monkeypatch.setattr(joint_actuation, "row_force", lambda law, matrix, q, v, smooth: torch.zeros_like(smooth))
     report = _judged("hopper")
     assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
     assert not any("limits" in note for note in report.notes if "taken out" in note)
+
+
+@pytest.mark.parametrize("mistake", [None, "no_frictionloss"])
+def test_the_law_carries_frictionloss(monkeypatch, mistake):
+    """go1's joints have frictionloss (0.2 N m), which the tier leaves in on both sides: the law solves MuJoCo's
+    frictionloss rows and go1 passes. With the rows left out of the plan, it fails."""
+    from loader.maniskill import agent
+
+    root = menagerie_root()
+    if root is None:
+        pytest.skip("Menagerie slice not installed (extra 'menagerie')")
+    if mistake:
+        plan = agent.plan_joint_actuation
+
+        def frictionless(*args, **kwargs):
+            law = plan(*args, **kwargs)
+            law.friction.weight[:] = 0.0
+            return law
+
+        monkeypatch.setattr(agent, "plan_joint_actuation", frictionless)
+    report = _judged_path(root / "unitree_go1/go1.xml")
+    assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
 
 
 @pytest.mark.parametrize("mistake", [None, "gain_off"])
@@ -88,10 +117,7 @@ def test_a_floating_robot_passes_with_mujocos_root(monkeypatch, mistake):
         pytest.skip("Menagerie slice not installed (extra 'menagerie')")
     if mistake:
         monkeypatch.setattr(JointActuationController, "touched", lambda self: self.ctrl.new_ones(1).bool())
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        session = open_session(str(root / "unitree_go1/go1.xml"))
-    report = TIERS[TIER](session.result, session.model, 0, TOL)
+    report = _judged_path(root / "unitree_go1/go1.xml")
     assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]
 
 

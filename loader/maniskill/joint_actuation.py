@@ -36,9 +36,11 @@ from .inertia import Inertia, mass_matrix_and_bias
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
 MINIMP, MAXIMP = 0.0001, 0.9999  # MuJoCo's bounds on a row's impedance
-# the limit rows' solve: passes of taking the rows an acceleration breaks and solving on them, a fixed count so that
-# the device never waits on the host (the three-joint test chain, every joint past an end, settles in three)
-LIMIT_PASSES = 6
+# the joint rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards
+# that solution, a fixed count so that the device never waits on the host (the three-joint test chains, every joint
+# past an end or held by frictionloss, settle within five), each step the cheapest of ROW_STEPS
+ROW_PASSES = 10
+ROW_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.0)
 
 
 class Law:
@@ -77,7 +79,16 @@ class Law:
         )
         self.imp_low, self.imp_high, self.imp_width, self.imp_midpoint, self.imp_power = (tensor(x) for x in solimp)
         self.imp_flat = torch.as_tensor((solimp[0] == solimp[1]) | (solimp[2] <= MJMINVAL), device=device)
-        self.limit_sign = tensor([[1.0], [-1.0]])  # (2, 1): a lower row pushes up, an upper row down
+        friction = plan.friction
+        self.friction_damping, self.friction_weight = tensor(friction.damping), tensor(friction.weight)
+        self.any_rows = self.any_limited or bool(np.any(friction.loss > 0))  # read on the host
+        # (3, 1): a lower limit row pushes up, an upper one down, frictionloss either way; the bounds on each row's
+        # force (3, DoF): a limit's from zero, frictionloss within +-loss
+        self.limit_sign = tensor([[1.0], [-1.0], [1.0]])
+        self.row_steps = tensor(ROW_STEPS)
+        loss = np.asarray(friction.loss, np.float64)
+        self.row_low = tensor(np.stack((np.zeros_like(loss), np.zeros_like(loss), -loss)))
+        self.row_high = tensor(np.stack((np.full_like(loss, np.inf), np.full_like(loss, np.inf), loss)))
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
         self.any_activated = bool(np.any(dynamics != NO_DYNAMICS))  # read on the host, never synced from a device
@@ -148,38 +159,69 @@ def _impedance(law: Law, violation: torch.Tensor) -> torch.Tensor:
     return torch.where(law.imp_flat, 0.5 * (law.imp_low + law.imp_high), imp)
 
 
-def limit_force(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
-    """MuJoCo's joint limit force (env, n) at the state: each limited DoF's rows at its range's ends, present within
-    the margin, with reference acceleration aref = -B J v - K imp (r - margin) and weight D = imp / ((1 - imp)
-    diagApprox), solved as MuJoCo's solver minimises M's norm of the acceleration's change plus D/2 (J a - aref)^2 on
-    the rows it would break (J a < aref), from the smooth force `smooth` (env, n: f - c, a floating root's six
-    coordinates first): on a fixed set of those rows the minimum is (M + J^T D J) a = smooth + J^T D aref, and the set
-    is taken again from each solution, LIMIT_PASSES times; on the CPU, where a check costs no wait on a device, until
-    the set repeats, and not at all where no row is present (tests/test_maniskill_joint_actuation.py)."""
-    root = matrix.shape[-1] - q.shape[-1]
-    sign = law.limit_sign
+def _joint_rows(law: Law, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """The joint rows at the state, (env, 3, DoF) each: a DoF's lower and upper limit rows, then its frictionloss
+    row. Their reference accelerations aref (a limit's -B J v - K imp (r - margin), frictionloss's -B v), weights D
+    (zero where a row is absent: a limit beyond its margin, a DoF without frictionloss) and the bounds on their
+    forces (a limit pushes one way, frictionloss holds within +-loss)."""
     distance = torch.stack((q - law.limit_low, law.limit_high - q), 1)  # (env, 2, DoF)
     present = law.limited & (distance < law.limit_margin)
-    host = matrix.device.type == "cpu"  # where a check costs no wait on a device
-    if host and not bool(present.any()):
-        return torch.zeros_like(smooth)
     violation = distance - law.limit_margin
     imp = _impedance(law, violation)
-    aref = -law.limit_damping * sign * v[:, None] - law.limit_stiffness * imp * violation
-    weight = present / torch.clamp((1.0 - imp) * law.limit_diag / imp, min=MJMINVAL)  # D, zero off the rows
-    pad = torch.nn.functional.pad
-    acceleration, taken = torch.linalg.solve_ex(matrix, smooth)[0], None
-    for _ in range(LIMIT_PASSES):
-        breaking = weight * (sign * acceleration[:, None, root:] < aref)
-        if host and taken is not None and torch.equal(breaking, taken):
-            break  # the same rows again: the solution stands
-        taken = breaking
-        stiffened = matrix + torch.diag_embed(pad(breaking.sum(1), (root, 0)))
-        pulled = smooth + pad((sign * breaking * aref).sum(1), (root, 0))
-        acceleration = torch.linalg.solve_ex(stiffened, pulled)[0]
-    residual = sign * acceleration[:, None, root:] - aref
-    force = (sign * -weight * torch.clamp(residual, max=0.0)).sum(1)
-    return pad(force, (root, 0))
+    limit_aref = -law.limit_damping * law.limit_sign[:2] * v[:, None] - law.limit_stiffness * imp * violation
+    limit_weight = present / torch.clamp((1.0 - imp) * law.limit_diag / imp, min=MJMINVAL)
+    aref = torch.cat((limit_aref, (-law.friction_damping * v)[:, None]), 1)
+    weight = torch.cat((limit_weight, law.friction_weight.expand_as(v)[:, None]), 1)
+    return aref, weight, law.row_low, law.row_high
+
+
+def _row_cost(weight, low, high, miss: torch.Tensor) -> torch.Tensor:
+    """The rows' cost summed (..., 3, DoF -> ...) at their misses J a - aref: D/2 miss^2 while the force -D miss is
+    within its bounds, linear beyond (the force held at the bound)."""
+    force = torch.clamp(-weight * miss, low, high)
+    cost = -force * miss - force * force / (2.0 * torch.clamp(weight, min=MJMINVAL))
+    return torch.where(weight > 0, cost, 0.0).sum((-2, -1))
+
+
+def row_force(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's joint limit and frictionloss force (env, n) at the state (`_joint_rows`), solved as MuJoCo's Newton
+    solver solves them: the acceleration a minimising M's norm of its change from the smooth acceleration (`smooth`,
+    env x n: f - c, a floating root's six coordinates first) plus each row's cost, D/2 (J a - aref)^2 where its force
+    -D (J a - aref) is within its bounds and linear beyond. Each pass takes each row's zone (within, or held at a
+    bound) at a, solves (M + J^T D J) a' = smooth + J^T (D aref + held force) over the rows within, and moves a
+    towards a' by the step of `ROW_STEPS` that costs least (a full step can cross a zone and come back: frictionloss
+    holding a joint still). ROW_PASSES passes; on the CPU, where a check costs no wait on a device, until a full step
+    leaves the zones as they were, and none where no row is present (tests/test_maniskill_joint_actuation.py)."""
+    root = matrix.shape[-1] - q.shape[-1]
+    aref, weight, low, high = _joint_rows(law, q, v)
+    host = matrix.device.type == "cpu"  # where a check costs no wait on a device
+    if host and not bool((weight > 0).any()):
+        return torch.zeros_like(smooth)
+    sign, pad = law.limit_sign, torch.nn.functional.pad
+    free = torch.linalg.solve_ex(matrix, smooth)[0]
+    acceleration, taken, full = free, None, False
+    steps = law.row_steps[:, None]  # (steps, 1)
+    for _ in range(ROW_PASSES):
+        force = -weight * (sign * acceleration[:, None, root:] - aref)
+        within = (force > low) & (force < high)
+        zones = torch.where(within, 0, torch.where(force >= high, 1, -1))
+        if host and full and torch.equal(zones, taken):
+            break  # a full step left the zones as they were: the solution stands
+        taken = zones
+        held = torch.where(within, 0.0, torch.clamp(force, low, high))
+        stiffness = weight * within
+        stiffened = matrix + torch.diag_embed(pad(stiffness.sum(1), (root, 0)))
+        pulled = smooth + pad((sign * (stiffness * aref + held)).sum(1), (root, 0))
+        newton = torch.linalg.solve_ex(stiffened, pulled)[0]
+        trial = acceleration[:, None] + steps * (newton - acceleration)[:, None]  # (env, steps, n)
+        change = trial - free[:, None]
+        miss = sign * trial[:, :, None, root:] - aref[:, None]  # (env, steps, 3, DoF)
+        cost = 0.5 * torch.einsum("esi,eij,esj->es", change, matrix, change)
+        best = (cost + _row_cost(weight[:, None], low, high, miss)).argmin(1)
+        acceleration = trial[torch.arange(trial.shape[0], device=trial.device), best]
+        full = host and bool((best == 0).all())
+    force = torch.clamp(-weight * (sign * acceleration[:, None, root:] - aref), low, high)
+    return pad((sign * force).sum(1), (root, 0))
 
 
 def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:
@@ -225,8 +267,8 @@ def implicit_step(
     if root:  # no force and no damping on the root's coordinates
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
-    if law.any_limited:
-        force = force + limit_force(law, matrix, q, v, force - bias)
+    if law.any_rows:
+        force = force + row_force(law, matrix, q, v, force - bias)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
     return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)

@@ -15,7 +15,8 @@ nothing. MuJoCo's step takes the joints' dampers implicitly (unless eulerdamp is
 integrators each actuator's -b2 m m^T (but where its forcerange binds) and each tendon's damper d m m^T too, only
 between DoFs on one chain of the tree (a cross term between two branches, a gripper's fingers, is dropped: the mass
 matrix's pattern). Each limited hinge and slide adds MuJoCo's soft limit rows (`JointLimits`: solref, solimp,
-margin). The per-step half solves that step with the robot's M and c
+margin), and each with frictionloss its row (`JointFriction`). The per-step half solves that step with the robot's M
+and c
 (tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
 tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
@@ -88,6 +89,21 @@ class JointLimits:
 
 
 @dataclass
+class JointFriction:
+    """MuJoCo's frictionloss rows, per robot DoF (`loss` zero where there is none): each a two-sided row whose force
+    is held within +-loss, with reference acceleration -B v (solreffriction, refsafe applied) and weight
+    D = imp / ((1 - imp) diagApprox), imp solimpfriction's at zero violation, diagApprox the DoF's invweight0."""
+
+    loss: np.ndarray
+    damping: np.ndarray  # B
+    weight: np.ndarray  # D
+
+    @classmethod
+    def none(cls, ndof: int) -> JointFriction:
+        return cls(np.zeros(ndof), np.zeros(ndof), np.zeros(ndof))
+
+
+@dataclass
 class JointActuation:
     """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
     the law leaves out (`not_carried`)."""
@@ -113,6 +129,7 @@ class JointActuation:
     chained: np.ndarray
     springs: TendonSprings = field(default_factory=lambda: TendonSprings.none(0))
     limits: JointLimits = field(default_factory=lambda: JointLimits.none(0))
+    friction: JointFriction = field(default_factory=lambda: JointFriction.none(0))
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -172,6 +189,7 @@ def plan_joint_actuation(
         _chained(model, dof_of_joint, ndof),
         _tendon_springs(model, dof_of_joint, ndof, implicit),
         _joint_limits(model, dof_of_joint, ndof),
+        _joint_friction(model, dof_of_joint, ndof),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -232,6 +250,22 @@ def _joint_limits(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
         limits.solimp[:, dof] = row.solimp
         limits.diag_approx[dof] = model.dof_invweight0[model.jnt_dofadr[joint]]
     return limits
+
+
+def _joint_friction(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointFriction:
+    """The frictionloss rows of the robot's hinges and slides, none where the model disables frictionloss."""
+    friction = JointFriction.none(ndof)
+    if mj.disabled(model, "frictionloss", "constraint"):
+        return friction
+    for joint, dof in dof_of_joint.items():
+        address = int(model.jnt_dofadr[joint])
+        if model.dof_frictionloss[address] <= 0:
+            continue
+        row = SoftRow.of(model, model.dof_solref[address], model.dof_solimp[address])
+        imp = row.impedance(0.0)
+        friction.loss[dof], friction.damping[dof] = model.dof_frictionloss[address], row.damping
+        friction.weight[dof] = 1.0 / row.regularizer(imp, float(model.dof_invweight0[address]))
+    return friction
 
 
 def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
@@ -326,6 +360,7 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
 
 # the law takes a floating root's step from MuJoCo's rows where every force on the tree is its own
 FLOATING_ROOT = "a floating root's step where a contact pushed the tree: PhysX's, which conserves its momentum"
+FREE_JOINT_TERMS = "a free joint's damping, armature or frictionloss"  # the root rows hold none of them
 
 
 def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int]) -> list[str]:
@@ -339,11 +374,10 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
     checks = [
         (bool(roots), FLOATING_ROOT),
         (
-            np.any(model.dof_damping[root_dofs]) or np.any(model.dof_armature[root_dofs]),
-            "a free joint's damping or armature",
+            any(np.any(getattr(model, f"dof_{name}")[root_dofs]) for name in ("damping", "armature", "frictionloss")),
+            FREE_JOINT_TERMS,
         ),
         (bool(model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE), "the override flag's solref and solimp"),
-        (np.any(model.dof_frictionloss > 0) and not mj.disabled(model, "frictionloss", "constraint"), "frictionloss"),
         (
             sprung > len(_carried_tendons(model, dof_of_joint)),
             "the springs and dampers of a spatial or nonlinear tendon, or of one with armature",
