@@ -256,27 +256,35 @@ def test_a_robot_whose_tree_the_law_cannot_read_keeps_the_reason(monkeypatch):
     assert "prismatic" in agent.joint_actuation and agent.rigid_tree is None
 
 
-@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (ManiSkill's physx_cuda backend)")
-def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
-    """On `physx_cuda` with 4 sub-scenes, the mode's `qf` on the device is the law's for each sub-scene's own state
-    and its drives aim at the sub-scene's end velocity (the same code as on the CPU, one launch per operation for all
-    of them)."""
+def _gpu_env(uid: str, sim_config: dict):
+    """`Empty-v1` with 4 sub-scenes on `physx_cuda` under `mujoco_ctrl_tensor`, without rendering."""
     import gymnasium as gym
 
-    path = FIXTURES / "folding_servo_arm.xml"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        agent = register_agent(path, "tensor_arm_gpu", override=True)
-        env = gym.make(
+        return gym.make(
             "Empty-v1",
-            robot_uids=agent.uid,
+            robot_uids=uid,
             num_envs=4,
             sim_backend="physx_cuda",
             render_backend="none",
             obs_mode="state",
             control_mode="mujoco_ctrl_tensor",
-            sim_config={"sim_freq": 500, "control_freq": 50, "scene_config": {"enable_tgs": False}},
+            sim_config=sim_config,
         )
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (ManiSkill's physx_cuda backend)")
+def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
+    """On `physx_cuda` with 4 sub-scenes, the mode's `qf` on the device is the law's for each sub-scene's own state
+    and its drives aim at the sub-scene's end velocity (the same code as on the CPU, one launch per operation for all
+    of them)."""
+
+    path = FIXTURES / "folding_servo_arm.xml"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, "tensor_arm_gpu", override=True)
+    env = _gpu_env(agent.uid, {"sim_freq": 500, "control_freq": 50, "scene_config": {"enable_tgs": False}})
     try:
         env.reset(seed=0)
         unwrapped = env.unwrapped
@@ -633,23 +641,11 @@ def test_every_sub_scenes_floating_root_keeps_mujocos_on_the_gpu(tmp_path):
     """On `physx_cuda` with 4 sub-scenes, each under its own ctrl, the swinging legs' root and joints follow MuJoCo
     stepped with that sub-scene's ctrl, within `ROOT_TOLERANCE`: the root rows, the contact query and the root's write
     on the device."""
-    import gymnasium as gym
 
     from loader.maniskill.free_root import free_velocity
 
     model, agent = _swinging_legs(tmp_path, "tensor_legs_gpu")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        env = gym.make(
-            "Empty-v1",
-            robot_uids=agent.uid,
-            num_envs=4,
-            sim_backend="physx_cuda",
-            render_backend="none",
-            obs_mode="state",
-            control_mode="mujoco_ctrl_tensor",
-            sim_config={"sim_freq": 100, "control_freq": 100},
-        )
+    env = _gpu_env(agent.uid, {"sim_freq": 100, "control_freq": 100})
     datas = [mujoco.MjData(model) for _ in range(4)]
     try:
         env.reset(seed=0)
