@@ -27,6 +27,35 @@ def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
     return edit
 
 
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+_JOINT_EQUALITY = int(mujoco.mjtEq.mjEQ_JOINT)
+
+
+def _uncoupled(model: mujoco.MjModel) -> bool:
+    """An active equality other than a joint coupling (a joint equality between hinges and slides, or on one)."""
+    if not model.neq or mj.disabled(model, "equality", "constraint"):
+        return False
+    joint_type = model.jnt_type
+    return any(
+        model.eq_active0[e]
+        and not (
+            int(model.eq_type[e]) == _JOINT_EQUALITY
+            and all(int(joint_type[j]) in _SCALAR_JOINTS for j in (model.eq_obj1id[e], model.eq_obj2id[e]) if j >= 0)
+        )
+        for e in range(model.neq)
+    )
+
+
+def _deactivate_uncoupled(spec: mujoco.MjSpec) -> None:
+    for equality in spec.equalities:
+        names = [name for name in (equality.name1, equality.name2) if name]
+        coupling = int(equality.type) == _JOINT_EQUALITY and all(
+            int(spec.joint(name).type) in _SCALAR_JOINTS for name in names
+        )
+        if not coupling:
+            equality.active = False
+
+
 def _no_fluid(spec: mujoco.MjSpec) -> None:
     spec.option.density = 0.0
     spec.option.viscosity = 0.0
@@ -73,6 +102,13 @@ GAPS = {
             "connects and welds moving a ball joint are D6 joints, coupled with joint damping)",
             lambda m: bool(m.neq and m.eq_active0.any()) and not mj.disabled(m, "equality", "constraint"),
             _disable(FLAGS.mjDSBL_EQUALITY),
+        ),
+        Gap(
+            "uncoupled_equality",
+            "equality constraints other than joint couplings deactivated (connects, welds, tendon couplings)",
+            _uncoupled,
+            _deactivate_uncoupled,
+            automatic=False,
         ),
         Gap(
             "limits",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from support.corpus import menagerie_root
 from test_tiers_actuated import ARM
 
 import loader.runtime.controller
@@ -157,3 +158,20 @@ def test_the_worker_records_the_isolation_in_the_result_and_the_recording(fricti
     ).items()
     text = read_rrd(tmp_path / "friction_arm.rrd")["/verdict"]["TextDocument:text"][-1][0]
     assert "## Isolation" in text and "without frictionloss: pass" in text
+
+
+def test_the_uncoupled_equality_gap_keeps_the_joint_couplings():
+    """The Robotiq gripper's two connects go (deactivated on both sides), its joint coupling stays: the gap the
+    `maniskill_tensor` tier takes out, as the joint actuation law carries joint couplings and nothing else of the
+    equalities. The panda, whose one equality is a coupling, has no such gap."""
+    root = menagerie_root()
+    if root is None:
+        pytest.skip("Menagerie slice not installed (extra 'menagerie')")
+    gripper = str(root / "robotiq_2f85_v4/2f85.xml")
+    assert gaps.GAPS["uncoupled_equality"].present(mujoco.MjModel.from_xml_path(gripper))
+    edited = gaps.edited_spec(gripper, ("uncoupled_equality",)).compile()
+    kinds = {int(mujoco.mjtEq.mjEQ_JOINT): True, int(mujoco.mjtEq.mjEQ_CONNECT): False}
+    assert [bool(a) for a in edited.eq_active0] == [kinds[int(t)] for t in edited.eq_type]
+    assert not gaps.GAPS["uncoupled_equality"].present(edited)
+    panda = mujoco.MjModel.from_xml_path(str(root / "franka_emika_panda/panda.xml"))
+    assert panda.neq and not gaps.GAPS["uncoupled_equality"].present(panda)

@@ -99,15 +99,18 @@ FLOATING = """<mujoco><worldbody><body name="root"><freejoint/><geom size=".1"/>
 
 @pytest.mark.parametrize("flags", [(), ("limit", "equality"), ("constraint",)])
 def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
-    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); its equality is named
-    unless the model disables it. Its joint limit is carried (the law's limit rows) unless the model disables it."""
+    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); a connect equality
+    is named unless the model disables equalities. Its joint limit and its joint coupling are carried (the law's
+    rows) unless the model disables them."""
     disabled = " ".join(f'{flag}="disable"' for flag in flags)
     xml = FLOATING.replace("<worldbody>", f"<option><flag {disabled}/></option><worldbody>", 1)
+    xml = xml.replace("</equality>", '<connect body1="arm" body2="root" anchor="0 0 0"/></equality>')
     model = mujoco.MjModel.from_xml_string(xml)
     plan = plan_joint_actuation(model, {1: 0}, 1, {1: 0, 2: 1})
     assert FLOATING_ROOT in plan.not_carried
-    assert ("equality constraints" in plan.not_carried) == (not flags)
+    assert ("equality constraints other than joint couplings" in plan.not_carried) == (not flags)
     assert bool(plan.limits.limited[0]) == (not flags)
+    assert plan.couplings.first.size == (0 if flags else 1)
     fixed = plan_joint_actuation(model, {1: 0}, 1, {2: 0})  # the robot is the arm alone: no root of its own floats
     assert FLOATING_ROOT not in fixed.not_carried
     assert FREE_JOINT_TERMS not in plan.not_carried

@@ -141,8 +141,8 @@ TENSOR_FOLLOW_TOLERANCE = {"pgs": 1e-5, "tgs": 1e-4}
 # to PhysX, stay in); with the clamps' kv still taken implicitly 0.13
 SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
-# (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7;
-# each mistake misses by 5e-4 or more
+# (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7,
+# with joint couplings 8.8e-7; each mistake misses by 5e-4 or more
 STEP_TOLERANCE = 1e-4
 
 
@@ -762,4 +762,48 @@ def test_the_laws_frictionloss_rows_are_mujocos(mistake):
     elif mistake == "weight_at_dmax":
         plan.friction.weight *= [(0.95 / 0.05) / (0.7 / 0.3), (0.95 / 0.05) / (0.9 / 0.1), (0.95 / 0.05) / (0.9 / 0.1)]
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.5)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+COUPLED = """
+<mujoco model="coupled_chain">
+  <compiler angle="radian"/>
+  <option timestep="0.005"><flag contact="disable"/></option>
+  <worldbody>
+    <body>
+      <joint name="a" axis="0 1 0" ref="0.1" damping="0.05"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body pos="0.3 0 0">
+        <joint name="b" axis="0 1 0" range="-0.3 0.3" limited="true"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <body pos="0.3 0 0">
+          <joint name="c" type="slide" axis="1 0 0"/>
+          <geom type="box" size="0.05 0.05 0.05"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <equality>
+    <joint joint1="c" joint2="a" polycoef="0.01 0.5 0.2 0.3 0.1" solref="0.01 0.9" solimp="0.9 0.99 0.002 0.5 2"/>
+    <joint joint1="b" polycoef="0.05 0 0 0 0"/>
+  </equality>
+  <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("mistake", [None, "linear_term_dropped", "first_joint_weight"])
+def test_the_laws_joint_couplings_are_mujocos(mistake):
+    """A chain whose slide follows a quartic of the first hinge and whose second hinge is held at 0.05 rad (MuJoCo's
+    joint equalities, one with its own solref and solimp), the second hinge limited too: at 32 random states the
+    law's end velocity is MuJoCo's step's with its equality rows, measured 8.8e-7 relative (`STEP_TOLERANCE`). Each
+    mistake misses: the polynomial's linear term dropped (3.1), a row's diagApprox the first joint's invweight0 alone
+    (0.23)."""
+    result, dofs, plan, inertia = _loaded_law(COUPLED)
+    assert plan.couplings.first.size == 2 and "equality constraints other than joint couplings" not in plan.not_carried
+    if mistake == "linear_term_dropped":
+        plan.couplings.poly[1] = 0.0
+    elif mistake == "first_joint_weight":
+        plan.couplings.diag_approx[0] = result.model.dof_invweight0[2]
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst

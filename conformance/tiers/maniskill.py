@@ -11,8 +11,8 @@ builds one robot); and wherever `actuated` skips.
 
 Tier `maniskill_tensor` (opt-in: `--tiers maniskill_tensor`) judges `mujoco_ctrl_tensor`, the joint actuation law on
 ManiSkill's tensors that its GPU backend runs, the same way on the CPU backend, under ManiSkill's default TGS and
-`[tolerance.maniskill]`. What the law does not carry and the harness can take out of both sides (equalities,
-fluid: conformance/gaps.py) is taken out of MuJoCo's model and the robot's
+`[tolerance.maniskill]`. What the law does not carry and the harness can take out of both sides (equalities other
+than joint couplings, fluid: conformance/gaps.py) is taken out of MuJoCo's model and the robot's
 alike, and named in the notes, so that the tier judges the law itself; what else the law leaves out
 (`JointActuation.not_carried`: a floating root, ...) stays in and is named too. Skipped, with the reason, where the
 robot is outside the law, and wherever `maniskill` skips.
@@ -37,7 +37,7 @@ from .actuated import actuated, unmapped_reason
 TIER = "maniskill"
 TENSOR_TIER = "maniskill_tensor"
 # what `mujoco_ctrl_tensor` does not carry that the harness takes out of both sides (conformance/gaps.py)
-TENSOR_GAPS = ("equality", "fluid")
+TENSOR_GAPS = ("uncoupled_equality", "fluid")
 TGS_TOLERANCES = ("one_step_qvel_fixed", "rollout_qpos_fixed")  # `[tolerance.maniskill]` replaces actuated's
 
 

@@ -43,6 +43,26 @@ ROW_PASSES = 10
 ROW_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.0)
 
 
+class Solimp:
+    """solimp (5, rows) as tensors, clamped as MuJoCo clamps them; called on a violation r (..., rows): MuJoCo's
+    impedance imp(|r|), its sigmoid from dmin at r = 0 to dmax at |r| >= width."""
+
+    def __init__(self, solimp: np.ndarray, tensor):
+        low = [[MINIMP], [MINIMP], [-np.inf], [MJMINVAL], [1.0]]
+        high = [[MAXIMP], [MAXIMP], [np.inf], [1 - MJMINVAL], [np.inf]]
+        clamped = np.clip(np.asarray(solimp, np.float64), low, high)
+        self.low, self.high, self.width, self.midpoint, self.power = (tensor(x) for x in clamped)
+        self.flat = tensor((clamped[0] == clamped[1]) | (clamped[2] <= MJMINVAL)) > 0
+
+    def __call__(self, violation: torch.Tensor) -> torch.Tensor:
+        x = torch.clamp(torch.abs(violation) / torch.clamp(self.width, min=MJMINVAL), max=1.0)
+        midpoint, power = self.midpoint, self.power
+        rising = x**power / midpoint ** (power - 1.0)
+        falling = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
+        imp = self.low + torch.where(x <= midpoint, rising, falling) * (self.high - self.low)
+        return torch.where(self.flat, 0.5 * (self.low + self.high), imp)
+
+
 class Law:
     """The plan's arrays as tensors on one device and dtype."""
 
@@ -66,29 +86,7 @@ class Law:
         implicit = (springs.moment.T * springs.implicit_damping) @ springs.moment
         self.tendon_implicit = tensor(implicit * plan.chained)
         self.any_tendon = bool(springs.stiffness.size)  # read on the host
-        limits = plan.limits
-        self.any_limited = bool(limits.limited.any())  # read on the host
-        self.limited = torch.as_tensor(limits.limited, device=device)
-        self.limit_low, self.limit_high, self.limit_margin = (tensor(x) for x in (*limits.range, limits.margin))
-        self.limit_stiffness, self.limit_damping = tensor(limits.stiffness), tensor(limits.damping)
-        self.limit_diag = tensor(limits.diag_approx)
-        solimp = np.clip(
-            limits.solimp,
-            [[MINIMP], [MINIMP], [-np.inf], [MJMINVAL], [1.0]],
-            [[MAXIMP], [MAXIMP], [np.inf], [1 - MJMINVAL], [np.inf]],
-        )
-        self.imp_low, self.imp_high, self.imp_width, self.imp_midpoint, self.imp_power = (tensor(x) for x in solimp)
-        self.imp_flat = torch.as_tensor((solimp[0] == solimp[1]) | (solimp[2] <= MJMINVAL), device=device)
-        friction = plan.friction
-        self.friction_damping, self.friction_weight = tensor(friction.damping), tensor(friction.weight)
-        self.any_rows = self.any_limited or bool(np.any(friction.loss > 0))  # read on the host
-        # (3, 1): a lower limit row pushes up, an upper one down, frictionloss either way; the bounds on each row's
-        # force (3, DoF): a limit's from zero, frictionloss within +-loss
-        self.limit_sign = tensor([[1.0], [-1.0], [1.0]])
-        self.row_steps = tensor(ROW_STEPS)
-        loss = np.asarray(friction.loss, np.float64)
-        self.row_low = tensor(np.stack((np.zeros_like(loss), np.zeros_like(loss), -loss)))
-        self.row_high = tensor(np.stack((np.full_like(loss, np.inf), np.full_like(loss, np.inf), loss)))
+        self._rows(plan, tensor, device)
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
         self.any_activated = bool(np.any(dynamics != NO_DYNAMICS))  # read on the host, never synced from a device
@@ -101,6 +99,38 @@ class Law:
         self.exact_step = tensor(
             plan.time_constant * -np.expm1(-self.timestep / plan.time_constant)
         )  # tau (1 - e^-dt/tau)
+
+    def _rows(self, plan: JointActuation, tensor, device) -> None:
+        """The joint rows' arrays: limits, frictionloss, joint couplings."""
+        limits = plan.limits
+        self.any_limited = bool(limits.limited.any())  # read on the host
+        self.limited = torch.as_tensor(limits.limited, device=device)
+        self.limit_low, self.limit_high, self.limit_margin = (tensor(x) for x in (*limits.range, limits.margin))
+        self.limit_stiffness, self.limit_damping = tensor(limits.stiffness), tensor(limits.damping)
+        self.limit_diag = tensor(limits.diag_approx)
+        self.limit_imp = Solimp(limits.solimp, tensor)
+        couplings = plan.couplings
+        self.any_coupled = bool(couplings.first.size)  # read on the host
+        rows, ndof = couplings.first.size, plan.ndof
+        first, second = np.zeros((rows, ndof)), np.zeros((rows, ndof))
+        first[np.arange(rows), couplings.first] = 1.0
+        has = couplings.second >= 0
+        second[np.flatnonzero(has), couplings.second[has]] = 1.0
+        self.coupling_first, self.coupling_second = tensor(first), tensor(second)  # (rows, DoF): each row's joints
+        self.coupling_origin, self.coupling_poly = tensor(couplings.origin), tensor(couplings.poly)
+        self.coupling_stiffness, self.coupling_damping = tensor(couplings.stiffness), tensor(couplings.damping)
+        self.coupling_diag = tensor(couplings.diag_approx)
+        self.coupling_imp = Solimp(couplings.solimp, tensor)
+        friction = plan.friction
+        self.friction_damping, self.friction_weight = tensor(friction.damping), tensor(friction.weight)
+        self.any_rows = self.any_limited or self.any_coupled or bool(np.any(friction.loss > 0))  # read on the host
+        # (3, 1): a lower limit row pushes up, an upper one down, frictionloss either way; the bounds on each row's
+        # force (3, DoF): a limit's from zero, frictionloss within +-loss
+        self.limit_sign = tensor([[1.0], [-1.0], [1.0]])
+        self.row_steps = tensor(ROW_STEPS)
+        loss = np.asarray(friction.loss, np.float64)
+        self.row_low = tensor(np.stack((np.zeros_like(loss), np.zeros_like(loss), -loss)))
+        self.row_high = tensor(np.stack((np.full_like(loss, np.inf), np.full_like(loss, np.inf), loss)))
 
 
 def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
@@ -148,17 +178,6 @@ def _passive(law: Law, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     return force
 
 
-def _impedance(law: Law, violation: torch.Tensor) -> torch.Tensor:
-    """MuJoCo's impedance imp(|r|) of each limit row (env, 2, DoF): solimp's sigmoid from dmin at r = 0 to dmax at
-    |r| >= width."""
-    x = torch.clamp(torch.abs(violation) / torch.clamp(law.imp_width, min=MJMINVAL), max=1.0)
-    midpoint, power = law.imp_midpoint, law.imp_power
-    rising = x**power / midpoint ** (power - 1.0)
-    falling = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
-    imp = law.imp_low + torch.where(x <= midpoint, rising, falling) * (law.imp_high - law.imp_low)
-    return torch.where(law.imp_flat, 0.5 * (law.imp_low + law.imp_high), imp)
-
-
 def _joint_rows(law: Law, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
     """The joint rows at the state, (env, 3, DoF) each: a DoF's lower and upper limit rows, then its frictionloss
     row. Their reference accelerations aref (a limit's -B J v - K imp (r - margin), frictionloss's -B v), weights D
@@ -167,7 +186,7 @@ def _joint_rows(law: Law, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tenso
     distance = torch.stack((q - law.limit_low, law.limit_high - q), 1)  # (env, 2, DoF)
     present = law.limited & (distance < law.limit_margin)
     violation = distance - law.limit_margin
-    imp = _impedance(law, violation)
+    imp = law.limit_imp(violation)
     limit_aref = -law.limit_damping * law.limit_sign[:2] * v[:, None] - law.limit_stiffness * imp * violation
     limit_weight = present / torch.clamp((1.0 - imp) * law.limit_diag / imp, min=MJMINVAL)
     aref = torch.cat((limit_aref, (-law.friction_damping * v)[:, None]), 1)
@@ -183,22 +202,57 @@ def _row_cost(weight, low, high, miss: torch.Tensor) -> torch.Tensor:
     return torch.where(weight > 0, cost, 0.0).sum((-2, -1))
 
 
-def row_force(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
-    """MuJoCo's joint limit and frictionloss force (env, n) at the state (`_joint_rows`), solved as MuJoCo's Newton
-    solver solves them: the acceleration a minimising M's norm of its change from the smooth acceleration (`smooth`,
-    env x n: f - c, a floating root's six coordinates first) plus each row's cost, D/2 (J a - aref)^2 where its force
-    -D (J a - aref) is within its bounds and linear beyond. Each pass takes each row's zone (within, or held at a
-    bound) at a, solves (M + J^T D J) a' = smooth + J^T (D aref + held force) over the rows within, and moves a
-    towards a' by the step of `ROW_STEPS` that costs least (a full step can cross a zone and come back: frictionloss
-    holding a joint still). ROW_PASSES passes; on the CPU, where a check costs no wait on a device, until a full step
-    leaves the zones as they were, and none where no row is present (tests/test_maniskill_joint_actuation.py)."""
+def _couplings(law: Law, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """The joint couplings' rows at the state: their Jacobians (env, rows, DoF), reference accelerations
+    aref = -B J v - K imp r and weights D (env, rows), r = q1 - q1_0 - poly(q2 - q2_0)."""
+    first = q @ law.coupling_first.T - law.coupling_origin[0]  # (env, rows)
+    second = q @ law.coupling_second.T - law.coupling_origin[1]  # zero where a row has no second joint
+    poly = law.coupling_poly
+    value = poly[0] + second * (poly[1] + second * (poly[2] + second * (poly[3] + second * poly[4])))
+    slope = poly[1] + second * (2.0 * poly[2] + second * (3.0 * poly[3] + second * 4.0 * poly[4]))
+    violation = first - value
+    jacobian = law.coupling_first - slope[..., None] * law.coupling_second
+    imp = law.coupling_imp(violation)
+    aref = -law.coupling_damping * (jacobian @ v[..., None])[..., 0] - law.coupling_stiffness * imp * violation
+    weight = imp / torch.clamp((1.0 - imp) * law.coupling_diag, min=MJMINVAL)
+    return jacobian, aref, weight
+
+
+def constraint_force(
+    law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor
+) -> torch.Tensor:
+    """MuJoCo's constraint force (env, n) of the law's joint rows at the state, from the smooth force `smooth` (env,
+    n: f - c, a floating root's six coordinates first): M a - smooth at the acceleration a MuJoCo's solver finds. The
+    couplings' rows, two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth force, and the limit and
+    frictionloss rows are solved on those (`_row_solve`)."""
+    if law.any_coupled:
+        root = matrix.shape[-1] - q.shape[-1]
+        jacobian, aref, weight = _couplings(law, q, v)
+        jacobian = torch.nn.functional.pad(jacobian, (root, 0))
+        weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
+        coupled = matrix + weighted @ jacobian
+        acceleration = _row_solve(law, coupled, q, v, smooth + (weighted @ aref[..., None])[..., 0])
+    else:
+        acceleration = _row_solve(law, matrix, q, v, smooth)
+    return (matrix @ acceleration[..., None])[..., 0] - smooth
+
+
+def _row_solve(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+    """The acceleration (env, n) MuJoCo's Newton solver finds with the joint limit and frictionloss rows
+    (`_joint_rows`) on the quadratic M, smooth (the couplings folded in): the a minimising M's norm of its change
+    from M^-1 smooth plus each row's cost, D/2 (J a - aref)^2 where its force -D (J a - aref) is within its bounds and
+    linear beyond. Each pass takes each row's zone (within, or held at a bound) at a, solves
+    (M + J^T D J) a' = smooth + J^T (D aref + held force) over the rows within, and moves a towards a' by the step
+    of `ROW_STEPS` that costs least (a full step can cross a zone and come back: frictionloss holding a joint still).
+    ROW_PASSES passes; on the CPU, where a check costs no wait on a device, until a full step leaves the zones as they
+    were, and none where no row is present (tests/test_maniskill_joint_actuation.py)."""
     root = matrix.shape[-1] - q.shape[-1]
+    free = torch.linalg.solve_ex(matrix, smooth)[0]
     aref, weight, low, high = _joint_rows(law, q, v)
     host = matrix.device.type == "cpu"  # where a check costs no wait on a device
     if host and not bool((weight > 0).any()):
-        return torch.zeros_like(smooth)
+        return free
     sign, pad = law.limit_sign, torch.nn.functional.pad
-    free = torch.linalg.solve_ex(matrix, smooth)[0]
     acceleration, taken, full = free, None, False
     steps = law.row_steps[:, None]  # (steps, 1)
     for _ in range(ROW_PASSES):
@@ -220,8 +274,7 @@ def row_force(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, 
         best = (cost + _row_cost(weight[:, None], low, high, miss)).argmin(1)
         acceleration = trial[torch.arange(trial.shape[0], device=trial.device), best]
         full = host and bool((best == 0).all())
-    force = torch.clamp(-weight * (sign * acceleration[:, None, root:] - aref), low, high)
-    return pad((sign * force).sum(1), (root, 0))
+    return acceleration
 
 
 def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:
@@ -268,7 +321,7 @@ def implicit_step(
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
     if law.any_rows:
-        force = force + row_force(law, matrix, q, v, force - bias)
+        force = force + constraint_force(law, matrix, q, v, force - bias)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
     return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)

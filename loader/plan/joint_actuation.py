@@ -15,8 +15,8 @@ nothing. MuJoCo's step takes the joints' dampers implicitly (unless eulerdamp is
 integrators each actuator's -b2 m m^T (but where its forcerange binds) and each tendon's damper d m m^T too, only
 between DoFs on one chain of the tree (a cross term between two branches, a gripper's fingers, is dropped: the mass
 matrix's pattern). Each limited hinge and slide adds MuJoCo's soft limit rows (`JointLimits`: solref, solimp,
-margin), and each with frictionloss its row (`JointFriction`). The per-step half solves that step with the robot's M
-and c
+margin), each with frictionloss its row (`JointFriction`), each joint coupling its equality row (`JointCouplings`).
+The per-step half solves that step with the robot's M and c
 (tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
 tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
@@ -104,6 +104,36 @@ class JointFriction:
 
 
 @dataclass
+class JointCouplings:
+    """MuJoCo's joint equality rows the law carries (active at load, each joint one of the robot's hinges or slides):
+    per row, q1 - q1_0 = poly(q2 - q2_0) (`second` -1: q1 - q1_0 = poly[0]), a soft two-sided row with solref's
+    stiffness and damping (refsafe applied), solimp and diagApprox, the joints' invweight0 summed."""
+
+    first: np.ndarray  # (rows,) the robot DoF of joint1
+    second: np.ndarray  # (rows,) that of joint2, -1 where there is none
+    origin: np.ndarray  # (2, rows): qpos0 of joint1 and joint2
+    poly: np.ndarray  # (5, rows): polycoef
+    stiffness: np.ndarray  # K
+    damping: np.ndarray  # B
+    solimp: np.ndarray  # (5, rows)
+    diag_approx: np.ndarray
+
+    @classmethod
+    def none(cls) -> JointCouplings:
+        row = np.zeros(0)
+        return cls(
+            np.zeros(0, int),
+            np.zeros(0, int),
+            np.zeros((2, 0)),
+            np.zeros((5, 0)),
+            row,
+            row.copy(),
+            np.zeros((5, 0)),
+            row.copy(),
+        )
+
+
+@dataclass
 class JointActuation:
     """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
     the law leaves out (`not_carried`)."""
@@ -130,6 +160,7 @@ class JointActuation:
     springs: TendonSprings = field(default_factory=lambda: TendonSprings.none(0))
     limits: JointLimits = field(default_factory=lambda: JointLimits.none(0))
     friction: JointFriction = field(default_factory=lambda: JointFriction.none(0))
+    couplings: JointCouplings = field(default_factory=JointCouplings.none)
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -190,6 +221,7 @@ def plan_joint_actuation(
         _tendon_springs(model, dof_of_joint, ndof, implicit),
         _joint_limits(model, dof_of_joint, ndof),
         _joint_friction(model, dof_of_joint, ndof),
+        _joint_couplings(model, dof_of_joint),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -266,6 +298,51 @@ def _joint_friction(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
         friction.loss[dof], friction.damping[dof] = model.dof_frictionloss[address], row.damping
         friction.weight[dof] = 1.0 / row.regularizer(imp, float(model.dof_invweight0[address]))
     return friction
+
+
+def _coupled(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
+    """The active joint equalities the law carries: both joints (or the one) among the robot's hinges and slides."""
+    if mj.disabled(model, "equality", "constraint"):
+        return []
+    joint = int(mujoco.mjtEq.mjEQ_JOINT)
+    return [
+        e
+        for e in range(model.neq)
+        if int(model.eq_type[e]) == joint
+        and model.eq_active0[e]
+        and int(model.eq_obj1id[e]) in dof_of_joint
+        and (int(model.eq_obj2id[e]) < 0 or int(model.eq_obj2id[e]) in dof_of_joint)
+    ]
+
+
+def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> JointCouplings:
+    rows = _coupled(model, dof_of_joint)
+    couplings = JointCouplings.none()
+    if not rows:
+        return couplings
+    first, second, origin, poly, stiffness, damping, solimp, diag = [], [], [], [], [], [], [], []
+    for e in rows:
+        j1, j2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
+        first.append(dof_of_joint[j1])
+        second.append(dof_of_joint[j2] if j2 >= 0 else -1)
+        origin.append([model.qpos0[model.jnt_qposadr[j1]], model.qpos0[model.jnt_qposadr[j2]] if j2 >= 0 else 0.0])
+        poly.append(model.eq_data[e][:5])
+        stiffness.append(row.stiffness)
+        damping.append(row.damping)
+        solimp.append(row.solimp)
+        weights = [model.dof_invweight0[model.jnt_dofadr[j]] for j in (j1, j2) if j >= 0]
+        diag.append(sum(weights))
+    return JointCouplings(
+        np.array(first),
+        np.array(second),
+        np.array(origin, float).T,
+        np.array(poly, float).T,
+        np.array(stiffness),
+        np.array(damping),
+        np.array(solimp, float).T,
+        np.array(diag),
+    )
 
 
 def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
@@ -384,7 +461,12 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
         ),
         (np.any(model.tendon_limited) and not mj.disabled(model, "limit", "constraint"), "tendon limits"),
         (np.any(model.tendon_frictionloss > 0), "tendon frictionloss"),
-        (model.neq > 0 and not mj.disabled(model, "equality", "constraint"), "equality constraints"),
+        (
+            bool(model.neq)
+            and not mj.disabled(model, "equality", "constraint")
+            and len(_coupled(model, dof_of_joint)) < int(np.count_nonzero(model.eq_active0)),
+            "equality constraints other than joint couplings",
+        ),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
         (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
         (model.opt.density > 0 or model.opt.viscosity > 0, "fluid forces"),
