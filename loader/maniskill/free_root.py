@@ -24,11 +24,8 @@ from dataclasses import dataclass
 
 import torch
 
+from ..runtime.momentum import MOVED  # float32's rounding of a joint position, relative to the largest
 from .inertia import Inertia, root_frame
-
-# rad or m, relative to the largest joint position: float32's rounding of a joint position, beyond which a joint moved
-# further than its velocities within the step carry it (a state set from outside)
-MOVED = 1e-6
 
 
 def free_velocity(law: Inertia, root_pose: torch.Tensor, velocity: torch.Tensor) -> torch.Tensor:

@@ -26,6 +26,7 @@ from mani_skill.utils import common
 from mani_skill.utils.structs.pose import Pose
 
 from ..model.mj import MJMINVAL
+from ..model.soft_row import MAXIMP, MINIMP
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
@@ -35,7 +36,6 @@ from .inertia import Inertia, mass_matrix_and_bias
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
-MINIMP, MAXIMP = 0.0001, 0.9999  # MuJoCo's bounds on a row's impedance
 # the joint rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards
 # that solution, a fixed count so that the device never waits on the host (the three-joint test chains, every joint
 # past an end or held by frictionloss, settle within five), each step the cheapest of ROW_STEPS

@@ -13,6 +13,8 @@ import numpy as np
 from . import mj
 from .mj import MJMINVAL
 
+MINIMP, MAXIMP = 0.0001, 0.9999  # MuJoCo's bounds on a row's impedance (mjMINIMP, mjMAXIMP)
+
 
 @dataclass(frozen=True)
 class SoftRow:
@@ -27,7 +29,7 @@ class SoftRow:
         """The row of `solref`, `solimp` for steps of `timestep` (None: the model's), which refsafe clamps against."""
         timestep = float(model.opt.timestep if timestep is None else timestep)
         timeconst, dampratio = (float(x) for x in solref)
-        dmax = min(max(float(solimp[1]), 0.0001), 0.9999)
+        dmax = min(max(float(solimp[1]), MINIMP), MAXIMP)
         if timeconst > 0:
             if not mj.disabled(model, "refsafe"):
                 timeconst = max(timeconst, 2.0 * timestep)
@@ -40,7 +42,7 @@ class SoftRow:
     def impedance(self, violation: float) -> float:
         """imp(|r|): solimp's sigmoid from dmin at r = 0 to dmax at r >= width."""
         dmin, dmax, width, midpoint, power = self.solimp
-        dmin, dmax = (min(max(d, 0.0001), 0.9999) for d in (dmin, dmax))
+        dmin, dmax = (min(max(d, MINIMP), MAXIMP) for d in (dmin, dmax))
         if dmin == dmax or width <= MJMINVAL:
             return 0.5 * (dmin + dmax)
         x = abs(violation) / width

@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from ..model import mj
-from ..model.joints import dof_damping, joint_stiffness
+from ..model.joints import dof_damping, is_limited, joint_stiffness
 from ..model.mapping import Mapping
 from ..model.soft_row import SoftRow
 
@@ -272,7 +272,7 @@ def _joint_limits(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
     if mj.disabled(model, "limit", "constraint"):
         return limits
     for joint, dof in dof_of_joint.items():
-        if not model.jnt_limited[joint]:
+        if not is_limited(model, joint):  # a range open at both ends limits nothing
             continue
         row = SoftRow.of(model, model.jnt_solref[joint], model.jnt_solimp[joint])
         limits.limited[dof] = True
