@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from loader.model import mj
+from loader.plan.joint_actuation import coupled_equalities
 
 FLAGS = mujoco.mjtDisableBit
 
@@ -27,32 +28,24 @@ def _disable(bit) -> Callable[[mujoco.MjSpec], None]:
     return edit
 
 
-_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-_JOINT_EQUALITY = int(mujoco.mjtEq.mjEQ_JOINT)
+def _scalar_joints(model: mujoco.MjModel) -> dict[int, int]:
+    """Every hinge and slide, as the joint actuation law's plan takes a robot's joints."""
+    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    return {j: j for j in range(model.njnt) if int(model.jnt_type[j]) in scalar}
 
 
 def _uncoupled(model: mujoco.MjModel) -> bool:
-    """An active equality other than a joint coupling (a joint equality between hinges and slides, or on one)."""
+    """An active equality other than the joint couplings the law carries (`coupled_equalities`)."""
     if not model.neq or mj.disabled(model, "equality", "constraint"):
         return False
-    joint_type = model.jnt_type
-    return any(
-        model.eq_active0[e]
-        and not (
-            int(model.eq_type[e]) == _JOINT_EQUALITY
-            and all(int(joint_type[j]) in _SCALAR_JOINTS for j in (model.eq_obj1id[e], model.eq_obj2id[e]) if j >= 0)
-        )
-        for e in range(model.neq)
-    )
+    return len(coupled_equalities(model, _scalar_joints(model))) < int(np.count_nonzero(model.eq_active0))
 
 
 def _deactivate_uncoupled(spec: mujoco.MjSpec) -> None:
-    for equality in spec.equalities:
-        names = [name for name in (equality.name1, equality.name2) if name]
-        coupling = int(equality.type) == _JOINT_EQUALITY and all(
-            int(spec.joint(name).type) in _SCALAR_JOINTS for name in names
-        )
-        if not coupling:
+    model = spec.compile()  # the equalities in the spec's order
+    kept = set(coupled_equalities(model, _scalar_joints(model)))
+    for index, equality in enumerate(spec.equalities):
+        if index not in kept:
             equality.active = False
 
 

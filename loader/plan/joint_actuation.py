@@ -300,7 +300,7 @@ def _joint_friction(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
     return friction
 
 
-def _coupled(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
+def coupled_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The active joint equalities the law carries: both joints (or the one) among the robot's hinges and slides."""
     if mj.disabled(model, "equality", "constraint"):
         return []
@@ -316,7 +316,7 @@ def _coupled(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
 
 
 def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> JointCouplings:
-    rows = _coupled(model, dof_of_joint)
+    rows = coupled_equalities(model, dof_of_joint)
     couplings = JointCouplings.none()
     if not rows:
         return couplings
@@ -464,7 +464,7 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
         (
             bool(model.neq)
             and not mj.disabled(model, "equality", "constraint")
-            and len(_coupled(model, dof_of_joint)) < int(np.count_nonzero(model.eq_active0)),
+            and len(coupled_equalities(model, dof_of_joint)) < int(np.count_nonzero(model.eq_active0)),
             "equality constraints other than joint couplings",
         ),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
