@@ -37,8 +37,9 @@ from .inertia import Inertia, mass_matrix_and_bias
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
 # the joint rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards
-# that solution, a fixed count so that the device never waits on the host (the three-joint test chains, every joint
-# past an end or held by frictionloss, settle within five), each step the cheapest of ROW_STEPS
+# that solution, a fixed count so that the device never waits on the host (twice what the law's row tests need:
+# tests/test_maniskill_joint_actuation.py::test_the_laws_frictionloss_rows_are_mujocos), each step the cheapest of
+# ROW_STEPS
 ROW_PASSES = 10
 ROW_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.0)
 
@@ -225,19 +226,24 @@ def constraint_force(
     n: f - c, a floating root's six coordinates first): M a - smooth at the acceleration a MuJoCo's solver finds. The
     couplings' rows, two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth force, and the limit and
     frictionloss rows are solved on those (`_row_solve`)."""
+    coupled, pulled = matrix, smooth
     if law.any_coupled:
         root = matrix.shape[-1] - q.shape[-1]
         jacobian, aref, weight = _couplings(law, q, v)
         jacobian = torch.nn.functional.pad(jacobian, (root, 0))
         weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
-        coupled = matrix + weighted @ jacobian
-        acceleration = _row_solve(law, coupled, q, v, smooth + (weighted @ aref[..., None])[..., 0])
-    else:
-        acceleration = _row_solve(law, matrix, q, v, smooth)
+        coupled, pulled = matrix + weighted @ jacobian, smooth + (weighted @ aref[..., None])[..., 0]
+    acceleration = _row_solve(law, coupled, q, v, pulled)
+    if acceleration is None:  # no limit or frictionloss row present
+        if not law.any_coupled:
+            return torch.zeros_like(smooth)
+        acceleration = torch.linalg.solve_ex(coupled, pulled)[0]
     return (matrix @ acceleration[..., None])[..., 0] - smooth
 
 
-def _row_solve(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+def _row_solve(
+    law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor
+) -> torch.Tensor | None:
     """The acceleration (env, n) MuJoCo's Newton solver finds with the joint limit and frictionloss rows
     (`_joint_rows`) on the quadratic M, smooth (the couplings folded in): the a minimising M's norm of its change
     from M^-1 smooth plus each row's cost, D/2 (J a - aref)^2 where its force -D (J a - aref) is within its bounds and
@@ -245,13 +251,13 @@ def _row_solve(law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor,
     (M + J^T D J) a' = smooth + J^T (D aref + held force) over the rows within, and moves a towards a' by the step
     of `ROW_STEPS` that costs least (a full step can cross a zone and come back: frictionloss holding a joint still).
     ROW_PASSES passes; on the CPU, where a check costs no wait on a device, until a full step leaves the zones as they
-    were, and none where no row is present (tests/test_maniskill_joint_actuation.py)."""
+    were, and None where no row is present (tests/test_maniskill_joint_actuation.py)."""
     root = matrix.shape[-1] - q.shape[-1]
-    free = torch.linalg.solve_ex(matrix, smooth)[0]
     aref, weight, low, high = _joint_rows(law, q, v)
     host = matrix.device.type == "cpu"  # where a check costs no wait on a device
     if host and not bool((weight > 0).any()):
-        return free
+        return None
+    free = torch.linalg.solve_ex(matrix, smooth)[0]
     sign, pad = law.limit_sign, torch.nn.functional.pad
     acceleration, taken, full = free, None, False
     steps = law.row_steps[:, None]  # (steps, 1)
