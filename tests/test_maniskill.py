@@ -268,6 +268,107 @@ def test_pd_joint_pos_follows_mujoco_on_the_panda(agents, monkeypatch):
     assert _pd_walk(agents["panda"]) > PD_FOLLOW_TOLERANCE
 
 
+# Two motors push a planar arm into its joints' limits, whose soft rows let MuJoCo's elbow 0.5 rad past its end
+LIMITED_ARM = """<mujoco model="limited_arm">
+  <compiler angle="radian"/>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="upper" pos="0 0 1">
+      <joint name="shoulder" axis="0 1 0" range="-0.5 0.5"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.04" mass="1"/>
+      <body name="fore" pos="0.3 0 0">
+        <joint name="elbow" axis="0 1 0" range="-0.8 0.8"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="0.5"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="shoulder" gear="20" ctrlrange="-1 1"/>
+    <motor joint="elbow" gear="10" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>"""
+# rad, the largest |ManiSkill - MuJoCo| joint position of the limited arm over 0.5 s of `mujoco_ctrl_tensor` in an env
+# made in `pd_joint_pos` and switched by ManiSkill's {"control_mode", "action"} step (TGS, full ctrl in and out of the
+# limits): measured 2.1e-6 (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0); with PhysX's hard limits
+# left at the range 0.51
+SWITCH_TOLERANCE = 1e-4
+
+
+def _drive_state(agent) -> list:
+    """What a mode sets on the robot: each joint's drive and limits, each link's gravity, the joint forces."""
+    joints = agent.results[0].articulations[0].get_active_joints()
+    return [
+        [(float(j.stiffness), float(j.damping), float(j.force_limit), j.limit.tolist()) for j in joints],
+        [bool(link.disable_gravity.all()) for link in agent.robot.links],
+        agent.robot.get_qf()[0].tolist(),
+    ]
+
+
+@pytest.mark.parametrize("mistake", [None, "limits_left", "not_handed_back", "drives_left"])
+def test_a_switch_of_control_mode_sets_the_modes_drives_and_limits(tmp_path, monkeypatch, mistake):
+    """ManiSkill switches a mode by a step's {"control_mode", "action"}, and sets a mode's drives only when it first
+    makes it. An env made in `pd_joint_pos` and switched to `mujoco_ctrl_tensor` follows MuJoCo with motors pushing
+    past the soft limits, and switched back, PD holds the drives, gravity, limits and (no) joint forces it was made
+    with. Each mistake fails it: PhysX's hard limits left at the range under the law, the joints not handed back on
+    leaving it (`release()`), a mode made before not set again."""
+    from loader.maniskill import agent as agent_module
+
+    if mistake == "limits_left":
+        monkeypatch.setattr(agent_module.MJCFAgent, "_limits_for", lambda agent, mode, gpu: None)
+    elif mistake == "not_handed_back":
+        monkeypatch.setattr(agent_module, "LAWS", ())
+    elif mistake == "drives_left":
+        monkeypatch.setattr(agent_module.MJCFAgent, "_resume", lambda agent, mode: None)
+    path = tmp_path / "limited_arm.xml"
+    path.write_text(LIMITED_ARM)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, f"switched_arm_{mistake}", override=True)
+        env = _env(agent.uid, "pd_joint_pos", 500, 50, tgs=True)
+    try:
+        env.reset(seed=0)
+        robot = env.unwrapped.agent
+        made, worst = _drive_state(robot), 0.0
+        for step in range(25):
+            ctrl = np.array([1.0, -1.0] if step < 15 else [-1.0, 1.0], np.float32)
+            env.step({"control_mode": "mujoco_ctrl_tensor", "action": ctrl})
+            data.ctrl[:] = ctrl
+            for _ in range(10):
+                mujoco.mj_step(model, data)
+            worst = max(worst, float(np.abs(robot.robot.get_qpos()[0].numpy() - data.qpos).max()))
+        env.step({"control_mode": "pd_joint_pos", "action": np.zeros(2, np.float32)})
+        back = _drive_state(robot)
+    finally:
+        env.close()
+    assert (worst < SWITCH_TOLERANCE and back == made) == (mistake is None), (worst, made, back)
+
+
+@pytest.mark.parametrize("mistake", [None, "not_handed_back"])
+def test_an_env_made_in_the_tensor_mode_gives_pd_its_hard_limits(tmp_path, monkeypatch, mistake):
+    """An env made in `mujoco_ctrl_tensor` builds its limited joints free of PhysX's limits; switched to a PD mode,
+    PhysX holds MuJoCo's range again. Not handed back, the joints keep no limit."""
+    from loader.maniskill import agent as agent_module
+
+    if mistake:
+        monkeypatch.setattr(agent_module, "LAWS", ())
+    path = tmp_path / "limited_arm.xml"
+    path.write_text(LIMITED_ARM)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, f"tensor_made_arm_{mistake}", override=True)
+        env = _env(agent.uid, "mujoco_ctrl_tensor", 500, 50, tgs=True)
+    try:
+        env.reset(seed=0)
+        env.step({"control_mode": "pd_joint_pos", "action": np.zeros(2, np.float32)})
+        joints = env.unwrapped.agent.results[0].articulations[0].get_active_joints()
+        limits = np.array([joint.limit[0] for joint in joints])
+    finally:
+        env.close()
+    assert np.array_equal(limits, np.float32(mujoco.MjModel.from_xml_string(LIMITED_ARM).jnt_range)) == (not mistake)
+
+
 def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agents):
     if not torch.cuda.is_available():
         pytest.skip("needs CUDA (ManiSkill's physx_cuda backend)")

@@ -21,6 +21,7 @@ from mani_skill.agents.controllers.pd_joint_pos import (
 from mani_skill.agents.controllers.pd_joint_vel import PDJointVelControllerConfig
 from mani_skill.utils.structs.pose import Pose
 
+from ..errors import UnsupportedFeatureWarning
 from ..mjcf_loader import MJCFLoader as CoreLoader
 from ..plan.joint_actuation import JointActuation, plan_joint_actuation, robot_indices
 from ..plan.rigid_tree import RigidTree, rigid_tree
@@ -30,6 +31,8 @@ from .mujoco_ctrl import MujocoCtrlConfig
 from .scene_loader import MJCFLoader
 
 UNREACHED = 1e4  # rad or m: the PhysX limits of a joint whose limits `mujoco_ctrl_tensor`'s law carries
+TENSOR = "mujoco_ctrl_tensor"
+LAWS = ("mujoco_ctrl", TENSOR)  # the modes whose joint forces this loader writes, where ManiSkill's drives write none
 DELTA = 0.1  # pd_joint_delta_pos: ManiSkill's usual bound on a step's change of target (rad or m)
 
 
@@ -50,6 +53,7 @@ class MJCFAgent(BaseAgent):
 
     def __init__(self, scene, control_freq: int, control_mode: str | None = None, *args, **kwargs):
         self.built_mode = control_mode  # the env's control mode, which decides the build (`_load_articulation`)
+        self.gravity: dict[str, list[bool]] = {}  # per mode made, its links' disable_gravity (`set_control_mode`)
         super().__init__(scene, control_freq, control_mode, *args, **kwargs)
 
     def _load_articulation(self, initial_pose=None):
@@ -62,9 +66,9 @@ class MJCFAgent(BaseAgent):
         loader.fix_root_link = self.fix_root_link
         loader.disable_self_collisions = self.disable_self_collisions
         builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
-        tensor = self.built_mode == "mujoco_ctrl_tensor"
-        if tensor:  # the law's soft limit rows, not PhysX's hard limits (a band no joint reaches: PhysX keeps a
-            # joint built limited so, while the loader's own reset holds its limits wide of MuJoCo's range)
+        # the law's soft limit rows, not PhysX's hard limits (a band no joint reaches: PhysX keeps a joint built
+        # limited so, while the loader's own reset holds its limits wide of MuJoCo's range)
+        if self.built_mode == TENSOR:
             for link in builder.link_builders:
                 if link.joint_record.name in self.law_limited:
                     link.joint_record.limits = [[-UNREACHED, UNREACHED]]
@@ -78,8 +82,51 @@ class MJCFAgent(BaseAgent):
         self.results = loader.results
         for result in self.results:
             result.release()  # PD modes drive the joints; mujoco_ctrl takes them back
+
+    def set_control_mode(self, control_mode: str | None = None):
+        """ManiSkill's switch of control mode, made whole on the CPU backend. ManiSkill sets a mode's drives (and
+        gravity) only when it first makes its controller, so a switch back kept the last mode's; and this loader's
+        modes own more of the joints than drives. So leaving one of them hands the joints back (`release()`: MuJoCo's
+        range as PhysX's hard limits, no `qf`), a mode made before sets its drives and its links' gravity again, and
+        `mujoco_ctrl_tensor` moves PhysX's limits out of its soft rows' way. On the GPU, PhysX keeps what the env
+        was built with: a switch that needs other limits is warned
+        (tests/test_maniskill.py::test_a_switch_of_control_mode_sets_the_modes_drives_and_limits)."""
+        leaving = getattr(self, "_control_mode", None)
+        mode = self._default_control_mode if control_mode is None else control_mode
+        made, gpu = mode in self.controllers, self.scene.gpu_sim_enabled
+        if leaving in LAWS and mode != leaving and mode in self.supported_control_modes and not gpu:
+            for result in self.results:
+                result.release()
+        super().set_control_mode(control_mode)
+        if not made:
+            self.gravity[mode] = [bool(link.disable_gravity.all()) for link in self.robot.links]
+        elif mode != leaving and not gpu:
+            self._resume(mode)
+        if self.law_limited_dofs and mode != leaving:
+            self._limits_for(mode, gpu)
+
+    def _resume(self, mode: str) -> None:
+        """A mode made before, switched to again: its links' gravity as it made them, and its drives."""
+        for link, weightless in zip(self.robot.links, self.gravity[mode]):
+            link.disable_gravity = weightless
+        self.controller.set_drive_property()
+
+    def _limits_for(self, mode: str, gpu: bool) -> None:
+        """PhysX's limits of the joints whose limits the law carries, as `mode` needs them: out of the way under
+        `mujoco_ctrl_tensor`, MuJoCo's range (as `release()` left them) under the others."""
+        if gpu:
+            if (mode == TENSOR) != (self.built_mode == TENSOR):
+                warnings.warn(
+                    f"{self.uid}: on physx_cuda PhysX keeps the joint limits the env was built with "
+                    f"({self._default_control_mode}), which {mode} does not want; make the env with "
+                    f"control_mode={mode!r}",
+                    UnsupportedFeatureWarning,
+                    stacklevel=3,
+                )
+            return
+        for result in self.results if mode == TENSOR else ():
             joints = result.articulations[0].get_active_joints()
-            for dof in self.law_limited_dofs if tensor else ():  # the release held MuJoCo's range: out of the way
+            for dof in self.law_limited_dofs:
                 joints[dof].set_limit(np.array([[-UNREACHED, UNREACHED]], np.float32))
 
     def reset(self, init_qpos=None):
@@ -126,7 +173,7 @@ class MJCFAgent(BaseAgent):
                 "ctrl": MujocoCtrlConfig(joints, list(self.ctrl_low), list(self.ctrl_high), self.results),
             }
         if isinstance(self.joint_actuation, JointActuation) and self.ctrl_low:
-            configs["mujoco_ctrl_tensor"] = {
+            configs[TENSOR] = {
                 "balance_passive_force": False,
                 "ctrl": JointActuationConfig(
                     joints,
