@@ -35,7 +35,7 @@ def _scalar_joints(model: mujoco.MjModel) -> dict[int, int]:
 
 
 def _uncoupled(model: mujoco.MjModel) -> bool:
-    """An active equality other than the joint couplings the law carries (`coupled_equalities`)."""
+    """An active equality other than the couplings the law carries (`coupled_equalities`)."""
     if not model.neq or mj.disabled(model, "equality", "constraint"):
         return False
     return len(coupled_equalities(model, _scalar_joints(model))) < int(np.count_nonzero(model.eq_active0))
@@ -98,7 +98,8 @@ GAPS = {
         ),
         Gap(
             "uncoupled_equality",
-            "equality constraints other than joint couplings deactivated (connects, welds, tendon couplings)",
+            "equality constraints other than couplings of joints and fixed tendons deactivated (connects, welds, "
+            "couplings of spatial tendons)",
             _uncoupled,
             _deactivate_uncoupled,
             automatic=False,

@@ -142,7 +142,7 @@ TENSOR_FOLLOW_TOLERANCE = {"pgs": 1e-5, "tgs": 1e-4}
 SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
 # (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7,
-# with joint couplings 8.8e-7; each mistake misses by 5e-4 or more
+# with joint couplings 8.8e-7, with tendon couplings 1.1e-7; each mistake misses by 5e-4 or more
 STEP_TOLERANCE = 1e-4
 
 
@@ -800,10 +800,58 @@ def test_the_laws_joint_couplings_are_mujocos(mistake):
     mistake misses: the polynomial's linear term dropped (3.1), a row's diagApprox the first joint's invweight0 alone
     (0.23)."""
     result, dofs, plan, inertia = _loaded_law(COUPLED)
-    assert plan.couplings.first.size == 2 and "equality constraints other than joint couplings" not in plan.not_carried
+    assert plan.couplings.first.shape[0] == 2
+    assert "equality constraints other than couplings of joints and fixed tendons" not in plan.not_carried
     if mistake == "linear_term_dropped":
         plan.couplings.poly[1] = 0.0
     elif mistake == "first_joint_weight":
         plan.couplings.diag_approx[0] = result.model.dof_invweight0[2]
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+TENDON_COUPLED = """
+<mujoco model="tendon_coupled_chain">
+  <compiler angle="radian"/>
+  <option timestep="0.005"><flag contact="disable"/></option>
+  <worldbody>
+    <body>
+      <joint name="a" axis="0 1 0" ref="0.2"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body pos="0.3 0 0">
+        <joint name="b" axis="0 1 0" ref="-0.1" damping="0.05"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <body pos="0.3 0 0">
+          <joint name="c" type="slide" axis="1 0 0" ref="0.05"/>
+          <geom type="box" size="0.05 0.05 0.05"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <tendon>
+    <fixed name="ab"><joint joint="a" coef="1"/><joint joint="b" coef="0.5"/></fixed>
+    <fixed name="cb"><joint joint="c" coef="2"/><joint joint="b" coef="-1"/></fixed>
+  </tendon>
+  <equality>
+    <tendon tendon1="ab" tendon2="cb" polycoef="0.02 0.6 0.2 0 0" solref="0.01 0.9" solimp="0.9 0.99 0.002 0.5 2"/>
+  </equality>
+  <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("mistake", [None, "origin_at_zero", "first_tendon_weight"])
+def test_the_laws_tendon_couplings_are_mujocos(mistake):
+    """A chain whose fixed tendon over two hinges follows a quadratic of another over the slide and a hinge (MuJoCo's
+    tendon equality, its own solref and solimp; every joint authored with a ref, so each tendon's length at qpos0 is
+    not zero): at 32 random states the law's end velocity is MuJoCo's step's with its equality row, measured 1.1e-7
+    relative (`STEP_TOLERANCE`). Each mistake misses: the lengths' origins taken at zero rather than at qpos0 (3.5), the
+    row's diagApprox the first tendon's invweight0 alone (8.5e-2)."""
+    result, dofs, plan, inertia = _loaded_law(TENDON_COUPLED)
+    assert plan.couplings.first.shape[0] == 1 and not plan.not_carried
+    if mistake == "origin_at_zero":
+        plan.couplings.origin[:] = 0.0
+    elif mistake == "first_tendon_weight":
+        plan.couplings.diag_approx[0] = result.model.tendon_invweight0[0]
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst

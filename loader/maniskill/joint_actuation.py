@@ -111,13 +111,9 @@ class Law:
         self.limit_diag = tensor(limits.diag_approx)
         self.limit_imp = Solimp(limits.solimp, tensor)
         couplings = plan.couplings
-        self.any_coupled = bool(couplings.first.size)  # read on the host
-        rows, ndof = couplings.first.size, plan.ndof
-        first, second = np.zeros((rows, ndof)), np.zeros((rows, ndof))
-        first[np.arange(rows), couplings.first] = 1.0
-        has = couplings.second >= 0
-        second[np.flatnonzero(has), couplings.second[has]] = 1.0
-        self.coupling_first, self.coupling_second = tensor(first), tensor(second)  # (rows, DoF): each row's joints
+        self.any_coupled = bool(couplings.first.shape[0])  # read on the host
+        # (rows, DoF): each row's two joint positions or fixed tendon lengths as coefficients over the DoFs
+        self.coupling_first, self.coupling_second = tensor(couplings.first), tensor(couplings.second)
         self.coupling_origin, self.coupling_poly = tensor(couplings.origin), tensor(couplings.poly)
         self.coupling_stiffness, self.coupling_damping = tensor(couplings.stiffness), tensor(couplings.damping)
         self.coupling_diag = tensor(couplings.diag_approx)

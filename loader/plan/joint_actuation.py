@@ -105,13 +105,16 @@ class JointFriction:
 
 @dataclass
 class JointCouplings:
-    """MuJoCo's joint equality rows the law carries (active at load, each joint one of the robot's hinges or slides):
-    per row, q1 - q1_0 = poly(q2 - q2_0) (`second` -1: q1 - q1_0 = poly[0]), a soft two-sided row with solref's
-    stiffness and damping (refsafe applied), solimp and diagApprox, the joints' invweight0 summed."""
+    """MuJoCo's equality rows between the robot's joints that the law carries (active at load): joint equalities
+    between its hinges and slides, and tendon equalities between fixed tendons over them. Per row,
+    L1 - L1_0 = poly(L2 - L2_0), each L a joint's position or a fixed tendon's length, linear in q (`first`, `second`:
+    its coefficients over the DoFs, a zero row where there is no second: L1 - L1_0 = poly[0]), L_0 its value at
+    qpos0; a soft two-sided row with solref's stiffness and damping (refsafe applied), solimp and diagApprox, the
+    two's invweight0 summed (a DoF's or a tendon's)."""
 
-    first: np.ndarray  # (rows,) the robot DoF of joint1
-    second: np.ndarray  # (rows,) that of joint2, -1 where there is none
-    origin: np.ndarray  # (2, rows): qpos0 of joint1 and joint2
+    first: np.ndarray  # (rows, ndof)
+    second: np.ndarray  # (rows, ndof)
+    origin: np.ndarray  # (2, rows): L1_0 and L2_0
     poly: np.ndarray  # (5, rows): polycoef
     stiffness: np.ndarray  # K
     damping: np.ndarray  # B
@@ -119,11 +122,11 @@ class JointCouplings:
     diag_approx: np.ndarray
 
     @classmethod
-    def none(cls) -> JointCouplings:
+    def none(cls, ndof: int) -> JointCouplings:
         row = np.zeros(0)
         return cls(
-            np.zeros(0, int),
-            np.zeros(0, int),
+            np.zeros((0, ndof)),
+            np.zeros((0, ndof)),
             np.zeros((2, 0)),
             np.zeros((5, 0)),
             row,
@@ -160,7 +163,7 @@ class JointActuation:
     springs: TendonSprings = field(default_factory=lambda: TendonSprings.none(0))
     limits: JointLimits = field(default_factory=lambda: JointLimits.none(0))
     friction: JointFriction = field(default_factory=lambda: JointFriction.none(0))
-    couplings: JointCouplings = field(default_factory=JointCouplings.none)
+    couplings: JointCouplings = field(default_factory=lambda: JointCouplings.none(0))
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -221,7 +224,7 @@ def plan_joint_actuation(
         _tendon_springs(model, dof_of_joint, ndof, implicit),
         _joint_limits(model, dof_of_joint, ndof),
         _joint_friction(model, dof_of_joint, ndof),
-        _joint_couplings(model, dof_of_joint),
+        _joint_couplings(model, dof_of_joint, ndof),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -301,41 +304,54 @@ def _joint_friction(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
 
 
 def coupled_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
-    """The active joint equalities the law carries: both joints (or the one) among the robot's hinges and slides."""
+    """The active equalities the law carries: joint equalities whose joints (both, or the one) are among the robot's
+    hinges and slides, tendon equalities whose tendons are fixed over them."""
     if mj.disabled(model, "equality", "constraint"):
         return []
-    joint = int(mujoco.mjtEq.mjEQ_JOINT)
-    return [
-        e
-        for e in range(model.neq)
-        if int(model.eq_type[e]) == joint
-        and model.eq_active0[e]
-        and int(model.eq_obj1id[e]) in dof_of_joint
-        and (int(model.eq_obj2id[e]) < 0 or int(model.eq_obj2id[e]) in dof_of_joint)
-    ]
+    joint, tendon = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
+
+    def carried(e: int) -> bool:
+        kind, ends = int(model.eq_type[e]), (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
+        if kind == joint:
+            return all(end < 0 or end in dof_of_joint for end in ends)
+        return kind == tendon and all(end < 0 or _fixed_over(model, end, dof_of_joint) for end in ends)
+
+    return [e for e in range(model.neq) if model.eq_active0[e] and carried(e)]
 
 
-def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> JointCouplings:
+def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointCouplings:
     rows = coupled_equalities(model, dof_of_joint)
-    couplings = JointCouplings.none()
     if not rows:
-        return couplings
-    first, second, origin, poly, stiffness, damping, solimp, diag = [], [], [], [], [], [], [], []
-    for e in rows:
-        j1, j2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        return JointCouplings.none(ndof)
+    joint = int(mujoco.mjtEq.mjEQ_JOINT)
+    ends = [int(model.eq_obj1id[e]) for e in rows] + [int(model.eq_obj2id[e]) for e in rows]
+    tendons = sorted({end for e, end in zip(rows * 2, ends) if end >= 0 and int(model.eq_type[e]) != joint})
+    tendon_moment = dict(zip(tendons, _tendon_moments(model, dof_of_joint, ndof, tendons)))
+    first, second = np.zeros((len(rows), ndof)), np.zeros((len(rows), ndof))
+    origin, poly, stiffness, damping, solimp, diag = [], [], [], [], [], []
+    for k, e in enumerate(rows):
+        ends, weights, zero = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e])), [], []
+        for coefficients, end in zip((first, second), ends):
+            if end < 0:
+                zero.append(0.0)
+            elif int(model.eq_type[e]) == joint:
+                coefficients[k, dof_of_joint[end]] = 1.0
+                zero.append(model.qpos0[model.jnt_qposadr[end]])
+                weights.append(model.dof_invweight0[model.jnt_dofadr[end]])
+            else:
+                coefficients[k] = tendon_moment[end]
+                zero.append(model.tendon_length0[end])
+                weights.append(model.tendon_invweight0[end])
         row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
-        first.append(dof_of_joint[j1])
-        second.append(dof_of_joint[j2] if j2 >= 0 else -1)
-        origin.append([model.qpos0[model.jnt_qposadr[j1]], model.qpos0[model.jnt_qposadr[j2]] if j2 >= 0 else 0.0])
+        origin.append(zero)
         poly.append(model.eq_data[e][:5])
         stiffness.append(row.stiffness)
         damping.append(row.damping)
         solimp.append(row.solimp)
-        weights = [model.dof_invweight0[model.jnt_dofadr[j]] for j in (j1, j2) if j >= 0]
         diag.append(sum(weights))
     return JointCouplings(
-        np.array(first),
-        np.array(second),
+        first,
+        second,
         np.array(origin, float).T,
         np.array(poly, float).T,
         np.array(stiffness),
@@ -345,6 +361,25 @@ def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> Joi
     )
 
 
+def _fixed_over(model: mujoco.MjModel, tendon: int, dof_of_joint: dict[int, int]) -> bool:
+    """Whether a tendon is fixed over the robot's hinges and slides (every wrap one of its joints)."""
+    wraps = range(int(model.tendon_adr[tendon]), int(model.tendon_adr[tendon] + model.tendon_num[tendon]))
+    return all(int(model.wrap_type[w]) == JOINT_WRAP and int(model.wrap_objid[w]) in dof_of_joint for w in wraps)
+
+
+def _tendon_moments(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, tendons: list[int]) -> np.ndarray:
+    """The tendons' moments (len(tendons), ndof) over the robot's DoFs from MuJoCo's tendon pass at qpos0: constant
+    for a fixed tendon, its coefficients."""
+    data = mujoco.MjData(model)
+    mujoco.mj_fwdPosition(model, data)
+    dense = np.zeros((model.ntendon, model.nv))
+    mujoco.mju_sparse2dense(dense, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
+    moment = np.zeros((len(tendons), ndof))
+    for joint, robot_dof in dof_of_joint.items():
+        moment[:, robot_dof] = dense[tendons, model.jnt_dofadr[joint]]
+    return moment
+
+
 def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The tendons the law carries: fixed over the robot's hinges and slides, with a spring or a damper, linear (no
     polynomial term) and with no armature."""
@@ -352,8 +387,7 @@ def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> lis
     for tendon in range(model.ntendon):
         if not (model.tendon_stiffness[tendon] or model.tendon_damping[tendon]):
             continue
-        wraps = range(int(model.tendon_adr[tendon]), int(model.tendon_adr[tendon] + model.tendon_num[tendon]))
-        fixed = all(int(model.wrap_type[w]) == JOINT_WRAP and int(model.wrap_objid[w]) in dof_of_joint for w in wraps)
+        fixed = _fixed_over(model, tendon, dof_of_joint)
         linear = not (np.any(model.tendon_stiffnesspoly[tendon]) or np.any(model.tendon_dampingpoly[tendon]))
         if fixed and linear and not model.tendon_armature[tendon]:
             carried.append(tendon)
@@ -366,13 +400,7 @@ def _tendon_springs(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
     tendons = _carried_tendons(model, dof_of_joint)
     if not tendons:
         return TendonSprings.none(ndof)
-    data = mujoco.MjData(model)
-    mujoco.mj_fwdPosition(model, data)
-    dense = np.zeros((model.ntendon, model.nv))
-    mujoco.mju_sparse2dense(dense, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
-    moment = np.zeros((len(tendons), ndof))
-    for joint, robot_dof in dof_of_joint.items():
-        moment[:, robot_dof] = dense[tendons, model.jnt_dofadr[joint]]
+    moment = _tendon_moments(model, dof_of_joint, ndof, tendons)
     stiffness = 0.0 if mj.disabled(model, "spring") else model.tendon_stiffness[tendons]
     damping = 0.0 if mj.disabled(model, "damper") else model.tendon_damping[tendons]
     stiffness, damping = stiffness + np.zeros(len(tendons)), damping + np.zeros(len(tendons))
@@ -465,7 +493,7 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
             bool(model.neq)
             and not mj.disabled(model, "equality", "constraint")
             and len(coupled_equalities(model, dof_of_joint)) < int(np.count_nonzero(model.eq_active0)),
-            "equality constraints other than joint couplings",
+            "equality constraints other than couplings of joints and fixed tendons",
         ),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
         (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
