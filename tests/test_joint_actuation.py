@@ -229,6 +229,37 @@ def test_a_fixed_tendons_spring_is_carried_and_any_other_is_named(tendon):
         ]
 
 
+TENDON_ROWS_NAMED = "the limits and frictionloss of a spatial tendon or of one over joints outside the robot"
+
+
+@pytest.mark.parametrize("tendon", ["fixed", "spatial", "disabled"])
+def test_a_fixed_tendons_limit_and_frictionloss_are_carried_and_a_spatial_ones_named(tendon):
+    """The chain's fixed tendon, limited and with frictionloss, carries both rows on its length (its coefficients as
+    its Jacobian, its range, its invweight0) and is not named; a spatial tendon's limit is named (SPATIAL's, its
+    actuator taken out); with the model's limits and frictionloss disabled there is no row to carry or name."""
+    if tendon == "spatial":
+        spec = mujoco.MjSpec.from_string(SPATIAL)
+        spec.delete(spec.actuators[0])
+        spec.tendons[0].range, spec.tendons[0].limited = [0.1, 0.5], mujoco.mjtLimited.mjLIMITED_TRUE
+        plan = plan_joint_actuation(spec.compile(), {0: 0}, 1)
+        assert TENDON_ROWS_NAMED in plan.not_carried and not plan.tendon_rows.limits.limited.size
+        return
+    spec = mujoco.MjSpec.from_string(ACTUATED.format(integrator="implicitfast"))
+    spec.tendons[0].range, spec.tendons[0].limited = [-0.2, 0.1], mujoco.mjtLimited.mjLIMITED_TRUE
+    spec.tendons[0].frictionloss = 0.4
+    if tendon == "disabled":
+        spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_LIMIT | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+    model = spec.compile()
+    plan = plan_joint_actuation(model, DOF_OF_JOINT, 3)
+    rows = plan.tendon_rows
+    assert TENDON_ROWS_NAMED not in plan.not_carried
+    if tendon == "disabled":
+        assert rows.moment.shape == (0, 3)
+        return
+    assert rows.moment.tolist() == [[0.5, 0.0, -1.0]] and rows.limits.range.ravel().tolist() == [-0.2, 0.1]
+    assert rows.friction.loss.tolist() == [0.4] and rows.limits.diag_approx.tolist() == [model.tendon_invweight0[0]]
+
+
 @pytest.mark.parametrize("refsafe", [True, False])
 def test_a_joint_limits_row_is_mujocos(refsafe):
     """The planned limit row's reference stiffness and damping (solreflimit with refsafe's floor of two timesteps,

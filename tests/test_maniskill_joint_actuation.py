@@ -20,7 +20,7 @@ from test_joint_actuation import ACTUATED, DOF_OF_JOINT, SIBLINGS, SPATIAL
 
 from conformance.tiers.maniskill import empty_env
 from loader import MJCFLoader
-from loader.maniskill import joint_actuation, register_agent
+from loader.maniskill import constraint_rows, joint_actuation, register_agent
 from loader.maniskill.inertia import Inertia
 from loader.maniskill.joint_actuation import Law, implicit_step, next_activation, start_force
 from loader.plan.joint_actuation import plan_joint_actuation, robot_indices
@@ -142,7 +142,8 @@ TENSOR_FOLLOW_TOLERANCE = {"pgs": 1e-5, "tgs": 1e-4}
 SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
 # (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7,
-# with joint couplings 8.8e-7, with tendon couplings 1.1e-7; each mistake misses by 5e-4 or more
+# with joint couplings 8.8e-7, with tendon couplings 1.1e-7, with tendon limits and frictionloss 1.4e-6; each mistake
+# misses by 5e-4 or more
 STEP_TOLERANCE = 1e-4
 
 
@@ -732,7 +733,7 @@ def test_the_laws_limit_rows_are_mujocos(monkeypatch, mistake):
     elif mistake == "impedance_flat":
         plan.limits.solimp[0] = plan.limits.solimp[1]
     elif mistake == "two_passes":
-        monkeypatch.setattr(joint_actuation, "ROW_PASSES", 2)
+        monkeypatch.setattr(constraint_rows, "ROW_PASSES", 2)
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst
 
@@ -854,4 +855,56 @@ def test_the_laws_tendon_couplings_are_mujocos(mistake):
     elif mistake == "first_tendon_weight":
         plan.couplings.diag_approx[0] = result.model.tendon_invweight0[0]
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+TENDON_ROWS = """
+<mujoco model="tendon_limited_chain">
+  <compiler angle="radian"/>
+  <option timestep="0.005"><flag contact="disable"/></option>
+  <worldbody>
+    <body>
+      <joint name="a" axis="0 1 0" range="-0.5 0.5" limited="false"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body pos="0.3 0 0">
+        <joint name="b" axis="0 1 0" range="-0.5 0.5" limited="false" damping="0.05"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <body pos="0.3 0 0">
+          <joint name="c" type="slide" axis="1 0 0" range="-0.2 0.2" limited="false"/>
+          <geom type="box" size="0.05 0.05 0.05"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <tendon>
+    <fixed name="ab" range="-0.3 0.2" margin="0.02" solimplimit="0.8 0.95 0.05 0.4 3">
+      <joint joint="a" coef="1"/><joint joint="b" coef="0.5"/>
+    </fixed>
+    <fixed name="cb" range="-0.4 0.3" solreflimit="-3000 -40" frictionloss="0.2" solreffriction="0.03 0.8">
+      <joint joint="c" coef="2"/><joint joint="b" coef="-1"/>
+    </fixed>
+  </tendon>
+  <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("mistake", [None, "no_tendon_rows", "weight_of_a_joint", "friction_unbounded"])
+def test_the_laws_tendon_limit_and_frictionloss_rows_are_mujocos(mistake):
+    """A chain with two fixed tendons, each limited (a margin and a solimp sigmoid on one, the direct solref form on
+    the other), the second with frictionloss: at 32 random states about and past the tendons' ends, half of them
+    nearly still, the law's end velocity is MuJoCo's step's with the tendons' rows, measured 1.4e-6 relative
+    (`STEP_TOLERANCE`). Each mistake misses: the tendons' rows left out (2.0), their diagApprox a joint's invweight0
+    rather than the tendon's (0.53), frictionloss's force left unbounded (0.95)."""
+    result, dofs, plan, inertia = _loaded_law(TENDON_ROWS)
+    rows = plan.tendon_rows
+    assert rows.limits.limited.tolist() == [True, True] and rows.friction.loss.tolist() == [0.0, 0.2]
+    assert not plan.not_carried
+    if mistake == "no_tendon_rows":
+        rows.limits.limited[:], rows.friction.weight[:] = False, 0.0
+    elif mistake == "weight_of_a_joint":
+        rows.limits.diag_approx[:] = result.model.dof_invweight0[0]
+    elif mistake == "friction_unbounded":
+        rows.friction.loss[:] = np.inf
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.5)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst

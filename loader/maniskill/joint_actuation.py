@@ -25,43 +25,16 @@ from mani_skill.agents.controllers.base_controller import BaseController, Contro
 from mani_skill.utils import common
 from mani_skill.utils.structs.pose import Pose
 
-from ..model.mj import MJMINVAL
-from ..model.soft_row import MAXIMP, MINIMP
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
+from .constraint_rows import ROW_STEPS, Couplings, RowSet, constraint_force
 from .free_root import RootRows, free_velocity, physx_velocity
 from .inertia import Inertia, mass_matrix_and_bias
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
 LAW_DTYPE = torch.float64
-# the joint rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards
-# that solution, a fixed count so that the device never waits on the host (twice what the law's row tests need:
-# tests/test_maniskill_joint_actuation.py::test_the_laws_frictionloss_rows_are_mujocos), each step the cheapest of
-# ROW_STEPS
-ROW_PASSES = 10
-ROW_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.0)
-
-
-class Solimp:
-    """solimp (5, rows) as tensors, clamped as MuJoCo clamps them; called on a violation r (..., rows): MuJoCo's
-    impedance imp(|r|), its sigmoid from dmin at r = 0 to dmax at |r| >= width."""
-
-    def __init__(self, solimp: np.ndarray, tensor):
-        low = [[MINIMP], [MINIMP], [-np.inf], [MJMINVAL], [1.0]]
-        high = [[MAXIMP], [MAXIMP], [np.inf], [1 - MJMINVAL], [np.inf]]
-        clamped = np.clip(np.asarray(solimp, np.float64), low, high)
-        self.low, self.high, self.width, self.midpoint, self.power = (tensor(x) for x in clamped)
-        self.flat = tensor((clamped[0] == clamped[1]) | (clamped[2] <= MJMINVAL)) > 0
-
-    def __call__(self, violation: torch.Tensor) -> torch.Tensor:
-        x = torch.clamp(torch.abs(violation) / torch.clamp(self.width, min=MJMINVAL), max=1.0)
-        midpoint, power = self.midpoint, self.power
-        rising = x**power / midpoint ** (power - 1.0)
-        falling = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
-        imp = self.low + torch.where(x <= midpoint, rising, falling) * (self.high - self.low)
-        return torch.where(self.flat, 0.5 * (self.low + self.high), imp)
 
 
 class Law:
@@ -102,32 +75,15 @@ class Law:
         )  # tau (1 - e^-dt/tau)
 
     def _rows(self, plan: JointActuation, tensor, device) -> None:
-        """The joint rows' arrays: limits, frictionloss, joint couplings."""
-        limits = plan.limits
-        self.any_limited = bool(limits.limited.any())  # read on the host
-        self.limited = torch.as_tensor(limits.limited, device=device)
-        self.limit_low, self.limit_high, self.limit_margin = (tensor(x) for x in (*limits.range, limits.margin))
-        self.limit_stiffness, self.limit_damping = tensor(limits.stiffness), tensor(limits.damping)
-        self.limit_diag = tensor(limits.diag_approx)
-        self.limit_imp = Solimp(limits.solimp, tensor)
-        couplings = plan.couplings
-        self.any_coupled = bool(couplings.first.shape[0])  # read on the host
-        # (rows, DoF): each row's two joint positions or fixed tendon lengths as coefficients over the DoFs
-        self.coupling_first, self.coupling_second = tensor(couplings.first), tensor(couplings.second)
-        self.coupling_origin, self.coupling_poly = tensor(couplings.origin), tensor(couplings.poly)
-        self.coupling_stiffness, self.coupling_damping = tensor(couplings.stiffness), tensor(couplings.damping)
-        self.coupling_diag = tensor(couplings.diag_approx)
-        self.coupling_imp = Solimp(couplings.solimp, tensor)
-        friction = plan.friction
-        self.friction_damping, self.friction_weight = tensor(friction.damping), tensor(friction.weight)
-        self.any_rows = self.any_limited or self.any_coupled or bool(np.any(friction.loss > 0))  # read on the host
-        # (3, 1): a lower limit row pushes up, an upper one down, frictionloss either way; the bounds on each row's
-        # force (3, DoF): a limit's from zero, frictionloss within +-loss
-        self.limit_sign = tensor([[1.0], [-1.0], [1.0]])
+        """The constraint rows' arrays: the limit and frictionloss rows of the DoFs and of the fixed tendons, the
+        couplings."""
+        tendons = plan.tendon_rows
+        self.joint_rows = RowSet(plan.limits, plan.friction, None, tensor, device)
+        self.tendon_rows = RowSet(tendons.limits, tendons.friction, tendons.moment, tensor, device)
+        self.row_sets = [rows for rows in (self.joint_rows, self.tendon_rows) if rows.present]
         self.row_steps = tensor(ROW_STEPS)
-        loss = np.asarray(friction.loss, np.float64)
-        self.row_low = tensor(np.stack((np.zeros_like(loss), np.zeros_like(loss), -loss)))
-        self.row_high = tensor(np.stack((np.full_like(loss, np.inf), np.full_like(loss, np.inf), loss)))
+        self.couplings = Couplings(plan.couplings, tensor)
+        self.any_rows = bool(self.row_sets) or self.couplings.any  # read on the host
 
 
 def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
@@ -173,110 +129,6 @@ def _passive(law: Law, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
         stretched = torch.clamp(length, law.tendon_low, law.tendon_high) - length
         force = force + (law.tendon_stiffness * stretched - law.tendon_damping * rate) @ law.tendon_moment
     return force
-
-
-def _joint_rows(law: Law, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
-    """The joint rows at the state, (env, 3, DoF) each: a DoF's lower and upper limit rows, then its frictionloss
-    row. Their reference accelerations aref (a limit's -B J v - K imp (r - margin), frictionloss's -B v), weights D
-    (zero where a row is absent: a limit beyond its margin, a DoF without frictionloss) and the bounds on their
-    forces (a limit pushes one way, frictionloss holds within +-loss)."""
-    distance = torch.stack((q - law.limit_low, law.limit_high - q), 1)  # (env, 2, DoF)
-    present = law.limited & (distance < law.limit_margin)
-    violation = distance - law.limit_margin
-    imp = law.limit_imp(violation)
-    limit_aref = -law.limit_damping * law.limit_sign[:2] * v[:, None] - law.limit_stiffness * imp * violation
-    limit_weight = present / torch.clamp((1.0 - imp) * law.limit_diag / imp, min=MJMINVAL)
-    aref = torch.cat((limit_aref, (-law.friction_damping * v)[:, None]), 1)
-    weight = torch.cat((limit_weight, law.friction_weight.expand_as(v)[:, None]), 1)
-    return aref, weight, law.row_low, law.row_high
-
-
-def _row_cost(weight, low, high, miss: torch.Tensor) -> torch.Tensor:
-    """The rows' cost summed (..., 3, DoF -> ...) at their misses J a - aref: D/2 miss^2 while the force -D miss is
-    within its bounds, linear beyond (the force held at the bound)."""
-    force = torch.clamp(-weight * miss, low, high)
-    cost = -force * miss - force * force / (2.0 * torch.clamp(weight, min=MJMINVAL))
-    return torch.where(weight > 0, cost, 0.0).sum((-2, -1))
-
-
-def _couplings(law: Law, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
-    """The joint couplings' rows at the state: their Jacobians (env, rows, DoF), reference accelerations
-    aref = -B J v - K imp r and weights D (env, rows), r = q1 - q1_0 - poly(q2 - q2_0)."""
-    first = q @ law.coupling_first.T - law.coupling_origin[0]  # (env, rows)
-    second = q @ law.coupling_second.T - law.coupling_origin[1]  # zero where a row has no second joint
-    poly = law.coupling_poly
-    value = poly[0] + second * (poly[1] + second * (poly[2] + second * (poly[3] + second * poly[4])))
-    slope = poly[1] + second * (2.0 * poly[2] + second * (3.0 * poly[3] + second * 4.0 * poly[4]))
-    violation = first - value
-    jacobian = law.coupling_first - slope[..., None] * law.coupling_second
-    imp = law.coupling_imp(violation)
-    aref = -law.coupling_damping * (jacobian @ v[..., None])[..., 0] - law.coupling_stiffness * imp * violation
-    weight = imp / torch.clamp((1.0 - imp) * law.coupling_diag, min=MJMINVAL)
-    return jacobian, aref, weight
-
-
-def constraint_force(
-    law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor
-) -> torch.Tensor:
-    """MuJoCo's constraint force (env, n) of the law's joint rows at the state, from the smooth force `smooth` (env,
-    n: f - c, a floating root's six coordinates first): M a - smooth at the acceleration a MuJoCo's solver finds. The
-    couplings' rows, two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth force, and the limit and
-    frictionloss rows are solved on those (`_row_solve`)."""
-    coupled, pulled = matrix, smooth
-    if law.any_coupled:
-        root = matrix.shape[-1] - q.shape[-1]
-        jacobian, aref, weight = _couplings(law, q, v)
-        jacobian = torch.nn.functional.pad(jacobian, (root, 0))
-        weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
-        coupled, pulled = matrix + weighted @ jacobian, smooth + (weighted @ aref[..., None])[..., 0]
-    acceleration = _row_solve(law, coupled, q, v, pulled)
-    if acceleration is None:  # no limit or frictionloss row present
-        if not law.any_coupled:
-            return torch.zeros_like(smooth)
-        acceleration = torch.linalg.solve_ex(coupled, pulled)[0]
-    return (matrix @ acceleration[..., None])[..., 0] - smooth
-
-
-def _row_solve(
-    law: Law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor
-) -> torch.Tensor | None:
-    """The acceleration (env, n) MuJoCo's Newton solver finds with the joint limit and frictionloss rows
-    (`_joint_rows`) on the quadratic M, smooth (the couplings folded in): the a minimising M's norm of its change
-    from M^-1 smooth plus each row's cost, D/2 (J a - aref)^2 where its force -D (J a - aref) is within its bounds and
-    linear beyond. Each pass takes each row's zone (within, or held at a bound) at a, solves
-    (M + J^T D J) a' = smooth + J^T (D aref + held force) over the rows within, and moves a towards a' by the step
-    of `ROW_STEPS` that costs least (a full step can cross a zone and come back: frictionloss holding a joint still).
-    ROW_PASSES passes; on the CPU, where a check costs no wait on a device, until a full step leaves the zones as they
-    were, and None where no row is present (tests/test_maniskill_joint_actuation.py)."""
-    root = matrix.shape[-1] - q.shape[-1]
-    aref, weight, low, high = _joint_rows(law, q, v)
-    host = matrix.device.type == "cpu"  # where a check costs no wait on a device
-    if host and not bool((weight > 0).any()):
-        return None
-    free = torch.linalg.solve_ex(matrix, smooth)[0]
-    sign, pad = law.limit_sign, torch.nn.functional.pad
-    acceleration, taken, full = free, None, False
-    steps = law.row_steps[:, None]  # (steps, 1)
-    for _ in range(ROW_PASSES):
-        force = -weight * (sign * acceleration[:, None, root:] - aref)
-        within = (force > low) & (force < high)
-        zones = torch.where(within, 0, torch.where(force >= high, 1, -1))
-        if host and full and torch.equal(zones, taken):
-            break  # a full step left the zones as they were: the solution stands
-        taken = zones
-        held = torch.where(within, 0.0, torch.clamp(force, low, high))
-        stiffness = weight * within
-        stiffened = matrix + torch.diag_embed(pad(stiffness.sum(1), (root, 0)))
-        pulled = smooth + pad((sign * (stiffness * aref + held)).sum(1), (root, 0))
-        newton = torch.linalg.solve_ex(stiffened, pulled)[0]
-        trial = acceleration[:, None] + steps * (newton - acceleration)[:, None]  # (env, steps, n)
-        change = trial - free[:, None]
-        miss = sign * trial[:, :, None, root:] - aref[:, None]  # (env, steps, 3, DoF)
-        cost = 0.5 * torch.einsum("esi,eij,esj->es", change, matrix, change)
-        best = (cost + _row_cost(weight[:, None], low, high, miss)).argmin(1)
-        acceleration = trial[torch.arange(trial.shape[0], device=trial.device), best]
-        full = host and bool((best == 0).all())
-    return acceleration
 
 
 def implicit_damping(law: Law, clamped: torch.Tensor) -> torch.Tensor:

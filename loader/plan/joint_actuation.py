@@ -15,8 +15,8 @@ nothing. MuJoCo's step takes the joints' dampers implicitly (unless eulerdamp is
 integrators each actuator's -b2 m m^T (but where its forcerange binds) and each tendon's damper d m m^T too, only
 between DoFs on one chain of the tree (a cross term between two branches, a gripper's fingers, is dropped: the mass
 matrix's pattern). Each limited hinge and slide adds MuJoCo's soft limit rows (`JointLimits`: solref, solimp,
-margin), each with frictionloss its row (`JointFriction`), each joint coupling its equality row (`JointCouplings`).
-The per-step half solves that step with the robot's M and c
+margin), each with frictionloss its row (`JointFriction`), each fixed tendon over them the same on its length
+(`TendonRows`), each coupling of joints or fixed tendons its equality row (`JointCouplings`). The per-step half solves that step with the robot's M and c
 (tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
 tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
@@ -104,6 +104,22 @@ class JointFriction:
 
 
 @dataclass
+class TendonRows:
+    """MuJoCo's limit and frictionloss rows of the fixed tendons over the robot's joints that have one: per tendon its
+    moment over the DoFs (its coefficients: its length is moment @ q), and its rows as `JointLimits` and
+    `JointFriction` hold a DoF's, on the tendon's length (solreflimit and solimplimit, solreffriction and
+    solimpfriction, diagApprox the tendon's invweight0)."""
+
+    moment: np.ndarray  # (nt, ndof)
+    limits: JointLimits
+    friction: JointFriction
+
+    @classmethod
+    def none(cls, ndof: int) -> TendonRows:
+        return cls(np.zeros((0, ndof)), JointLimits.none(0), JointFriction.none(0))
+
+
+@dataclass
 class JointCouplings:
     """MuJoCo's equality rows between the robot's joints that the law carries (active at load): joint equalities
     between its hinges and slides, and tendon equalities between fixed tendons over them. Per row,
@@ -164,6 +180,7 @@ class JointActuation:
     limits: JointLimits = field(default_factory=lambda: JointLimits.none(0))
     friction: JointFriction = field(default_factory=lambda: JointFriction.none(0))
     couplings: JointCouplings = field(default_factory=lambda: JointCouplings.none(0))
+    tendon_rows: TendonRows = field(default_factory=lambda: TendonRows.none(0))
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -225,6 +242,7 @@ def plan_joint_actuation(
         _joint_limits(model, dof_of_joint, ndof),
         _joint_friction(model, dof_of_joint, ndof),
         _joint_couplings(model, dof_of_joint, ndof),
+        _tendon_rows(model, dof_of_joint, ndof),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -275,16 +293,24 @@ def _joint_limits(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int
     if mj.disabled(model, "limit", "constraint"):
         return limits
     for joint, dof in dof_of_joint.items():
-        if not is_limited(model, joint):  # a range open at both ends limits nothing
-            continue
-        row = SoftRow.of(model, model.jnt_solref[joint], model.jnt_solimp[joint])
-        limits.limited[dof] = True
-        limits.range[:, dof] = model.jnt_range[joint]
-        limits.margin[dof] = model.jnt_margin[joint]
-        limits.stiffness[dof], limits.damping[dof] = row.stiffness, row.damping
-        limits.solimp[:, dof] = row.solimp
-        limits.diag_approx[dof] = model.dof_invweight0[model.jnt_dofadr[joint]]
+        if is_limited(model, joint):  # a range open at both ends limits nothing
+            _limit_row(
+                limits,
+                dof,
+                SoftRow.of(model, model.jnt_solref[joint], model.jnt_solimp[joint]),
+                model.jnt_range[joint],
+                model.jnt_margin[joint],
+                model.dof_invweight0[model.jnt_dofadr[joint]],
+            )
     return limits
+
+
+def _limit_row(limits: JointLimits, owner: int, row: SoftRow, range_: np.ndarray, margin: float, diag: float) -> None:
+    limits.limited[owner] = True
+    limits.range[:, owner], limits.margin[owner] = range_, margin
+    limits.stiffness[owner], limits.damping[owner] = row.stiffness, row.damping
+    limits.solimp[:, owner] = row.solimp
+    limits.diag_approx[owner] = diag
 
 
 def _joint_friction(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointFriction:
@@ -294,13 +320,51 @@ def _joint_friction(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
         return friction
     for joint, dof in dof_of_joint.items():
         address = int(model.jnt_dofadr[joint])
-        if model.dof_frictionloss[address] <= 0:
-            continue
-        row = SoftRow.of(model, model.dof_solref[address], model.dof_solimp[address])
-        imp = row.impedance(0.0)
-        friction.loss[dof], friction.damping[dof] = model.dof_frictionloss[address], row.damping
-        friction.weight[dof] = 1.0 / row.regularizer(imp, float(model.dof_invweight0[address]))
+        if model.dof_frictionloss[address] > 0:
+            _friction_row(
+                friction,
+                dof,
+                SoftRow.of(model, model.dof_solref[address], model.dof_solimp[address]),
+                model.dof_frictionloss[address],
+                model.dof_invweight0[address],
+            )
     return friction
+
+
+def _friction_row(friction: JointFriction, owner: int, row: SoftRow, loss: float, diag: float) -> None:
+    """A frictionloss row: its weight at solimp's impedance at zero violation."""
+    friction.loss[owner], friction.damping[owner] = loss, row.damping
+    friction.weight[owner] = 1.0 / row.regularizer(row.impedance(0.0), float(diag))
+
+
+def _tendons_with_rows(model: mujoco.MjModel) -> tuple[list[int], list[int]]:
+    """The tendons with a limit row, and those with a frictionloss row, where the model does not disable them."""
+    limited = [] if mj.disabled(model, "limit", "constraint") else np.flatnonzero(model.tendon_limited).tolist()
+    rubbing = [] if mj.disabled(model, "frictionloss", "constraint") else np.flatnonzero(model.tendon_frictionloss > 0)
+    return limited, list(rubbing)
+
+
+def _tendon_rows(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> TendonRows:
+    """The limit and frictionloss rows of the fixed tendons over the robot's joints that have one, none where the
+    model disables them."""
+    limited, rubbing = _tendons_with_rows(model)
+    tendons = [t for t in sorted(set(limited) | set(rubbing)) if _fixed_over(model, t, dof_of_joint)]
+    if not tendons:
+        return TendonRows.none(ndof)
+    rows = TendonRows(
+        _tendon_moments(model, dof_of_joint, ndof, tendons),
+        JointLimits.none(len(tendons)),
+        JointFriction.none(len(tendons)),
+    )
+    for owner, tendon in enumerate(tendons):
+        diag = model.tendon_invweight0[tendon]
+        if tendon in limited:
+            row = SoftRow.of(model, model.tendon_solref_lim[tendon], model.tendon_solimp_lim[tendon])
+            _limit_row(rows.limits, owner, row, model.tendon_range[tendon], model.tendon_margin[tendon], diag)
+        if tendon in rubbing:
+            row = SoftRow.of(model, model.tendon_solref_fri[tendon], model.tendon_solimp_fri[tendon])
+            _friction_row(rows.friction, owner, row, model.tendon_frictionloss[tendon], diag)
+    return rows
 
 
 def coupled_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
@@ -487,8 +551,10 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
             sprung > len(_carried_tendons(model, dof_of_joint)),
             "the springs and dampers of a spatial or nonlinear tendon, or of one with armature",
         ),
-        (np.any(model.tendon_limited) and not mj.disabled(model, "limit", "constraint"), "tendon limits"),
-        (np.any(model.tendon_frictionloss > 0), "tendon frictionloss"),
+        (
+            any(not _fixed_over(model, t, dof_of_joint) for rows in _tendons_with_rows(model) for t in rows),
+            "the limits and frictionloss of a spatial tendon or of one over joints outside the robot",
+        ),
         (
             bool(model.neq)
             and not mj.disabled(model, "equality", "constraint")

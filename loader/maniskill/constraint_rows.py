@@ -1,0 +1,195 @@
+"""MuJoCo's constraint rows in the joint actuation law on tensors (`joint_actuation.py`): the limit and frictionloss
+rows of the robot's hinges and slides and of the fixed tendons over them, and the couplings (joint and fixed-tendon
+equalities), each with the reference acceleration and weight MuJoCo's solref and solimp give it, solved as MuJoCo's
+Newton solver solves them, from the smooth force, with the law's M. Every row's position is linear in q (a joint's
+position, a fixed tendon's length: its coefficients times q), so each row's Jacobian is a constant of the plan
+(tests/test_maniskill_joint_actuation.py::test_the_laws_limit_rows_are_mujocos and the row tests after it)."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..model.mj import MJMINVAL
+from ..model.soft_row import MAXIMP, MINIMP
+from ..plan.joint_actuation import JointFriction, JointLimits
+
+# the rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards that
+# solution, a fixed count so that the device never waits on the host (twice what the law's row tests need:
+# tests/test_maniskill_joint_actuation.py::test_the_laws_frictionloss_rows_are_mujocos), each step the cheapest of
+# ROW_STEPS
+ROW_PASSES = 10
+ROW_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.0)
+
+
+class Solimp:
+    """solimp (5, rows) as tensors, clamped as MuJoCo clamps them; called on a violation r (..., rows): MuJoCo's
+    impedance imp(|r|), its sigmoid from dmin at r = 0 to dmax at |r| >= width."""
+
+    def __init__(self, solimp: np.ndarray, tensor):
+        low = [[MINIMP], [MINIMP], [-np.inf], [MJMINVAL], [1.0]]
+        high = [[MAXIMP], [MAXIMP], [np.inf], [1 - MJMINVAL], [np.inf]]
+        clamped = np.clip(np.asarray(solimp, np.float64), low, high)
+        self.low, self.high, self.width, self.midpoint, self.power = (tensor(x) for x in clamped)
+        self.flat = tensor((clamped[0] == clamped[1]) | (clamped[2] <= MJMINVAL)) > 0
+
+    def __call__(self, violation: torch.Tensor) -> torch.Tensor:
+        x = torch.clamp(torch.abs(violation) / torch.clamp(self.width, min=MJMINVAL), max=1.0)
+        midpoint, power = self.midpoint, self.power
+        rising = x**power / midpoint ** (power - 1.0)
+        falling = 1.0 - (1.0 - x) ** power / (1.0 - midpoint) ** (power - 1.0)
+        imp = self.low + torch.where(x <= midpoint, rising, falling) * (self.high - self.low)
+        return torch.where(self.flat, 0.5 * (self.low + self.high), imp)
+
+
+class RowSet:
+    """The limit and frictionloss rows of one kind of owner, a robot DoF or a fixed tendon: per owner its lower and
+    upper limit rows and its frictionloss row, (3, owners), on the owner's position, linear in q (`jacobian`
+    (owners, DoF), its coefficients; None: the DoFs themselves). A lower limit row pushes up, an upper one down
+    (`sign`); a limit's force is bounded from zero, frictionloss's within +-loss."""
+
+    def __init__(self, limits: JointLimits, friction: JointFriction, jacobian: np.ndarray | None, tensor, device):
+        self.jacobian = None if jacobian is None else tensor(jacobian)
+        self.limited = torch.as_tensor(limits.limited, device=device)
+        self.low, self.high, self.margin = (tensor(x) for x in (*limits.range, limits.margin))
+        self.stiffness, self.damping = tensor(limits.stiffness), tensor(limits.damping)
+        self.diag = tensor(limits.diag_approx)
+        self.imp = Solimp(limits.solimp, tensor)
+        self.friction_damping, self.friction_weight = tensor(friction.damping), tensor(friction.weight)
+        self.present = bool(limits.limited.any() or np.any(friction.loss > 0))  # read on the host
+        self.sign = tensor([[1.0], [-1.0], [1.0]])
+        loss = np.asarray(friction.loss, np.float64)
+        self.bound_low = tensor(np.stack((np.zeros_like(loss), np.zeros_like(loss), -loss)))
+        self.bound_high = tensor(np.stack((np.full_like(loss, np.inf), np.full_like(loss, np.inf), loss)))
+
+    def along(self, x: torch.Tensor) -> torch.Tensor:
+        """(..., DoF) -> (..., owners): J x, the owners' share of a joint-space vector (a position, a velocity)."""
+        return x if self.jacobian is None else x @ self.jacobian.T
+
+    def back(self, y: torch.Tensor) -> torch.Tensor:
+        """(..., owners) -> (..., DoF): J^T y, the joint force of the owners' forces."""
+        return y if self.jacobian is None else y @ self.jacobian
+
+    def curvature(self, weight: torch.Tensor) -> torch.Tensor:
+        """(env, owners) -> (env, DoF, DoF): J^T diag(weight) J."""
+        if self.jacobian is None:
+            return torch.diag_embed(weight)
+        return (self.jacobian.T * weight[:, None, :]) @ self.jacobian
+
+    def at(self, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The rows at the state, (env, 3, owners) each: their reference accelerations aref (a limit's
+        -B J v - K imp (r - margin), frictionloss's -B J v) and weights D (zero where a row is absent: a limit beyond
+        its margin, an owner without frictionloss)."""
+        position, velocity = self.along(q), self.along(v)
+        distance = torch.stack((position - self.low, self.high - position), 1)  # (env, 2, owners)
+        present = self.limited & (distance < self.margin)
+        violation = distance - self.margin
+        imp = self.imp(violation)
+        limit_aref = -self.damping * self.sign[:2] * velocity[:, None] - self.stiffness * imp * violation
+        limit_weight = present / torch.clamp((1.0 - imp) * self.diag / imp, min=MJMINVAL)
+        aref = torch.cat((limit_aref, (-self.friction_damping * velocity)[:, None]), 1)
+        weight = torch.cat((limit_weight, self.friction_weight.expand_as(velocity)[:, None]), 1)
+        return aref, weight
+
+
+def _row_cost(weight, low, high, miss: torch.Tensor) -> torch.Tensor:
+    """The rows' cost summed (..., 3, owners -> ...) at their misses J a - aref: D/2 miss^2 while the force -D miss
+    is within its bounds, linear beyond (the force held at the bound)."""
+    force = torch.clamp(-weight * miss, low, high)
+    cost = -force * miss - force * force / (2.0 * torch.clamp(weight, min=MJMINVAL))
+    return torch.where(weight > 0, cost, 0.0).sum((-2, -1))
+
+
+class Couplings:
+    """The couplings' arrays (`plan.joint_actuation.JointCouplings`) as tensors."""
+
+    def __init__(self, couplings, tensor):
+        self.any = bool(couplings.first.shape[0])  # read on the host
+        # (rows, DoF): each row's two joint positions or fixed tendon lengths as coefficients over the DoFs
+        self.first, self.second = tensor(couplings.first), tensor(couplings.second)
+        self.origin, self.poly = tensor(couplings.origin), tensor(couplings.poly)
+        self.stiffness, self.damping = tensor(couplings.stiffness), tensor(couplings.damping)
+        self.diag = tensor(couplings.diag_approx)
+        self.imp = Solimp(couplings.solimp, tensor)
+
+    def at(self, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The rows at the state: their Jacobians (env, rows, DoF), reference accelerations aref = -B J v - K imp r
+        and weights D (env, rows), r = L1 - L1_0 - poly(L2 - L2_0)."""
+        first = q @ self.first.T - self.origin[0]  # (env, rows)
+        second = q @ self.second.T - self.origin[1]  # zero where a row has no second end
+        poly = self.poly
+        value = poly[0] + second * (poly[1] + second * (poly[2] + second * (poly[3] + second * poly[4])))
+        slope = poly[1] + second * (2.0 * poly[2] + second * (3.0 * poly[3] + second * 4.0 * poly[4]))
+        violation = first - value
+        jacobian = self.first - slope[..., None] * self.second
+        imp = self.imp(violation)
+        aref = -self.damping * (jacobian @ v[..., None])[..., 0] - self.stiffness * imp * violation
+        weight = imp / torch.clamp((1.0 - imp) * self.diag, min=MJMINVAL)
+        return jacobian, aref, weight
+
+
+def constraint_force(law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+    """MuJoCo's constraint force (env, n) of the law's rows at the state (`law.couplings`, `law.row_sets`), from the
+    smooth force `smooth` (env, n: f - c, a floating root's six coordinates first): M a - smooth at the acceleration
+    a MuJoCo's solver finds. The couplings' rows, two-sided and unbounded, add J^T D J to M and J^T D aref to the
+    smooth force, and the limit and frictionloss rows are solved on those (`_row_solve`)."""
+    couplings, coupled, pulled = law.couplings, matrix, smooth
+    if couplings.any:
+        root = matrix.shape[-1] - q.shape[-1]
+        jacobian, aref, weight = couplings.at(q, v)
+        jacobian = torch.nn.functional.pad(jacobian, (root, 0))
+        weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
+        coupled, pulled = matrix + weighted @ jacobian, smooth + (weighted @ aref[..., None])[..., 0]
+    acceleration = _row_solve(law.row_sets, law.row_steps, coupled, q, v, pulled)
+    if acceleration is None:  # no limit or frictionloss row present
+        if not couplings.any:
+            return torch.zeros_like(smooth)
+        acceleration = torch.linalg.solve_ex(coupled, pulled)[0]
+    return (matrix @ acceleration[..., None])[..., 0] - smooth
+
+
+def _row_solve(
+    sets: list[RowSet], steps: torch.Tensor, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth
+) -> torch.Tensor | None:
+    """The acceleration (env, n) MuJoCo's Newton solver finds with the limit and frictionloss rows of `sets` on the
+    quadratic M, smooth (the couplings folded in): the a minimising M's norm of its change from M^-1 smooth plus each
+    row's cost, D/2 (J a - aref)^2 where its force -D (J a - aref) is within its bounds and linear beyond. Each pass
+    takes each row's zone (within, or held at a bound) at a, solves (M + J^T D J) a' = smooth + J^T (D aref + held
+    force) over the rows within, and moves a towards a' by the step of `steps` (`ROW_STEPS`) that costs least (a
+    full step can cross a zone and come back: frictionloss holding a joint still). ROW_PASSES passes; on the CPU,
+    where a check costs no wait on a device, until a full step leaves the zones as they were, and None where no row
+    is present."""
+    root = matrix.shape[-1] - q.shape[-1]
+    rows = [(owners, *owners.at(q, v)) for owners in sets]
+    host = matrix.device.type == "cpu"  # where a check costs no wait on a device
+    if host and not any(bool((weight > 0).any()) for _, _, weight in rows):
+        return None
+    free = torch.linalg.solve_ex(matrix, smooth)[0]
+    pad = torch.nn.functional.pad
+    acceleration, taken, full = free, None, False
+    steps = steps[:, None]  # (steps, 1)
+    for _ in range(ROW_PASSES):
+        stiffened, pulled, zones = matrix, smooth, []
+        for owners, aref, weight in rows:
+            force = -weight * (owners.sign * owners.along(acceleration[:, root:])[:, None] - aref)
+            within = (force > owners.bound_low) & (force < owners.bound_high)
+            zones.append(torch.where(within, 0, torch.where(force >= owners.bound_high, 1, -1)).flatten(1))
+            held = torch.where(within, 0.0, torch.clamp(force, owners.bound_low, owners.bound_high))
+            stiffness = weight * within  # a row's J is its owner's, up to its sign: their D summed per owner
+            stiffened = stiffened + pad(owners.curvature(stiffness.sum(1)), (root, 0, root, 0))
+            pulled = pulled + pad(owners.back((owners.sign * (stiffness * aref + held)).sum(1)), (root, 0))
+        zones = torch.cat(zones, 1)
+        if host and full and torch.equal(zones, taken):
+            break  # a full step left the zones as they were: the solution stands
+        taken = zones
+        newton = torch.linalg.solve_ex(stiffened, pulled)[0]
+        trial = acceleration[:, None] + steps * (newton - acceleration)[:, None]  # (env, steps, n)
+        change = trial - free[:, None]
+        cost = 0.5 * torch.einsum("esi,eij,esj->es", change, matrix, change)
+        for owners, aref, weight in rows:
+            miss = owners.sign * owners.along(trial[:, :, root:])[:, :, None] - aref[:, None]  # (env, steps, 3, own)
+            cost = cost + _row_cost(weight[:, None], owners.bound_low, owners.bound_high, miss)
+        best = cost.argmin(1)
+        acceleration = trial[torch.arange(trial.shape[0], device=trial.device), best]
+        full = host and bool((best == 0).all())
+    return acceleration
