@@ -16,7 +16,8 @@ integrators each actuator's -b2 m m^T (but where its forcerange binds) and each 
 between DoFs on one chain of the tree (a cross term between two branches, a gripper's fingers, is dropped: the mass
 matrix's pattern). Each limited hinge and slide adds MuJoCo's soft limit rows (`JointLimits`: solref, solimp,
 margin), each with frictionloss its row (`JointFriction`), each fixed tendon over them the same on its length
-(`TendonRows`), each coupling of joints or fixed tendons its equality row (`JointCouplings`). The per-step half solves that step with the robot's M and c
+(`TendonRows`), each coupling of joints or fixed tendons its equality row (`JointCouplings`). The per-step half
+solves that step with the robot's M and c
 (tests/test_maniskill_joint_actuation.py::test_the_law_gives_mujocos_actuator_and_passive_force,
 tests/test_joint_actuation.py::test_the_planned_implicit_derivative_is_mujocos_step).
 """
