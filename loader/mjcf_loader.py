@@ -36,6 +36,7 @@ from .result import LoadResult
 from .runtime.contacts import shapes_of
 from .runtime.controller import Controller
 from .runtime.controller import plan as runtime_plan
+from .runtime.equalities import plan_equalities
 
 CONTACTS = ("mujoco", "physx")  # whose the contacts between the model's own shapes are (`MJCFLoader.contacts`)
 SET_CTRL_LAWS = ("mujoco_step", "terms")  # what gives `set_ctrl`'s joint forces (`MJCFLoader.set_ctrl_law`)
@@ -223,6 +224,17 @@ class _Dresser:
                 builder.shape_plans.append(self.shapes[g])
             if g in self.visual:
                 add_visual(builder, model, g)
+
+
+def lock_loops(parsed: _Parsed, scene: sapien.Scene, articulation) -> list:
+    """The model's connects and welds on one built articulation (the model's only tree) as PhysX D6 joints locked as
+    `release()` leaves them (`runtime/equalities.SoftConnect.lock`; idle where the equality starts inactive): what
+    holds a closed loop, a gripper's linkage, where no per-step term runs (ManiSkill's GPU backend)
+    (tests/test_maniskill.py::test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints)."""
+    model = parsed.compiled.model
+    mapping = _mapping(model, parsed, [articulation])
+    links = map_equalities(model, scene, [articulation], mapping, Notes())
+    return list(plan_equalities(model, links, physx_settings.scene_timestep(scene, model)).values())
 
 
 def finish(

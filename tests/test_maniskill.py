@@ -369,6 +369,56 @@ def test_an_env_made_in_the_tensor_mode_gives_pd_its_hard_limits(tmp_path, monke
     assert np.array_equal(limits, np.float32(mujoco.MjModel.from_xml_string(LIMITED_ARM).jnt_range)) == (not mistake)
 
 
+CLOSED_CHAIN = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
+# m, the largest distance between the closed chain's two pin anchors over 1 s under mujoco_ctrl_tensor with the hip
+# swung (TGS), its connect a D6 joint locked as `release()` locks it: measured 1.4e-3, PhysX's give in the lock
+# (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0); with no lock 0.82
+PIN_TOLERANCE = 5e-3
+
+
+def _pin_gap(uid: str) -> float:
+    """The largest distance between the closed chain's pin anchors over 1 s under mujoco_ctrl_tensor, a 2 N m sine on
+    the hip."""
+    model = mujoco.MjModel.from_xml_path(str(CLOSED_CHAIN))
+    anchors = model.eq_data[0][:3], model.eq_data[0][3:6]  # the pin in each lower leg's frame
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = _env(uid, "mujoco_ctrl_tensor", 500, 50, tgs=True)
+    try:
+        env.reset(seed=0)
+        links, worst = env.unwrapped.agent.robot.links_map, 0.0
+        for step in range(50):
+            env.step(np.array([2.0 * np.sin(2 * np.pi * step / 25)], np.float32))
+            ends = [
+                links[name].pose.sp * sapien.Pose(anchor)
+                for name, anchor in zip(("left_lower", "right_lower"), anchors)
+            ]
+            worst = max(worst, float(np.linalg.norm(ends[0].p - ends[1].p)))
+    finally:
+        env.close()
+    return worst
+
+
+@pytest.mark.parametrize("mistake", [None, "no_locks"])
+def test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints(monkeypatch, mistake):
+    """ManiSkill's GPU backend runs no per-step term, so its build holds the model's connects and welds as the D6
+    joints `release()` locks on the CPU backend (`lock_loops`). Built that way on the CPU backend, with no
+    `LoadResult`, the closed chain's five-bar swung by its hip under `mujoco_ctrl_tensor` (which carries no connect)
+    keeps its pin closed exactly as the CPU build does, bit for bit; with no lock built, it opens."""
+    from loader.maniskill import scene_loader
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(CLOSED_CHAIN, f"gpu_built_chain_{mistake}", override=True)
+    cpu_built = _pin_gap(agent.uid)
+    monkeypatch.setattr(scene_loader, "per_step_terms", lambda scene: False)
+    if mistake:
+        monkeypatch.setattr(scene_loader, "lock_loops", lambda parsed, scene, articulation: [])
+    gpu_built = _pin_gap(agent.uid)
+    assert cpu_built < PIN_TOLERANCE
+    assert (gpu_built == cpu_built) == (gpu_built < PIN_TOLERANCE) == (mistake is None), (gpu_built, cpu_built)
+
+
 def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agents):
     if not torch.cuda.is_available():
         pytest.skip("needs CUDA (ManiSkill's physx_cuda backend)")
@@ -401,6 +451,44 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
             np.testing.assert_allclose(armature, model.dof_armature, rtol=1e-6)
     finally:
         env.close()
+
+
+def test_on_the_gpu_a_closed_loop_holds_in_every_sub_scene():
+    """On physx_cuda the closed chain's connect is a locked D6 joint in each sub-scene: swung by its hip under
+    `mujoco_ctrl_tensor`, every sub-scene keeps its pin within `PIN_TOLERANCE`."""
+    if not torch.cuda.is_available():
+        pytest.skip("needs CUDA (ManiSkill's physx_cuda backend)")
+    from mani_skill.utils.geometry.rotation_conversions import quaternion_to_matrix
+
+    model = mujoco.MjModel.from_xml_path(str(CLOSED_CHAIN))
+    anchors = [torch.as_tensor(model.eq_data[0][k : k + 3], dtype=torch.float32, device="cuda") for k in (0, 3)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(CLOSED_CHAIN, "gpu_chain", override=True)
+        env = gym.make(
+            "Empty-v1",
+            robot_uids=agent.uid,
+            sim_backend="physx_cuda",
+            render_backend="none",
+            obs_mode="state",
+            num_envs=4,
+            control_mode="mujoco_ctrl_tensor",
+            sim_config={"sim_freq": 500, "control_freq": 50},
+        )
+    try:
+        env.reset(seed=0)
+        links, worst = env.unwrapped.agent.robot.links_map, 0.0
+        for step in range(50):
+            env.step(torch.full((4, 1), 2.0 * np.sin(2 * np.pi * step / 25), device="cuda"))
+            ends = []
+            for name, anchor in zip(("left_lower", "right_lower"), anchors):
+                pose = links[name].pose
+                rotation = quaternion_to_matrix(pose.q)  # (w, x, y, z), as ManiSkill's poses hold it
+                ends.append(pose.p + (rotation @ anchor[:, None])[..., 0])
+            worst = max(worst, float(torch.linalg.vector_norm(ends[0] - ends[1], dim=-1).max()))
+    finally:
+        env.close()
+    assert worst < PIN_TOLERANCE, worst
 
 
 def test_a_maniskill_scene_is_asked_for_rendering_through_its_sub_scenes():

@@ -4,8 +4,9 @@ The planning is the core loader's (`loader/mjcf_loader.py`); only the builders d
 named, and ManiSkill's spellings read, as ManiSkill's own loader does (`maniskill_dialect`). On the CPU each sub-scene
 also gets its own `LoadResult` (`results`): the mapping and the per-step terms that `set_ctrl` runs, which the
 `mujoco_ctrl` controller drives; until it does, the joints are released (`LoadResult.release`: PhysX's hard limits at
-MuJoCo's range), as ManiSkill's PD modes need them. On the GPU, PhysX holds the build-time settings by itself; the
-per-step terms are not carried and one `UnsupportedFeatureWarning` says so."""
+MuJoCo's range), as ManiSkill's PD modes need them. On the GPU, PhysX holds the build-time settings by itself, and
+the model's connects and welds as locked D6 joints (`lock_loops`); the per-step terms are not carried and one
+`UnsupportedFeatureWarning` says so."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import warnings
 
 from ..errors import UnsupportedFeatureWarning
 from ..mjcf_loader import MJCFLoader as CoreLoader
-from ..mjcf_loader import finish
+from ..mjcf_loader import finish, lock_loops
 from ..result import LoadResult
 from .builders import SceneActorBuilder, SceneArticulationBuilder
 
@@ -22,8 +23,15 @@ SELF_COLLISION_BIT = 1 << 29  # ManiSkill's bit for "no collision with the same 
 GPU_NOTE = (
     "per-step terms are CPU-only (the mujoco_ctrl mode; frictionloss, soft limits, clamps, tendons, joint "
     "couplings, connect and weld rows, fluid, gravcomp): on the GPU the robot has PhysX's joints, inertia, "
-    "collision groups, armature, passive damping and limits, driven by ManiSkill's PD controllers"
+    "collision groups, armature, passive damping and limits, its connects and welds locked, driven by ManiSkill's "
+    "PD controllers"
 )
+
+
+def per_step_terms(scene) -> bool:
+    """Whether each sub-scene's load gets its `LoadResult` and per-step terms: on the CPU backend, where SAPIEN's state
+    is read on the host; ManiSkill's GPU backend steps every sub-scene in one PhysX system on the device."""
+    return not scene.gpu_sim_enabled
 
 
 class MJCFLoader(CoreLoader):
@@ -73,8 +81,11 @@ class MJCFLoader(CoreLoader):
 
     def _plan_sub_scenes(self, parsed, built: SceneArticulationBuilder) -> None:
         self.results = []
-        if self.scene.gpu_sim_enabled:
+        if not per_step_terms(self.scene):
             warnings.warn(f"{parsed.compiled.path}: {GPU_NOTE}", UnsupportedFeatureWarning, stacklevel=5)
+            if len(parsed.articulation_builders) == 1:
+                for sub_scene, articulation in built.built:
+                    lock_loops(parsed, sub_scene, articulation)
             return
         if len(parsed.articulation_builders) != 1:
             warnings.warn(
