@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 
 from loader.model import mj
-from loader.plan.joint_actuation import coupled_equalities
+from loader.plan.joint_actuation import carried_equalities
 
 FLAGS = mujoco.mjtDisableBit
 
@@ -35,15 +35,15 @@ def _scalar_joints(model: mujoco.MjModel) -> dict[int, int]:
 
 
 def _uncoupled(model: mujoco.MjModel) -> bool:
-    """An active equality other than the couplings the law carries (`coupled_equalities`)."""
+    """An active equality other than those the law carries (`carried_equalities`)."""
     if not model.neq or mj.disabled(model, "equality", "constraint"):
         return False
-    return len(coupled_equalities(model, _scalar_joints(model))) < int(np.count_nonzero(model.eq_active0))
+    return len(carried_equalities(model, _scalar_joints(model))) < int(np.count_nonzero(model.eq_active0))
 
 
 def _deactivate_uncoupled(spec: mujoco.MjSpec) -> None:
     model = spec.compile()  # the equalities in the spec's order
-    kept = set(coupled_equalities(model, _scalar_joints(model)))
+    kept = set(carried_equalities(model, _scalar_joints(model)))
     for index, equality in enumerate(spec.equalities):
         if index not in kept:
             equality.active = False
@@ -98,8 +98,8 @@ GAPS = {
         ),
         Gap(
             "uncoupled_equality",
-            "equality constraints other than couplings of joints and fixed tendons deactivated (connects, welds, "
-            "couplings of spatial tendons)",
+            "equality constraints the law does not carry deactivated (welds, connects by site or on a floating or "
+            "ball-jointed chain, couplings of spatial tendons)",
             _uncoupled,
             _deactivate_uncoupled,
             automatic=False,

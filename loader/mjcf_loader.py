@@ -226,15 +226,19 @@ class _Dresser:
                 add_visual(builder, model, g)
 
 
-def lock_loops(parsed: _Parsed, scene: sapien.Scene, articulation) -> list:
+def lock_loops(parsed: _Parsed, scene: sapien.Scene, articulation, standing_by=()) -> list:
     """The model's connects and welds on one built articulation (the model's only tree) as PhysX D6 joints locked as
     `release()` leaves them (`runtime/equalities.SoftConnect.lock`; idle where the equality starts inactive): what
-    holds a closed loop, a gripper's linkage, where no per-step term runs (ManiSkill's GPU backend)
+    holds a closed loop, a gripper's linkage, where no per-step term runs (ManiSkill's GPU backend); those of
+    `standing_by` (MuJoCo's ids) free, where a law on the tensors carries their rows
     (tests/test_maniskill.py::test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints)."""
     model = parsed.compiled.model
     mapping = _mapping(model, parsed, [articulation])
     links = map_equalities(model, scene, [articulation], mapping, Notes())
-    return list(plan_equalities(model, links, physx_settings.scene_timestep(scene, model)).values())
+    laws = plan_equalities(model, links, physx_settings.scene_timestep(scene, model))
+    for equality in standing_by:
+        laws[equality].stand_by()
+    return list(laws.values())
 
 
 def finish(

@@ -160,18 +160,22 @@ def test_the_worker_records_the_isolation_in_the_result_and_the_recording(fricti
     assert "## Isolation" in text and "without frictionloss: pass" in text
 
 
-def test_the_uncoupled_equality_gap_keeps_the_joint_couplings():
-    """The Robotiq gripper's two connects go (deactivated on both sides), its joint coupling stays: the gap the
-    `maniskill_tensor` tier takes out, as the joint actuation law carries joint couplings and nothing else of the
-    equalities. The panda, whose one equality is a coupling, has no such gap."""
+def test_the_uncoupled_equality_gap_keeps_what_the_law_carries():
+    """The Robotiq gripper's two connects (a loop on its fixed base) and its joint coupling are the joint actuation
+    law's: no gap. Given a weld too, the weld goes (deactivated on both sides) and the rest stays: the gap the
+    `maniskill_tensor` tier takes out. The panda, whose one equality is a coupling, has no such gap."""
     root = menagerie_root()
     if root is None:
         pytest.skip("Menagerie slice not installed (extra 'menagerie')")
-    gripper = str(root / "robotiq_2f85_v4/2f85.xml")
-    assert gaps.GAPS["uncoupled_equality"].present(mujoco.MjModel.from_xml_path(gripper))
-    edited = gaps.edited_spec(gripper, ("uncoupled_equality",)).compile()
-    kinds = {int(mujoco.mjtEq.mjEQ_JOINT): True, int(mujoco.mjtEq.mjEQ_CONNECT): False}
-    assert [bool(a) for a in edited.eq_active0] == [kinds[int(t)] for t in edited.eq_type]
+    spec = mujoco.MjSpec.from_file(str(root / "robotiq_2f85_v4/2f85.xml"))
+    assert not gaps.GAPS["uncoupled_equality"].present(spec.compile())
+    spec.add_equality(
+        type=mujoco.mjtEq.mjEQ_WELD, objtype=mujoco.mjtObj.mjOBJ_BODY, name1="left_pad", name2="right_pad"
+    )
+    welded = spec.compile()
+    assert gaps.GAPS["uncoupled_equality"].present(welded)
+    edited = gaps.without(spec, ("uncoupled_equality",)).compile()
+    assert [bool(a) for a in edited.eq_active0] == [int(t) != int(mujoco.mjtEq.mjEQ_WELD) for t in edited.eq_type]
     assert not gaps.GAPS["uncoupled_equality"].present(edited)
     panda = mujoco.MjModel.from_xml_path(str(root / "franka_emika_panda/panda.xml"))
     assert panda.neq and not gaps.GAPS["uncoupled_equality"].present(panda)

@@ -370,25 +370,25 @@ def test_an_env_made_in_the_tensor_mode_gives_pd_its_hard_limits(tmp_path, monke
 
 
 CLOSED_CHAIN = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
-# m, the largest distance between the closed chain's two pin anchors over 1 s under mujoco_ctrl_tensor with the hip
-# swung (TGS), its connect a D6 joint locked as `release()` locks it: measured 1.4e-3, PhysX's give in the lock
-# (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0); with no lock 0.82
-PIN_TOLERANCE = 5e-3
+# m, the largest distance between the closed chain's two pin anchors over 1 s under pd_joint_pos with the hip swung
+# (TGS), its connect a D6 joint locked as `release()` locks it: measured 1.3e-6 (mani-skill 3.0.1, sapien 3.0.3,
+# mujoco 3.17.0); with no lock 0.35
+PIN_TOLERANCE = 1e-4
 
 
 def _pin_gap(uid: str) -> float:
-    """The largest distance between the closed chain's pin anchors over 1 s under mujoco_ctrl_tensor, a 2 N m sine on
-    the hip."""
+    """The largest distance between the closed chain's pin anchors over 1 s under pd_joint_pos (ManiSkill's PD on
+    the hip, its links weightless), the hip's target a 0.5 rad sine."""
     model = mujoco.MjModel.from_xml_path(str(CLOSED_CHAIN))
     anchors = model.eq_data[0][:3], model.eq_data[0][3:6]  # the pin in each lower leg's frame
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        env = _env(uid, "mujoco_ctrl_tensor", 500, 50, tgs=True)
+        env = _env(uid, "pd_joint_pos", 500, 50, tgs=True)
     try:
         env.reset(seed=0)
         links, worst = env.unwrapped.agent.robot.links_map, 0.0
         for step in range(50):
-            env.step(np.array([2.0 * np.sin(2 * np.pi * step / 25)], np.float32))
+            env.step(np.array([0.5 * np.sin(2 * np.pi * step / 25)], np.float32))
             ends = [
                 links[name].pose.sp * sapien.Pose(anchor)
                 for name, anchor in zip(("left_lower", "right_lower"), anchors)
@@ -403,8 +403,8 @@ def _pin_gap(uid: str) -> float:
 def test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints(monkeypatch, mistake):
     """ManiSkill's GPU backend runs no per-step term, so its build holds the model's connects and welds as the D6
     joints `release()` locks on the CPU backend (`lock_loops`). Built that way on the CPU backend, with no
-    `LoadResult`, the closed chain's five-bar swung by its hip under `mujoco_ctrl_tensor` (which carries no connect)
-    keeps its pin closed exactly as the CPU build does, bit for bit; with no lock built, it opens."""
+    `LoadResult`, the closed chain's five-bar swung by its hip under `pd_joint_pos` keeps its pin closed exactly as
+    the CPU build does, bit for bit; with no lock built, it opens."""
     from loader.maniskill import scene_loader
 
     with warnings.catch_warnings():
@@ -413,7 +413,7 @@ def test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints(monkeypatch, mi
     cpu_built = _pin_gap(agent.uid)
     monkeypatch.setattr(scene_loader, "per_step_terms", lambda scene: False)
     if mistake:
-        monkeypatch.setattr(scene_loader, "lock_loops", lambda parsed, scene, articulation: [])
+        monkeypatch.setattr(scene_loader, "lock_loops", lambda parsed, scene, articulation, standing_by: [])
     gpu_built = _pin_gap(agent.uid)
     assert cpu_built < PIN_TOLERANCE
     assert (gpu_built == cpu_built) == (gpu_built < PIN_TOLERANCE) == (mistake is None), (gpu_built, cpu_built)
@@ -455,7 +455,7 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
 
 def test_on_the_gpu_a_closed_loop_holds_in_every_sub_scene():
     """On physx_cuda the closed chain's connect is a locked D6 joint in each sub-scene: swung by its hip under
-    `mujoco_ctrl_tensor`, every sub-scene keeps its pin within `PIN_TOLERANCE`."""
+    `pd_joint_pos`, every sub-scene keeps its pin within `PIN_TOLERANCE`."""
     if not torch.cuda.is_available():
         pytest.skip("needs CUDA (ManiSkill's physx_cuda backend)")
     from mani_skill.utils.geometry.rotation_conversions import quaternion_to_matrix
@@ -472,14 +472,14 @@ def test_on_the_gpu_a_closed_loop_holds_in_every_sub_scene():
             render_backend="none",
             obs_mode="state",
             num_envs=4,
-            control_mode="mujoco_ctrl_tensor",
+            control_mode="pd_joint_pos",
             sim_config={"sim_freq": 500, "control_freq": 50},
         )
     try:
         env.reset(seed=0)
         links, worst = env.unwrapped.agent.robot.links_map, 0.0
         for step in range(50):
-            env.step(torch.full((4, 1), 2.0 * np.sin(2 * np.pi * step / 25), device="cuda"))
+            env.step(torch.full((4, 1), 0.5 * np.sin(2 * np.pi * step / 25), device="cuda"))
             ends = []
             for name, anchor in zip(("left_lower", "right_lower"), anchors):
                 pose = links[name].pose

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -23,7 +24,7 @@ from loader import MJCFLoader
 from loader.maniskill import constraint_rows, joint_actuation, register_agent
 from loader.maniskill.inertia import Inertia
 from loader.maniskill.joint_actuation import Law, implicit_step, next_activation, start_force
-from loader.plan.joint_actuation import plan_joint_actuation, robot_indices
+from loader.plan.joint_actuation import OTHER_EQUALITIES, plan_joint_actuation, robot_indices
 from loader.plan.rigid_tree import rigid_tree
 
 
@@ -142,8 +143,8 @@ TENSOR_FOLLOW_TOLERANCE = {"pgs": 1e-5, "tgs": 1e-4}
 SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
 # (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7,
-# with joint couplings 8.8e-7, with tendon couplings 1.1e-7, with tendon limits and frictionloss 1.4e-6; each mistake
-# misses by 5e-4 or more
+# with joint couplings 8.8e-7, with tendon couplings 1.1e-7, with tendon limits and frictionloss 1.4e-6, with a connect
+# 9.6e-7; each mistake misses by 5e-4 or more
 STEP_TOLERANCE = 1e-4
 
 
@@ -802,7 +803,7 @@ def test_the_laws_joint_couplings_are_mujocos(mistake):
     (0.23)."""
     result, dofs, plan, inertia = _loaded_law(COUPLED)
     assert plan.couplings.first.shape[0] == 2
-    assert "equality constraints other than couplings of joints and fixed tendons" not in plan.not_carried
+    assert OTHER_EQUALITIES not in plan.not_carried
     if mistake == "linear_term_dropped":
         plan.couplings.poly[1] = 0.0
     elif mistake == "first_joint_weight":
@@ -908,3 +909,82 @@ def test_the_laws_tendon_limit_and_frictionloss_rows_are_mujocos(mistake):
         rows.friction.loss[:] = np.inf
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.5)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+CLOSED_CHAIN = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
+
+
+@pytest.mark.parametrize("mistake", [None, "one_anchor", "weight_of_a_dof", "no_rate", "no_connect"])
+def test_the_laws_connects_are_mujocos(monkeypatch, mistake):
+    """The corpus's closed chain, two legs pinned at their tips by a connect (a five-bar loop on a fixed base): at 32
+    random states, the pin pulled apart by each, the law's end velocity is MuJoCo's step's with the connect's rows,
+    measured 9.6e-7 relative (`STEP_TOLERANCE`). Each mistake misses: both ends at body1's anchor (2.9), the rows'
+    diagApprox a DoF's invweight0 (0.30), the reference without MuJoCo's dJ/dt v correction (2.1e-2), the connect
+    left out (1.1)."""
+    result, dofs, plan, inertia = _loaded_law(CLOSED_CHAIN.read_text())
+    connects = plan.connects
+    assert connects.links.shape == (1, 2) and not plan.not_carried
+    if mistake == "one_anchor":
+        connects.points[:, 1] = connects.points[:, 0]
+    elif mistake == "weight_of_a_dof":
+        connects.diag_approx[:] = result.model.dof_invweight0[0]
+    elif mistake == "no_rate":
+        placed = constraint_rows.points_and_jacobians
+        monkeypatch.setattr(
+            constraint_rows, "points_and_jacobians", lambda *a: (*placed(*a)[:2], torch.zeros_like(placed(*a)[2]))
+        )
+    elif mistake == "no_connect":
+        plan.connects = type(connects).none()
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+# rad, the closed chain's joints in Empty-v1 under mujoco_ctrl_tensor against MuJoCo over 1 s, a 0.2 N m sine on the
+# hip (TGS): measured 7.8e-5 (mani-skill 3.0.1, sapien 3.0.3, mujoco 3.17.0, torch 2.13.0); with the connect's D6
+# joint left locked 0.29, with the connect left out of the law (its D6 locked alone) 0.34
+LOOP_TOLERANCE = 5e-4
+
+
+@pytest.mark.parametrize("case", [None, "gpu_build", "d6_locked", "connect_left_out"])
+def test_a_closed_chain_follows_mujoco_with_its_connect_in_the_law(monkeypatch, case):
+    """The closed chain's five-bar swung by its hip in `Empty-v1` under `mujoco_ctrl_tensor`: the law carries its
+    connect as MuJoCo's soft rows and the connect's PhysX D6 joint stands free, so the joints follow MuJoCo stepping
+    the same ctrl, also where the robot is built as for the GPU backend (no `LoadResult`; its D6 built free). With
+    the D6 left locked, PhysX holds the pin rigidly against the soft rows; with the connect left out of the law, the
+    locked D6 alone holds it; either mistake parts from MuJoCo."""
+    from loader.maniskill import agent as agent_module
+    from loader.maniskill import scene_loader
+
+    if case == "gpu_build":
+        monkeypatch.setattr(scene_loader, "per_step_terms", lambda scene: False)
+    elif case == "d6_locked":
+        monkeypatch.setattr(agent_module.MJCFAgent, "_loops_for", lambda agent, mode, gpu: None)
+    elif case == "connect_left_out":
+        planned = agent_module.plan_joint_actuation
+
+        def without_connects(*args):
+            law = planned(*args)
+            law.connects = type(law.connects).none()
+            return law
+
+        monkeypatch.setattr(agent_module, "plan_joint_actuation", without_connects)
+    model = mujoco.MjModel.from_xml_path(str(CLOSED_CHAIN))
+    data = mujoco.MjData(model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(CLOSED_CHAIN, f"tensor_chain_{case}", override=True)
+        env = empty_env(agent.uid, "mujoco_ctrl_tensor", 500, 50)
+    try:
+        env.reset(seed=0)
+        robot, worst = env.unwrapped.agent.robot, 0.0
+        order = [robot.active_joints_map[model.joint(j).name].active_index[0] for j in range(model.njnt)]
+        for step in range(50):
+            ctrl = np.array([0.2 * np.sin(2 * np.pi * step / 25)], np.float32)
+            env.step(ctrl)
+            data.ctrl[:] = ctrl
+            for _ in range(10):
+                mujoco.mj_step(model, data)
+            worst = max(worst, float(np.abs(robot.get_qpos()[0].numpy()[order] - data.qpos).max()))
+    finally:
+        env.close()
+    assert (worst < LOOP_TOLERANCE) == (case in (None, "gpu_build")), worst

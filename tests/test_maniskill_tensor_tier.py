@@ -59,7 +59,7 @@ def test_the_law_carries_the_joint_limits(monkeypatch, mistake):
         monkeypatch.setattr(agent, "plan_joint_actuation", hard)
     elif mistake == "no_limit_rows":
         monkeypatch.setattr(
-            joint_actuation, "constraint_force", lambda law, matrix, q, v, smooth: torch.zeros_like(smooth)
+            joint_actuation, "constraint_force", lambda law, matrix, q, v, smooth, *frames: torch.zeros_like(smooth)
         )
     report = _judged("hopper")
     assert report.status == ("pass" if mistake is None else "fail"), [(m.name, m.max) for m in report.metrics]

@@ -50,6 +50,8 @@ class MJCFAgent(BaseAgent):
     # in `mujoco_ctrl_tensor`
     law_limited: ClassVar[list[str]] = []
     law_limited_dofs: ClassVar[list[int]] = []  # their DoFs
+    # the connects (MuJoCo's ids) the law carries as MuJoCo's soft rows: their D6 joints free in `mujoco_ctrl_tensor`
+    law_connects: ClassVar[list[int]] = []
 
     def __init__(self, scene, control_freq: int, control_mode: str | None = None, *args, **kwargs):
         self.built_mode = control_mode  # the env's control mode, which decides the build (`_load_articulation`)
@@ -65,6 +67,7 @@ class MJCFAgent(BaseAgent):
         loader.name = self.uid if self._agent_idx is None else f"{self.uid}-agent-{self._agent_idx}"
         loader.fix_root_link = self.fix_root_link
         loader.disable_self_collisions = self.disable_self_collisions
+        loader.standing_by = set(self.law_connects) if self.built_mode == TENSOR else set()
         builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
         # the law's soft limit rows, not PhysX's hard limits (a band no joint reaches: PhysX keeps a joint built
         # limited so, while the loader's own reset holds its limits wide of MuJoCo's range)
@@ -104,6 +107,8 @@ class MJCFAgent(BaseAgent):
             self._resume(mode)
         if self.law_limited_dofs and mode != leaving:
             self._limits_for(mode, gpu)
+        if self.law_connects and mode != leaving:
+            self._loops_for(mode, gpu)
 
     def _resume(self, mode: str) -> None:
         """A mode made before, switched to again: its links' gravity as it made them, and its drives."""
@@ -115,19 +120,35 @@ class MJCFAgent(BaseAgent):
         """PhysX's limits of the joints whose limits the law carries, as `mode` needs them: out of the way under
         `mujoco_ctrl_tensor`, MuJoCo's range (as `release()` left them) under the others."""
         if gpu:
-            if (mode == TENSOR) != (self.built_mode == TENSOR):
-                warnings.warn(
-                    f"{self.uid}: on physx_cuda PhysX keeps the joint limits the env was built with "
-                    f"({self._default_control_mode}), which {mode} does not want; make the env with "
-                    f"control_mode={mode!r}",
-                    UnsupportedFeatureWarning,
-                    stacklevel=3,
-                )
+            self._kept_as_built(mode, "joint limits")
             return
         for result in self.results if mode == TENSOR else ():
             joints = result.articulations[0].get_active_joints()
             for dof in self.law_limited_dofs:
                 joints[dof].set_limit(np.array([[-UNREACHED, UNREACHED]], np.float32))
+
+    def _loops_for(self, mode: str, gpu: bool) -> None:
+        """The D6 joints of the connects the law carries, as `mode` needs them: free under `mujoco_ctrl_tensor`,
+        whose rows hold the loops; locked under the others (as `release()`, which leaving the mode calls, locks
+        them)."""
+        if gpu:
+            self._kept_as_built(mode, "connects' D6 joints")
+            return
+        for result in self.results if mode == TENSOR else ():
+            for equality in self.law_connects:
+                result.controller.soft_joint(equality).stand_by()
+
+    def _kept_as_built(self, mode: str, what: str) -> None:
+        """On the GPU, PhysX keeps what the env was built with: a switch into or out of `mujoco_ctrl_tensor` that
+        needs other settings is warned."""
+        if (mode == TENSOR) != (self.built_mode == TENSOR):
+            warnings.warn(
+                f"{self.uid}: on physx_cuda PhysX keeps the {what} the env was built with "
+                f"({self._default_control_mode}), which {mode} does not want; make the env with "
+                f"control_mode={mode!r}",
+                UnsupportedFeatureWarning,
+                stacklevel=4,
+            )
 
     def reset(self, init_qpos=None):
         """ManiSkill's reset, and the envs it resets handed to `mujoco_ctrl_tensor`'s controller: ManiSkill marks them
@@ -265,6 +286,7 @@ def register_agent(
         if isinstance(plan, JointActuation):
             joints, limited = articulation.get_active_joints(), np.flatnonzero(plan.limits.limited).tolist()
             attributes["law_limited"], attributes["law_limited_dofs"] = [joints[dof].name for dof in limited], limited
+            attributes["law_connects"] = list(plan.connects.equalities)
     except ValueError as error:
         attributes["joint_actuation"] = str(error)
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)

@@ -13,6 +13,7 @@ import torch
 from ..model.mj import MJMINVAL
 from ..model.soft_row import MAXIMP, MINIMP
 from ..plan.joint_actuation import JointFriction, JointLimits
+from .inertia import points_and_jacobians
 
 # the rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards that
 # solution, a fixed count so that the device never waits on the host (twice what the law's row tests need:
@@ -128,21 +129,58 @@ class Couplings:
         return jacobian, aref, weight
 
 
-def constraint_force(law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
-    """MuJoCo's constraint force (env, n) of the law's rows at the state (`law.couplings`, `law.row_sets`), from the
-    smooth force `smooth` (env, n: f - c, a floating root's six coordinates first): M a - smooth at the acceleration
-    a MuJoCo's solver finds. The couplings' rows, two-sided and unbounded, add J^T D J to M and J^T D aref to the
-    smooth force, and the limit and frictionloss rows are solved on those (`_row_solve`)."""
-    couplings, coupled, pulled = law.couplings, matrix, smooth
-    if couplings.any:
+class Connects:
+    """The connects' arrays (`plan.joint_actuation.Connects`) as tensors."""
+
+    def __init__(self, connects, tensor, device):
+        self.any = bool(connects.links.shape[0])  # read on the host
+        self.links = torch.as_tensor(connects.links.reshape(-1), dtype=torch.long, device=device)  # (2n,)
+        self.points = tensor(connects.points.reshape(-1, 3))
+        self.stiffness, self.damping = tensor(connects.stiffness), tensor(connects.damping)
+        self.diag = tensor(connects.diag_approx)
+        self.imp = Solimp(connects.solimp, tensor)
+
+    def at(self, inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The rows at the state: their Jacobians (env, 3n, DoF), reference accelerations
+        aref = -B J v - K imp r - dJ/dt v and weights D (env, 3n), r = p1 - p2 the anchors' separation, imp taken at
+        |r|, dJ/dt v what the velocities alone accelerate r by (MuJoCo's correction of a connect's reference)."""
+        points, jacobians, rates = points_and_jacobians(inertia, q, v, root_pose, self.links, self.points)
+        env, count = q.shape[0], self.stiffness.shape[0]
+        points, rates = points.reshape(env, count, 2, 3), rates.reshape(env, count, 2, 3)
+        jacobians = jacobians.reshape(env, count, 2, -1, 3)
+        separation = points[:, :, 0] - points[:, :, 1]  # (env, n, 3)
+        jacobian = (jacobians[:, :, 0] - jacobians[:, :, 1]).transpose(-1, -2)  # (env, n, 3, DoF)
+        imp = self.imp(torch.linalg.vector_norm(separation, dim=-1))[..., None]  # (env, n, 1)
+        speed = (jacobian @ v[:, None, :, None])[..., 0]  # (env, n, 3)
+        aref = -self.damping[:, None] * speed - self.stiffness[:, None] * imp * separation
+        aref = aref - (rates[:, :, 0] - rates[:, :, 1])
+        weight = imp / torch.clamp((1.0 - imp) * self.diag, min=MJMINVAL)
+        return jacobian.reshape(env, 3 * count, -1), aref.reshape(env, -1), weight.reshape(env, -1)
+
+
+def constraint_force(
+    law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor, inertia=None, root_pose=None
+) -> torch.Tensor:
+    """MuJoCo's constraint force (env, n) of the law's rows at the state (`law.couplings`, `law.connects`,
+    `law.row_sets`), from the smooth force `smooth` (env, n: f - c, a floating root's six coordinates first): M a -
+    smooth at the acceleration a MuJoCo's solver finds. The equality rows (couplings; connects, on the tree's frames
+    from `inertia` at the root's pose), two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth force,
+    and the limit and frictionloss rows are solved on those (`_row_solve`)."""
+    rows = []
+    if law.couplings.any:
+        rows.append(law.couplings.at(q, v))
+    if law.connects.any:
+        rows.append(law.connects.at(inertia, q, v, root_pose))
+    coupled, pulled = matrix, smooth
+    if rows:
         root = matrix.shape[-1] - q.shape[-1]
-        jacobian, aref, weight = couplings.at(q, v)
-        jacobian = torch.nn.functional.pad(jacobian, (root, 0))
+        jacobian = torch.nn.functional.pad(torch.cat([j for j, _, _ in rows], 1), (root, 0))
+        aref, weight = torch.cat([a for _, a, _ in rows], 1), torch.cat([w for _, _, w in rows], 1)
         weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
         coupled, pulled = matrix + weighted @ jacobian, smooth + (weighted @ aref[..., None])[..., 0]
     acceleration = _row_solve(law.row_sets, law.row_steps, coupled, q, v, pulled)
     if acceleration is None:  # no limit or frictionloss row present
-        if not couplings.any:
+        if not rows:
             return torch.zeros_like(smooth)
         acceleration = torch.linalg.solve_ex(coupled, pulled)[0]
     return (matrix @ acceleration[..., None])[..., 0] - smooth

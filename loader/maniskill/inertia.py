@@ -20,6 +20,8 @@ the link's is on (tests/test_maniskill_inertia.py).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import torch
 
@@ -135,18 +137,33 @@ def frames(law: Inertia, q: torch.Tensor, root_pose: torch.Tensor) -> tuple[torc
     return links[..., :3, :3], links[..., :3, 3], joints[..., :3, :3], joints[..., :3, 3]
 
 
-def mass_matrix_and_bias(
+class Motion(NamedTuple):
+    """The tree's kinematics at a state (`motion`): link frames and centres, joint frames, the Jacobians of each
+    centre's velocity and each link's spin (env, nlink, n, 3), the coordinates' speeds (env, n), each centre's
+    velocity and each link's spin, and per DoF its axis's rate and its anchor point's velocity."""
+
+    rotation: torch.Tensor
+    origin: torch.Tensor
+    joint_origin: torch.Tensor
+    centre: torch.Tensor
+    axis: torch.Tensor  # (env, nlink, ndof, 3): a_j, repeated per link
+    linear: torch.Tensor
+    angular: torch.Tensor
+    speed: torch.Tensor
+    velocity: torch.Tensor
+    spin: torch.Tensor
+    axis_rate: torch.Tensor  # (env, ndof, 3): a_j turning with its link
+    anchor: torch.Tensor  # (env, ndof, 3): dp_j/dt
+
+
+def motion(
     law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, root_velocity: torch.Tensor | None = None
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """M (env, n, n) and c (env, n) at joint positions q and velocities v (env, ndof) and the root's pose (env, 7);
-    with a floating root, n = 6 + ndof, its coordinates first, as MuJoCo's free joint has them: `root_velocity`
-    (env, 6), the root frame's origin's velocity in the world frame and its angular velocity in its own frame
-    (`free_root.free_velocity` converts PhysX's). The Jacobians are laid out (env, nlink, n, 3): row k is what
-    coordinate k adds to the link's velocity."""
+) -> Motion:
+    """The tree's kinematics at joint positions q and velocities v (env, ndof), the root's pose (env, 7) and, with a
+    floating root, its velocity (env, 6: MuJoCo's free joint's, `free_root.free_velocity`)."""
     env, nlink = q.shape[0], law.mass.shape[0]
     rotation, origin, joint_rotation, joint_origin = frames(law, q, root_pose)
     centre = origin + (rotation @ law.centre[..., None])[..., 0]  # (env, nlink, 3)
-    inertia = rotation @ law.inertia @ rotation.transpose(-1, -2)  # about it, in the world frame
     axis = joint_rotation[..., 0][:, None].expand(env, nlink, -1, 3)  # a_j
     lever = centre[:, :, None, :] - joint_origin[:, None, :, :]  # (env, nlink, ndof, 3): c_i - p_j
     linear = torch.linalg.cross(axis, lever) * law.moved_turning + axis * law.moved_sliding
@@ -165,12 +182,54 @@ def mass_matrix_and_bias(
     dofs = law.link_of_dof
     axis_rate = torch.linalg.cross(spin[:, dofs], axis[:, 0])  # (env, ndof, 3)
     anchor = velocity[:, dofs] + torch.linalg.cross(spin[:, dofs], joint_origin - centre[:, dofs])
-    relative = velocity[:, :, None, :] - anchor[:, None, :, :]  # V_i - dp_j/dt
-    rate = axis_rate[:, None].expand_as(lever)
-    turned = torch.linalg.cross(rate, lever) + torch.linalg.cross(axis, relative)
+    return Motion(
+        rotation, origin, joint_origin, centre, axis, linear, angular, speed, velocity, spin, axis_rate, anchor
+    )
+
+
+def _rate(law: Inertia, moved: Motion, v: torch.Tensor, lever: torch.Tensor, velocity: torch.Tensor, links):
+    """dJ/dt v of points on links `links` (env, k, 3): for each DoF j moving them, the rate of a_j x (p - p_j)
+    (a slide: of a_j) along the motion, p moving at `velocity` (env, k, 3), `lever` p - p_j (env, k, ndof, 3)."""
+    relative = velocity[:, :, None, :] - moved.anchor[:, None, :, :]  # V_p - dp_j/dt
+    rate = moved.axis_rate[:, None].expand_as(lever)
+    turned = torch.linalg.cross(rate, lever) + torch.linalg.cross(moved.axis[:, :1].expand_as(lever), relative)
     weights = v[:, None, :, None]
-    acceleration = (turned * (law.moved_turning * weights) + rate * (law.moved_sliding * weights)).sum(2)
-    spin_rate = (rate * (law.moved_turning * weights)).sum(2)
+    return (turned * (law.moved_turning[links] * weights) + rate * (law.moved_sliding[links] * weights)).sum(2)
+
+
+def points_and_jacobians(
+    law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, links: torch.Tensor, local: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Points fixed on links `links` (k,) at `local` (k, 3) in each link's frame, on a tree whose root is fixed:
+    their world positions (env, k, 3), their linear Jacobians over the joints (env, k, ndof, 3; row j what DoF j adds
+    to the point's velocity) and the acceleration the velocities alone give them, dJ/dt v (env, k, 3)
+    (tests/test_maniskill_joint_actuation.py::test_the_laws_connects_are_mujocos)."""
+    moved = motion(law, q, v, root_pose)
+    point = moved.origin[:, links] + (moved.rotation[:, links] @ local[..., None])[..., 0]
+    lever = point[:, :, None, :] - moved.joint_origin[:, None]  # (env, k, ndof, 3): p - p_j
+    axis = moved.axis[:, :1].expand_as(lever)
+    jacobian = torch.linalg.cross(axis, lever) * law.moved_turning[links] + axis * law.moved_sliding[links]
+    velocity = (jacobian * v[:, None, :, None]).sum(2)
+    return point, jacobian, _rate(law, moved, v, lever, velocity, links)
+
+
+def mass_matrix_and_bias(
+    law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, root_velocity: torch.Tensor | None = None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """M (env, n, n) and c (env, n) at joint positions q and velocities v (env, ndof) and the root's pose (env, 7);
+    with a floating root, n = 6 + ndof, its coordinates first, as MuJoCo's free joint has them: `root_velocity`
+    (env, 6), the root frame's origin's velocity in the world frame and its angular velocity in its own frame
+    (`free_root.free_velocity` converts PhysX's). The Jacobians are laid out (env, nlink, n, 3): row k is what
+    coordinate k adds to the link's velocity."""
+    env = q.shape[0]
+    moved = motion(law, q, v, root_pose, root_velocity)
+    rotation, centre, linear, angular = moved.rotation, moved.centre, moved.linear, moved.angular
+    velocity, spin, speed = moved.velocity, moved.spin, moved.speed
+    inertia = rotation @ law.inertia @ rotation.transpose(-1, -2)  # about it, in the world frame
+    lever = centre[:, :, None, :] - moved.joint_origin[:, None, :, :]  # c_i - p_j
+    acceleration = _rate(law, moved, v, lever, velocity, slice(None))
+    weights = v[:, None, :, None]
+    spin_rate = (moved.axis_rate[:, None].expand_as(lever) * (law.moved_turning * weights)).sum(2)
     if law.floating:  # the root's axes turn with it: sum_k w_k d/dt (b_k x (c_i - o)) = w x (V_i - v_o)
         spun = torch.linalg.cross(spin[:, :1], velocity - root_velocity[:, None, :3])
         acceleration = acceleration + spun

@@ -28,7 +28,7 @@ from mani_skill.utils.structs.pose import Pose
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
-from .constraint_rows import ROW_STEPS, Couplings, RowSet, constraint_force
+from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, constraint_force
 from .free_root import RootRows, free_velocity, physx_velocity
 from .inertia import Inertia, mass_matrix_and_bias
 
@@ -76,14 +76,15 @@ class Law:
 
     def _rows(self, plan: JointActuation, tensor, device) -> None:
         """The constraint rows' arrays: the limit and frictionloss rows of the DoFs and of the fixed tendons, the
-        couplings."""
+        couplings and the connects."""
         tendons = plan.tendon_rows
         self.joint_rows = RowSet(plan.limits, plan.friction, None, tensor, device)
         self.tendon_rows = RowSet(tendons.limits, tendons.friction, tendons.moment, tensor, device)
         self.row_sets = [rows for rows in (self.joint_rows, self.tendon_rows) if rows.present]
         self.row_steps = tensor(ROW_STEPS)
         self.couplings = Couplings(plan.couplings, tensor)
-        self.any_rows = bool(self.row_sets) or self.couplings.any  # read on the host
+        self.connects = Connects(plan.connects, tensor, device)
+        self.any_rows = bool(self.row_sets) or self.couplings.any or self.connects.any  # read on the host
 
 
 def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
@@ -175,7 +176,7 @@ def implicit_step(
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
     if law.any_rows:
-        force = force + constraint_force(law, matrix, q, v, force - bias)
+        force = force + constraint_force(law, matrix, q, v, force - bias, inertia, root_pose)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
     return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)

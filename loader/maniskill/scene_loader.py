@@ -46,6 +46,7 @@ class MJCFLoader(CoreLoader):
         self.load_multiple_collisions_from_file = False  # ManiSkill's URDF option; MJCF meshes load as MuJoCo's
         self.maniskill_dialect = True  # ManiSkill's names (`dummy_root_<i>`) and spellings, as its tasks expect
         self.results: list[LoadResult] = []  # per sub-scene of the last build, CPU only
+        self.standing_by: set[int] = set()  # the loops a law on the tensors holds: their D6 joints built free (GPU)
 
     def new_articulation_builder(self) -> SceneArticulationBuilder:
         return SceneArticulationBuilder()
@@ -85,7 +86,7 @@ class MJCFLoader(CoreLoader):
             warnings.warn(f"{parsed.compiled.path}: {GPU_NOTE}", UnsupportedFeatureWarning, stacklevel=5)
             if len(parsed.articulation_builders) == 1:
                 for sub_scene, articulation in built.built:
-                    lock_loops(parsed, sub_scene, articulation)
+                    lock_loops(parsed, sub_scene, articulation, self.standing_by)
             return
         if len(parsed.articulation_builders) != 1:
             warnings.warn(

@@ -32,7 +32,7 @@ import numpy as np
 from ..model import mj
 from ..model.joints import dof_damping, is_limited, joint_stiffness
 from ..model.mapping import Mapping
-from ..model.soft_row import SoftRow
+from ..model.soft_row import SoftRow, diag_approx
 
 TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_TENDON))
 JOINT_WRAP = int(mujoco.mjtWrap.mjWRAP_JOINT)
@@ -154,6 +154,28 @@ class JointCouplings:
 
 
 @dataclass
+class Connects:
+    """MuJoCo's connect rows the law carries (`carried_equalities`): per connect, each end's robot link and the anchor
+    in that link's frame (a body fixed to the world: the robot's root link, fixed too, at the anchor's place in its
+    frame); three soft two-sided rows on the anchors' separation r = p1 - p2, with solref's stiffness and damping
+    (refsafe applied), solimp taken at |r| (MuJoCo's impedance of the connect as a whole) and the rows' diagApprox."""
+
+    links: np.ndarray  # (n, 2) robot links
+    points: np.ndarray  # (n, 2, 3) the anchors, each in its link's frame
+    stiffness: np.ndarray  # K
+    damping: np.ndarray  # B
+    solimp: np.ndarray  # (5, n)
+    diag_approx: np.ndarray  # (n, 3)
+    equalities: list[int] = field(default_factory=list)  # MuJoCo's ids
+
+    @classmethod
+    def none(cls) -> Connects:
+        return cls(
+            np.zeros((0, 2), int), np.zeros((0, 2, 3)), np.zeros(0), np.zeros(0), np.zeros((5, 0)), np.zeros((0, 3))
+        )
+
+
+@dataclass
 class JointActuation:
     """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
     the law leaves out (`not_carried`)."""
@@ -182,6 +204,7 @@ class JointActuation:
     friction: JointFriction = field(default_factory=lambda: JointFriction.none(0))
     couplings: JointCouplings = field(default_factory=lambda: JointCouplings.none(0))
     tendon_rows: TendonRows = field(default_factory=lambda: TendonRows.none(0))
+    connects: Connects = field(default_factory=Connects.none)
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -244,6 +267,7 @@ def plan_joint_actuation(
         _joint_friction(model, dof_of_joint, ndof),
         _joint_couplings(model, dof_of_joint, ndof),
         _tendon_rows(model, dof_of_joint, ndof),
+        _connects(model, dof_of_joint, link_of_body or {}),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -368,24 +392,36 @@ def _tendon_rows(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int)
     return rows
 
 
-def coupled_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
+def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The active equalities the law carries: joint equalities whose joints (both, or the one) are among the robot's
-    hinges and slides, tendon equalities whose tendons are fixed over them."""
+    hinges and slides, tendon equalities whose tendons are fixed over them, and connects given by body whose ends
+    are each moved only by those joints or fixed to the world (a loop on a fixed-base robot, a gripper's linkage)."""
     if mj.disabled(model, "equality", "constraint"):
         return []
     joint, tendon = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
+    connect, body = int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtObj.mjOBJ_BODY)
 
     def carried(e: int) -> bool:
         kind, ends = int(model.eq_type[e]), (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
         if kind == joint:
             return all(end < 0 or end in dof_of_joint for end in ends)
-        return kind == tendon and all(end < 0 or _fixed_over(model, end, dof_of_joint) for end in ends)
+        if kind == tendon:
+            return all(end < 0 or _fixed_over(model, end, dof_of_joint) for end in ends)
+        if kind == connect and int(model.eq_objtype[e]) == body:
+            moved = [mj.body_dofs(model, end) for end in ends]
+            held = all(int(model.dof_jntid[d]) in dof_of_joint for dofs in moved for d in dofs)
+            # an end fixed to the world is placed on the other end's root, which must be fixed too
+            roots = [mj.body_dofs(model, int(model.body_rootid[end])) for end in ends]
+            placed = all(dofs or not root for dofs, root in zip(moved, reversed(roots)))
+            return held and placed and bool(moved[0] | moved[1])  # none between two fixed bodies: no rows
+        return False
 
     return [e for e in range(model.neq) if model.eq_active0[e] and carried(e)]
 
 
 def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointCouplings:
-    rows = coupled_equalities(model, dof_of_joint)
+    kinds = (int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON))
+    rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) in kinds]
     if not rows:
         return JointCouplings.none(ndof)
     joint = int(mujoco.mjtEq.mjEQ_JOINT)
@@ -423,6 +459,42 @@ def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: 
         np.array(damping),
         np.array(solimp, float).T,
         np.array(diag),
+    )
+
+
+def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> Connects:
+    """The carried connects' rows (`carried_equalities`), each end on its robot link; an end fixed to the world is
+    placed on the robot's root link, fixed too, from MuJoCo's poses at qpos0 (the env may place the robot anywhere)."""
+    connect = int(mujoco.mjtEq.mjEQ_CONNECT)
+    rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) == connect]
+    if not rows or not link_of_body:
+        return Connects.none()
+    data = mj.forward_at(model, all_equalities=True)  # qpos0's poses, and every equality's rows for diagApprox
+    links, points, stiffness, damping, solimp, diag = [], [], [], [], [], []
+    for e in rows:
+        bodies = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
+        anchors, ends = (model.eq_data[e][0:3], model.eq_data[e][3:6]), []  # each in its body's frame
+        for end, anchor, other in zip(bodies, anchors, reversed(bodies)):
+            if not mj.body_dofs(model, end):  # fixed to the world: the same point on the other end's root
+                root = int(model.body_rootid[other])
+                world = data.xpos[end] + data.xmat[end].reshape(3, 3) @ anchor
+                anchor, end = data.xmat[root].reshape(3, 3).T @ (world - data.xpos[root]), root
+            ends.append((link_of_body[end], anchor))
+        row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
+        links.append([link for link, _ in ends])
+        points.append([anchor for _, anchor in ends])
+        stiffness.append(row.stiffness)
+        damping.append(row.damping)
+        solimp.append(row.solimp)
+        diag.append(diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e))
+    return Connects(
+        np.array(links, int),
+        np.array(points, float),
+        np.array(stiffness),
+        np.array(damping),
+        np.array(solimp, float).T,
+        np.array(diag, float),
+        rows,
     )
 
 
@@ -531,6 +603,14 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
 # the law takes a floating root's step from MuJoCo's rows where every force on the tree is its own
 FLOATING_ROOT = "a floating root's step where a contact pushed the tree: PhysX's, which conserves its momentum"
 FREE_JOINT_TERMS = "a free joint's damping, armature or frictionloss"  # the root rows hold none of them
+OTHER_EQUALITIES = "equality constraints other than couplings of joints and fixed tendons and connects on a fixed base"
+
+
+def _planned_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> list:
+    """The equalities the plan holds: the carried ones, but a connect where no robot link is known (`_connects`)."""
+    connect = int(mujoco.mjtEq.mjEQ_CONNECT)
+    carried = carried_equalities(model, dof_of_joint)
+    return carried if link_of_body else [e for e in carried if int(model.eq_type[e]) != connect]
 
 
 def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int]) -> list[str]:
@@ -559,8 +639,8 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
         (
             bool(model.neq)
             and not mj.disabled(model, "equality", "constraint")
-            and len(coupled_equalities(model, dof_of_joint)) < int(np.count_nonzero(model.eq_active0)),
-            "equality constraints other than couplings of joints and fixed tendons",
+            and len(_planned_equalities(model, dof_of_joint, link_of_body)) < int(np.count_nonzero(model.eq_active0)),
+            OTHER_EQUALITIES,
         ),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
         (np.any(model.jnt_actgravcomp) and np.any(model.body_gravcomp), "gravity compensation through the actuators"),
