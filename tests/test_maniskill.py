@@ -294,6 +294,14 @@ LIMITED_ARM = """<mujoco model="limited_arm">
 SWITCH_TOLERANCE = 1e-4
 
 
+def _limited_arm_env(uid: str, mode: str):
+    """`Empty-v1` (TGS, 500 Hz, control at 50 Hz) with `LIMITED_ARM` registered as `uid`, made in `mode`."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(mujoco.MjSpec.from_string(LIMITED_ARM), uid, override=True)
+        return _env(agent.uid, mode, 500, 50, tgs=True)
+
+
 def _drive_state(agent) -> list:
     """What a mode sets on the robot: each joint's drive and limits, each link's gravity, the joint forces."""
     joints = agent.results[0].articulations[0].get_active_joints()
@@ -305,7 +313,7 @@ def _drive_state(agent) -> list:
 
 
 @pytest.mark.parametrize("mistake", [None, "limits_left", "not_handed_back", "drives_left"])
-def test_a_switch_of_control_mode_sets_the_modes_drives_and_limits(tmp_path, monkeypatch, mistake):
+def test_a_switch_of_control_mode_sets_the_modes_drives_and_limits(monkeypatch, mistake):
     """ManiSkill switches a mode by a step's {"control_mode", "action"}, and sets a mode's drives only when it first
     makes it. An env made in `pd_joint_pos` and switched to `mujoco_ctrl_tensor` follows MuJoCo with motors pushing
     past the soft limits, and switched back, PD holds the drives, gravity, limits and (no) joint forces it was made
@@ -319,14 +327,9 @@ def test_a_switch_of_control_mode_sets_the_modes_drives_and_limits(tmp_path, mon
         monkeypatch.setattr(agent_module, "LAWS", ())
     elif mistake == "drives_left":
         monkeypatch.setattr(agent_module.MJCFAgent, "_resume", lambda agent, mode: None)
-    path = tmp_path / "limited_arm.xml"
-    path.write_text(LIMITED_ARM)
-    model = mujoco.MjModel.from_xml_path(str(path))
+    model = mujoco.MjModel.from_xml_string(LIMITED_ARM)
     data = mujoco.MjData(model)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        agent = register_agent(path, f"switched_arm_{mistake}", override=True)
-        env = _env(agent.uid, "pd_joint_pos", 500, 50, tgs=True)
+    env = _limited_arm_env(f"switched_arm_{mistake}", "pd_joint_pos")
     try:
         env.reset(seed=0)
         robot = env.unwrapped.agent
@@ -346,19 +349,14 @@ def test_a_switch_of_control_mode_sets_the_modes_drives_and_limits(tmp_path, mon
 
 
 @pytest.mark.parametrize("mistake", [None, "not_handed_back"])
-def test_an_env_made_in_the_tensor_mode_gives_pd_its_hard_limits(tmp_path, monkeypatch, mistake):
+def test_an_env_made_in_the_tensor_mode_gives_pd_its_hard_limits(monkeypatch, mistake):
     """An env made in `mujoco_ctrl_tensor` builds its limited joints free of PhysX's limits; switched to a PD mode,
     PhysX holds MuJoCo's range again. Not handed back, the joints keep no limit."""
     from loader.maniskill import agent as agent_module
 
     if mistake:
         monkeypatch.setattr(agent_module, "LAWS", ())
-    path = tmp_path / "limited_arm.xml"
-    path.write_text(LIMITED_ARM)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        agent = register_agent(path, f"tensor_made_arm_{mistake}", override=True)
-        env = _env(agent.uid, "mujoco_ctrl_tensor", 500, 50, tgs=True)
+    env = _limited_arm_env(f"tensor_made_arm_{mistake}", "mujoco_ctrl_tensor")
     try:
         env.reset(seed=0)
         env.step({"control_mode": "pd_joint_pos", "action": np.zeros(2, np.float32)})
@@ -419,6 +417,20 @@ def test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints(monkeypatch, mi
     assert (gpu_built == cpu_built) == (gpu_built < PIN_TOLERANCE) == (mistake is None), (gpu_built, cpu_built)
 
 
+def _gpu_env(uid: str, mode: str, num_envs: int, sim_config: dict | None = None):
+    """`Empty-v1` with the robot in `num_envs` sub-scenes on `physx_cuda` under `mode`, without rendering."""
+    return gym.make(
+        "Empty-v1",
+        robot_uids=uid,
+        sim_backend="physx_cuda",
+        render_backend="none",
+        obs_mode="state",
+        num_envs=num_envs,
+        control_mode=mode,
+        sim_config=sim_config or {},
+    )
+
+
 def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agents):
     if not torch.cuda.is_available():
         pytest.skip("needs CUDA (ManiSkill's physx_cuda backend)")
@@ -426,15 +438,7 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
     model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        env = gym.make(
-            "Empty-v1",
-            robot_uids=agent_class.uid,
-            sim_backend="physx_cuda",
-            render_backend="none",
-            obs_mode="state",
-            num_envs=2,
-            control_mode="pd_joint_delta_pos",
-        )
+        env = _gpu_env(agent_class.uid, "pd_joint_delta_pos", 2)
     try:
         env.reset(seed=0)
         assert "mujoco_ctrl" not in env.unwrapped.agent.supported_control_modes
@@ -465,16 +469,7 @@ def test_on_the_gpu_a_closed_loop_holds_in_every_sub_scene():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         agent = register_agent(CLOSED_CHAIN, "gpu_chain", override=True)
-        env = gym.make(
-            "Empty-v1",
-            robot_uids=agent.uid,
-            sim_backend="physx_cuda",
-            render_backend="none",
-            obs_mode="state",
-            num_envs=4,
-            control_mode="pd_joint_pos",
-            sim_config={"sim_freq": 500, "control_freq": 50},
-        )
+        env = _gpu_env(agent.uid, "pd_joint_pos", 4, {"sim_freq": 500, "control_freq": 50})
     try:
         env.reset(seed=0)
         links, worst = env.unwrapped.agent.robot.links_map, 0.0

@@ -767,31 +767,43 @@ def test_the_laws_frictionloss_rows_are_mujocos(mistake):
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst
 
 
-COUPLED = """
-<mujoco model="coupled_chain">
+def _chain(name: str, a: str, b: str, c: str, rows: str) -> str:
+    """A chain of two hinges and a slide, each motor-driven, for the law's row tests: each joint's further attributes,
+    and the rows' sections (tendons, equalities)."""
+    return f"""
+<mujoco model="{name}">
   <compiler angle="radian"/>
   <option timestep="0.005"><flag contact="disable"/></option>
   <worldbody>
     <body>
-      <joint name="a" axis="0 1 0" ref="0.1" damping="0.05"/>
+      <joint name="a" axis="0 1 0" {a}/>
       <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
       <body pos="0.3 0 0">
-        <joint name="b" axis="0 1 0" range="-0.3 0.3" limited="true"/>
+        <joint name="b" axis="0 1 0" {b}/>
         <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
         <body pos="0.3 0 0">
-          <joint name="c" type="slide" axis="1 0 0"/>
+          <joint name="c" type="slide" axis="1 0 0" {c}/>
           <geom type="box" size="0.05 0.05 0.05"/>
         </body>
       </body>
     </body>
   </worldbody>
-  <equality>
-    <joint joint1="c" joint2="a" polycoef="0.01 0.5 0.2 0.3 0.1" solref="0.01 0.9" solimp="0.9 0.99 0.002 0.5 2"/>
-    <joint joint1="b" polycoef="0.05 0 0 0 0"/>
-  </equality>
+  {rows}
   <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
 </mujoco>
 """
+
+
+COUPLED = _chain(
+    "coupled_chain",
+    'ref="0.1" damping="0.05"',
+    'range="-0.3 0.3" limited="true"',
+    "",
+    """<equality>
+    <joint joint1="c" joint2="a" polycoef="0.01 0.5 0.2 0.3 0.1" solref="0.01 0.9" solimp="0.9 0.99 0.002 0.5 2"/>
+    <joint joint1="b" polycoef="0.05 0 0 0 0"/>
+  </equality>""",
+)
 
 
 @pytest.mark.parametrize("mistake", [None, "linear_term_dropped", "first_joint_weight"])
@@ -812,34 +824,19 @@ def test_the_laws_joint_couplings_are_mujocos(mistake):
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst
 
 
-TENDON_COUPLED = """
-<mujoco model="tendon_coupled_chain">
-  <compiler angle="radian"/>
-  <option timestep="0.005"><flag contact="disable"/></option>
-  <worldbody>
-    <body>
-      <joint name="a" axis="0 1 0" ref="0.2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
-      <body pos="0.3 0 0">
-        <joint name="b" axis="0 1 0" ref="-0.1" damping="0.05"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
-        <body pos="0.3 0 0">
-          <joint name="c" type="slide" axis="1 0 0" ref="0.05"/>
-          <geom type="box" size="0.05 0.05 0.05"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <tendon>
+TENDON_COUPLED = _chain(
+    "tendon_coupled_chain",
+    'ref="0.2"',
+    'ref="-0.1" damping="0.05"',
+    'ref="0.05"',
+    """<tendon>
     <fixed name="ab"><joint joint="a" coef="1"/><joint joint="b" coef="0.5"/></fixed>
     <fixed name="cb"><joint joint="c" coef="2"/><joint joint="b" coef="-1"/></fixed>
   </tendon>
   <equality>
     <tendon tendon1="ab" tendon2="cb" polycoef="0.02 0.6 0.2 0 0" solref="0.01 0.9" solimp="0.9 0.99 0.002 0.5 2"/>
-  </equality>
-  <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
-</mujoco>
-"""
+  </equality>""",
+)
 
 
 @pytest.mark.parametrize("mistake", [None, "origin_at_zero", "first_tendon_weight"])
@@ -859,35 +856,20 @@ def test_the_laws_tendon_couplings_are_mujocos(mistake):
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst
 
 
-TENDON_ROWS = """
-<mujoco model="tendon_limited_chain">
-  <compiler angle="radian"/>
-  <option timestep="0.005"><flag contact="disable"/></option>
-  <worldbody>
-    <body>
-      <joint name="a" axis="0 1 0" range="-0.5 0.5" limited="false"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
-      <body pos="0.3 0 0">
-        <joint name="b" axis="0 1 0" range="-0.5 0.5" limited="false" damping="0.05"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
-        <body pos="0.3 0 0">
-          <joint name="c" type="slide" axis="1 0 0" range="-0.2 0.2" limited="false"/>
-          <geom type="box" size="0.05 0.05 0.05"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <tendon>
+TENDON_ROWS = _chain(
+    "tendon_limited_chain",
+    'range="-0.5 0.5" limited="false"',
+    'range="-0.5 0.5" limited="false" damping="0.05"',
+    'range="-0.2 0.2" limited="false"',
+    """<tendon>
     <fixed name="ab" range="-0.3 0.2" margin="0.02" solimplimit="0.8 0.95 0.05 0.4 3">
       <joint joint="a" coef="1"/><joint joint="b" coef="0.5"/>
     </fixed>
     <fixed name="cb" range="-0.4 0.3" solreflimit="-3000 -40" frictionloss="0.2" solreffriction="0.03 0.8">
       <joint joint="c" coef="2"/><joint joint="b" coef="-1"/>
     </fixed>
-  </tendon>
-  <actuator><motor joint="a" gear="5"/><motor joint="b" gear="3"/><motor joint="c" gear="10"/></actuator>
-</mujoco>
-"""
+  </tendon>""",
+)
 
 
 @pytest.mark.parametrize("mistake", [None, "no_tendon_rows", "weight_of_a_joint", "friction_unbounded"])
