@@ -226,7 +226,7 @@ class _Dresser:
                 add_visual(builder, model, g)
 
 
-def lock_loops(parsed: _Parsed, scene: sapien.Scene, articulation, standing_by=()) -> list:
+def lock_loops(parsed: _Parsed, scene: sapien.Scene, articulation, standing_by: frozenset[int] = frozenset()) -> list:
     """The model's connects and welds on one built articulation (the model's only tree) as PhysX D6 joints locked as
     `release()` leaves them (`runtime/equalities.SoftConnect.lock`; idle where the equality starts inactive): what
     holds a closed loop, a gripper's linkage, where no per-step term runs (ManiSkill's GPU backend); those of
@@ -236,7 +236,7 @@ def lock_loops(parsed: _Parsed, scene: sapien.Scene, articulation, standing_by=(
     mapping = _mapping(model, parsed, [articulation])
     links = map_equalities(model, scene, [articulation], mapping, Notes())
     laws = plan_equalities(model, links, physx_settings.scene_timestep(scene, model))
-    for equality in standing_by:
+    for equality in set(standing_by) & laws.keys():  # a connect by site has no D6 joint
         laws[equality].stand_by()
     return list(laws.values())
 

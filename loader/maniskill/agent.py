@@ -135,8 +135,8 @@ class MJCFAgent(BaseAgent):
             self._kept_as_built(mode, "connects' D6 joints")
             return
         for result in self.results if mode == TENSOR else ():
-            for equality in self.law_connects:
-                result.controller.soft_joint(equality).stand_by()
+            for law in filter(None, map(result.controller.soft_joint, self.law_connects)):  # a site's has no D6
+                law.stand_by()
 
     def _kept_as_built(self, mode: str, what: str) -> None:
         """On the GPU, PhysX keeps what the env was built with: a switch into or out of `mujoco_ctrl_tensor` that

@@ -394,12 +394,13 @@ def _tendon_rows(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int)
 
 def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The active equalities the law carries: joint equalities whose joints (both, or the one) are among the robot's
-    hinges and slides, tendon equalities whose tendons are fixed over them, and connects given by body whose ends
-    are each moved only by those joints or fixed to the world (a loop on a fixed-base robot, a gripper's linkage)."""
+    hinges and slides, tendon equalities whose tendons are fixed over them, and connects whose ends (bodies, or the
+    bodies of sites) are each moved only by those joints or fixed to the world (a loop on a fixed-base robot, a
+    gripper's linkage)."""
     if mj.disabled(model, "equality", "constraint"):
         return []
     joint, tendon = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
-    connect, body = int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtObj.mjOBJ_BODY)
+    connect = int(mujoco.mjtEq.mjEQ_CONNECT)
 
     def carried(e: int) -> bool:
         kind, ends = int(model.eq_type[e]), (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
@@ -407,7 +408,8 @@ def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> l
             return all(end < 0 or end in dof_of_joint for end in ends)
         if kind == tendon:
             return all(end < 0 or _fixed_over(model, end, dof_of_joint) for end in ends)
-        if kind == connect and int(model.eq_objtype[e]) == body:
+        if kind == connect:
+            ends = _connect_bodies(model, e)
             moved = [mj.body_dofs(model, end) for end in ends]
             held = all(int(model.dof_jntid[d]) in dof_of_joint for dofs in moved for d in dofs)
             # an end fixed to the world is placed on the other end's root, which must be fixed too
@@ -472,8 +474,11 @@ def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body:
     data = mj.forward_at(model, all_equalities=True)  # qpos0's poses, and every equality's rows for diagApprox
     links, points, stiffness, damping, solimp, diag = [], [], [], [], [], []
     for e in rows:
-        bodies = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
-        anchors, ends = (model.eq_data[e][0:3], model.eq_data[e][3:6]), []  # each in its body's frame
+        bodies, ends = _connect_bodies(model, e), []
+        if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):  # each anchor the site, in its body's frame
+            anchors = tuple(model.site_pos[int(site)] for site in (model.eq_obj1id[e], model.eq_obj2id[e]))
+        else:
+            anchors = (model.eq_data[e][0:3], model.eq_data[e][3:6])
         for end, anchor, other in zip(bodies, anchors, reversed(bodies)):
             if not mj.body_dofs(model, end):  # fixed to the world: the same point on the other end's root
                 root = int(model.body_rootid[other])
@@ -496,6 +501,14 @@ def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body:
         np.array(diag, float),
         rows,
     )
+
+
+def _connect_bodies(model: mujoco.MjModel, e: int) -> tuple[int, int]:
+    """A connect's two bodies: given by body, or the bodies of its two sites."""
+    ends = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
+    if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):
+        return tuple(int(model.site_bodyid[site]) for site in ends)
+    return ends
 
 
 def _fixed_over(model: mujoco.MjModel, tendon: int, dof_of_joint: dict[int, int]) -> bool:
