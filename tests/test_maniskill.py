@@ -367,6 +367,28 @@ def test_an_env_made_in_the_tensor_mode_gives_pd_its_hard_limits(monkeypatch, mi
     assert np.array_equal(limits, np.float32(mujoco.MjModel.from_xml_string(LIMITED_ARM).jnt_range)) == (not mistake)
 
 
+@pytest.mark.parametrize("made", ["pd_joint_pos", "mujoco_ctrl_tensor"])
+def test_on_the_gpu_a_switch_that_needs_other_limits_is_warned(made):
+    """On physx_cuda PhysX keeps the limits and D6 joints an env was built with, so a switch into or out of the tensor
+    mode that would need others warns, naming the control mode to make the env with; a switch that needs none is
+    silent. The GPU's branch of the switch, taken on the CPU backend's env."""
+    from loader import UnsupportedFeatureWarning
+
+    env = _limited_arm_env(f"gpu_switch_{made}", made)
+    try:
+        agent = env.unwrapped.agent
+        other = "pd_joint_pos" if made == "mujoco_ctrl_tensor" else "mujoco_ctrl_tensor"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            agent._limits_for(made, gpu=True)
+            assert not caught
+            agent._limits_for(other, gpu=True)
+        (warned,) = [w for w in caught if issubclass(w.category, UnsupportedFeatureWarning)]
+        assert f"control_mode={other!r}" in str(warned.message) and "joint limits" in str(warned.message)
+    finally:
+        env.close()
+
+
 CLOSED_CHAIN = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "closed_chain.xml"
 # m, the largest distance between the closed chain's two pin anchors over 1 s under pd_joint_pos with the hip swung
 # (TGS), its connect a D6 joint locked as `release()` locks it: measured 1.3e-6 (mani-skill 3.0.1, sapien 3.0.3,
