@@ -98,8 +98,8 @@ GAPS = {
         ),
         Gap(
             "uncoupled_equality",
-            "equality constraints the law does not carry deactivated (welds, connects on a floating or ball-jointed "
-            "chain, couplings of spatial tendons)",
+            "equality constraints the law does not carry deactivated (welds to the world or by site, connects and "
+            "welds on a floating or ball-jointed chain, couplings of spatial tendons)",
             _uncoupled,
             _deactivate_uncoupled,
             automatic=False,

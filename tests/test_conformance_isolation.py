@@ -162,16 +162,15 @@ def test_the_worker_records_the_isolation_in_the_result_and_the_recording(fricti
 
 def test_the_uncoupled_equality_gap_keeps_what_the_law_carries():
     """The Robotiq gripper's two connects (a loop on its fixed base) and its joint coupling are the joint actuation
-    law's: no gap. Given a weld too, the weld goes (deactivated on both sides) and the rest stays: the gap the
-    `maniskill_tensor` tier takes out. The panda, whose one equality is a coupling, has no such gap."""
+    law's: no gap. Given a weld of a pad to the world too, the weld goes (deactivated on both sides) and the rest
+    stays: the gap the `maniskill_tensor` tier takes out. The panda, whose one equality is a coupling, has no such
+    gap."""
     root = menagerie_root()
     if root is None:
         pytest.skip("Menagerie slice not installed (extra 'menagerie')")
     spec = mujoco.MjSpec.from_file(str(root / "robotiq_2f85_v4/2f85.xml"))
     assert not gaps.GAPS["uncoupled_equality"].present(spec.compile())
-    spec.add_equality(
-        type=mujoco.mjtEq.mjEQ_WELD, objtype=mujoco.mjtObj.mjOBJ_BODY, name1="left_pad", name2="right_pad"
-    )
+    spec.add_equality(type=mujoco.mjtEq.mjEQ_WELD, objtype=mujoco.mjtObj.mjOBJ_BODY, name1="left_pad")  # to the world
     welded = spec.compile()
     assert gaps.GAPS["uncoupled_equality"].present(welded)
     edited = gaps.without(spec, ("uncoupled_equality",)).compile()

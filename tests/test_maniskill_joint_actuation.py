@@ -144,7 +144,7 @@ SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
 # (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7,
 # with joint couplings 8.8e-7, with tendon couplings 1.1e-7, with tendon limits and frictionloss 1.4e-6, with a connect
-# 9.6e-7; each mistake misses by 5e-4 or more
+# 9.6e-7, with a weld 5.5e-7; each mistake misses by 5e-4 or more
 STEP_TOLERANCE = 1e-4
 
 
@@ -994,5 +994,31 @@ def test_a_connect_by_site_is_the_laws_too(mistake):
     assert int(result.model.eq_objtype[0]) == int(mujoco.mjtObj.mjOBJ_SITE) and plan.connects.links.shape == (1, 2)
     if mistake:
         plan.connects.points[0] = plan.connects.points[0][::-1]
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+WELDED_LEGS = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "welded_legs.xml"
+
+
+@pytest.mark.parametrize("mistake", [None, "no_rate", "torquescale_one", "no_weld"])
+def test_the_laws_welds_are_mujocos(monkeypatch, mistake):
+    """The corpus's welded legs, their feet welded (an anchor off the foot's origin, torquescale 2) on legs of two
+    hinges a link: at 32 random states the law's end velocity is MuJoCo's step's with the weld's six rows, measured
+    5.5e-7 relative (`STEP_TOLERANCE`). Each mistake misses: the rows' reference without MuJoCo's dJ/dt v (1.4e-2),
+    torquescale taken as one (0.27), the weld left out (1.3)."""
+    result, dofs, plan, inertia = _loaded_law(WELDED_LEGS.read_text())
+    welds = plan.welds
+    assert welds.links.shape == (1, 2) and not plan.not_carried
+    if mistake == "no_rate":
+        for name in ("points_and_jacobians", "turning"):
+            placed = getattr(constraint_rows, name)
+            monkeypatch.setattr(
+                constraint_rows, name, lambda *a, placed=placed: (*placed(*a)[:-1], torch.zeros_like(placed(*a)[-1]))
+            )
+    elif mistake == "torquescale_one":
+        welds.torquescale[:] = 1.0
+    elif mistake == "no_weld":
+        plan.welds = type(welds).none()
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst

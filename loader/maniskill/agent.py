@@ -50,8 +50,9 @@ class MJCFAgent(BaseAgent):
     # in `mujoco_ctrl_tensor`
     law_limited: ClassVar[list[str]] = []
     law_limited_dofs: ClassVar[list[int]] = []  # their DoFs
-    # the connects (MuJoCo's ids) the law carries as MuJoCo's soft rows: their D6 joints free in `mujoco_ctrl_tensor`
-    law_connects: ClassVar[list[int]] = []
+    # the connects and welds (MuJoCo's ids) the law carries as MuJoCo's soft rows: their D6 joints free in
+    # `mujoco_ctrl_tensor`
+    law_loops: ClassVar[list[int]] = []
 
     def __init__(self, scene, control_freq: int, control_mode: str | None = None, *args, **kwargs):
         self.built_mode = control_mode  # the env's control mode, which decides the build (`_load_articulation`)
@@ -67,7 +68,7 @@ class MJCFAgent(BaseAgent):
         loader.name = self.uid if self._agent_idx is None else f"{self.uid}-agent-{self._agent_idx}"
         loader.fix_root_link = self.fix_root_link
         loader.disable_self_collisions = self.disable_self_collisions
-        loader.standing_by = set(self.law_connects) if self.built_mode == TENSOR else set()
+        loader.standing_by = set(self.law_loops) if self.built_mode == TENSOR else set()
         builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
         # the law's soft limit rows, not PhysX's hard limits (a band no joint reaches: PhysX keeps a joint built
         # limited so, while the loader's own reset holds its limits wide of MuJoCo's range)
@@ -107,7 +108,7 @@ class MJCFAgent(BaseAgent):
             self._resume(mode)
         if self.law_limited_dofs and mode != leaving:
             self._limits_for(mode, gpu)
-        if self.law_connects and mode != leaving:
+        if self.law_loops and mode != leaving:
             self._loops_for(mode, gpu)
 
     def _resume(self, mode: str) -> None:
@@ -128,14 +129,14 @@ class MJCFAgent(BaseAgent):
                 joints[dof].set_limit(np.array([[-UNREACHED, UNREACHED]], np.float32))
 
     def _loops_for(self, mode: str, gpu: bool) -> None:
-        """The D6 joints of the connects the law carries, as `mode` needs them: free under `mujoco_ctrl_tensor`,
-        whose rows hold the loops; locked under the others (as `release()`, which leaving the mode calls, locks
-        them)."""
+        """The D6 joints of the connects and welds the law carries, as `mode` needs them: free under
+        `mujoco_ctrl_tensor`, whose rows hold the loops; locked under the others (as `release()`, which leaving the
+        mode calls, locks them)."""
         if gpu:
-            self._kept_as_built(mode, "connects' D6 joints")
+            self._kept_as_built(mode, "loops' D6 joints")
             return
         for result in self.results if mode == TENSOR else ():
-            for law in filter(None, map(result.controller.soft_joint, self.law_connects)):  # a site's has no D6
+            for law in filter(None, map(result.controller.soft_joint, self.law_loops)):  # a site's has no D6
                 law.stand_by()
 
     def _kept_as_built(self, mode: str, what: str) -> None:
@@ -286,7 +287,7 @@ def register_agent(
         if isinstance(plan, JointActuation):
             joints, limited = articulation.get_active_joints(), np.flatnonzero(plan.limits.limited).tolist()
             attributes["law_limited"], attributes["law_limited_dofs"] = [joints[dof].name for dof in limited], limited
-            attributes["law_connects"] = list(plan.connects.equalities)
+            attributes["law_loops"] = list(plan.connects.equalities) + list(plan.welds.equalities)
     except ValueError as error:
         attributes["joint_actuation"] = str(error)
     agent = type(f"MJCFAgent_{uid}", (MJCFAgent,), attributes)

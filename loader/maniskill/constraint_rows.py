@@ -13,7 +13,7 @@ import torch
 from ..model.mj import MJMINVAL
 from ..model.soft_row import MAXIMP, MINIMP
 from ..plan.joint_actuation import JointFriction, JointLimits
-from .inertia import points_and_jacobians
+from .inertia import points_and_jacobians, turning
 
 # the rows' solve: passes of taking each row's zone at an acceleration, solving on them and stepping towards that
 # solution, a fixed count so that the device never waits on the host (twice what the law's row tests need:
@@ -158,6 +158,94 @@ class Connects:
         return jacobian.reshape(env, 3 * count, -1), aref.reshape(env, -1), weight.reshape(env, -1)
 
 
+def _product(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """The quaternion product a b (..., 4: w, x, y, z)."""
+    aw, av, bw, bv = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
+    return torch.cat((aw * bw - (av * bv).sum(-1, keepdim=True), aw * bv + bw * av + torch.linalg.cross(av, bv)), -1)
+
+
+def _pure(vector: torch.Tensor) -> torch.Tensor:
+    return torch.nn.functional.pad(vector, (1, 0))
+
+
+def _quaternion(rotation: torch.Tensor) -> torch.Tensor:
+    """A rotation matrix's unit quaternion (..., 4), its real part non-negative (the error rows' sign does not
+    matter: their Jacobian and reference flip with them)."""
+    w = 0.5 * torch.sqrt(torch.clamp(1.0 + rotation.diagonal(dim1=-2, dim2=-1).sum(-1), min=0.0))
+    vector = (
+        torch.stack(
+            (
+                rotation[..., 2, 1] - rotation[..., 1, 2],
+                rotation[..., 0, 2] - rotation[..., 2, 0],
+                rotation[..., 1, 0] - rotation[..., 0, 1],
+            ),
+            -1,
+        )
+        / (4.0 * torch.clamp(w, min=MJMINVAL))[..., None]
+    )
+    return torch.cat((w[..., None], vector), -1)
+
+
+class Welds:
+    """The welds' arrays (`plan.joint_actuation.Welds`) as tensors."""
+
+    def __init__(self, welds, tensor, device):
+        self.any = bool(welds.links.shape[0])  # read on the host
+        self.links = torch.as_tensor(welds.links.reshape(-1), dtype=torch.long, device=device)  # (2n,)
+        self.points = tensor(welds.points.reshape(-1, 3))
+        relative = np.asarray(welds.relative, np.float64).reshape(-1, 4)
+        turned = np.zeros((relative.shape[0], 9))
+        for k, quaternion in enumerate(relative):
+            w, x, y, z = quaternion / np.linalg.norm(quaternion)
+            turned[k] = [
+                1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+            ]  # fmt: skip
+        self.relative = tensor(turned.reshape(-1, 3, 3))  # relpose's rotation
+        self.relative_quaternion = tensor(relative / np.linalg.norm(relative, axis=-1, keepdims=True))
+        self.scale = tensor(welds.torquescale)
+        self.stiffness, self.damping = tensor(welds.stiffness), tensor(welds.damping)
+        self.diag = tensor(welds.diag_approx)
+        self.imp = Solimp(welds.solimp, tensor)
+
+    def at(self, inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The rows at the state: their Jacobians (env, 6n, DoF), reference accelerations aref = -B J v - K imp r -
+        dJ/dt v and weights D (env, 6n): three on the points' separation (as a connect's), three on torquescale times
+        the vector part of e = conj(q2) q1 relpose, with MuJoCo's Jacobian 0.5 (0, R2^T dw) e and its rate."""
+        env, count = q.shape[0], self.stiffness.shape[0]
+        points, jacobians, rates = points_and_jacobians(inertia, q, v, root_pose, self.links, self.points)
+        points, rates = points.reshape(env, count, 2, 3), rates.reshape(env, count, 2, 3)
+        jacobians = jacobians.reshape(env, count, 2, -1, 3)
+        rotation, spin_jacobian, spin, spin_rate = turning(inertia, q, v, root_pose, self.links)
+        rotation, spin = rotation.reshape(env, count, 2, 3, 3), spin.reshape(env, count, 2, 3)
+        spin_jacobian, spin_rate = spin_jacobian.reshape(env, count, 2, -1, 3), spin_rate.reshape(env, count, 2, 3)
+        back = rotation[:, :, 1].transpose(-1, -2)  # R2^T
+        error = _quaternion(back @ rotation[:, :, 0] @ self.relative)  # e, (env, n, 4)
+        scale = self.scale[:, None]
+        # d e/dt's vector part per unit of a vector u: 0.5 vec((0, u) e) = 0.5 (w u - v x u)
+        turned = (back @ (spin_jacobian[:, :, 0] - spin_jacobian[:, :, 1]).transpose(-1, -2)).transpose(-1, -2)
+        w, vector = error[..., None, :1], error[..., None, 1:]
+        rotational = 0.5 * scale[..., None] * (w * turned - torch.linalg.cross(vector.expand_as(turned), turned))
+        # e's rate along the motion, in body2's frame: (0, R2^T w) conj(q2) = conj(q2) (0, w), q' = 0.5 (0, w) q
+        spins = (back[:, :, None] @ spin[..., None])[..., 0]  # R2^T w1, R2^T w2
+        spun = _pure(spins[:, :, 0] - spins[:, :, 1])  # R2^T dw
+        terms = (
+            -0.5 * _product(_product(_pure(spins[:, :, 1]), spun), error)
+            + _product(_pure((back @ (spin_rate[:, :, 0] - spin_rate[:, :, 1])[..., None])[..., 0]), error)
+            + 0.5 * _product(_product(spun, _pure(spins[:, :, 0])), error)
+        )
+        separation = points[:, :, 0] - points[:, :, 1]
+        residual = torch.cat((separation, scale * error[..., 1:]), -1)  # (env, n, 6)
+        jacobian = torch.cat(((jacobians[:, :, 0] - jacobians[:, :, 1]), rotational), -1).transpose(-1, -2)
+        imp = self.imp(torch.linalg.vector_norm(residual, dim=-1))[..., None]
+        speed = (jacobian @ v[:, None, :, None])[..., 0]  # (env, n, 6)
+        rate = torch.cat((rates[:, :, 0] - rates[:, :, 1], 0.5 * scale * terms[..., 1:]), -1)
+        aref = -self.damping[:, None] * speed - self.stiffness[:, None] * imp * residual - rate
+        weight = imp / torch.clamp((1.0 - imp) * self.diag, min=MJMINVAL)
+        return jacobian.reshape(env, 6 * count, -1), aref.reshape(env, -1), weight.reshape(env, -1)
+
+
 def constraint_force(
     law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor, inertia=None, root_pose=None
 ) -> torch.Tensor:
@@ -171,6 +259,8 @@ def constraint_force(
         rows.append(law.couplings.at(q, v))
     if law.connects.any:
         rows.append(law.connects.at(inertia, q, v, root_pose))
+    if law.welds.any:
+        rows.append(law.welds.at(inertia, q, v, root_pose))
     coupled, pulled = matrix, smooth
     if rows:
         root = matrix.shape[-1] - q.shape[-1]

@@ -213,6 +213,18 @@ def points_and_jacobians(
     return point, jacobian, _rate(law, moved, v, lever, velocity, links)
 
 
+def turning(
+    law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, links: torch.Tensor
+) -> tuple[torch.Tensor, ...]:
+    """Links `links` (k,) of a tree whose root is fixed: their rotations (env, k, 3, 3), the Jacobians of their spins
+    over the joints (env, k, ndof, 3), their spins (env, k, 3) and what the velocities alone add to them per unit time,
+    dJw/dt v (env, k, 3) (tests/test_maniskill_joint_actuation.py::test_the_laws_welds_are_mujocos)."""
+    moved = motion(law, q, v, root_pose)
+    jacobian = moved.axis[:, :1].expand(-1, links.shape[0], -1, -1) * law.moved_turning[links]
+    rate = (moved.axis_rate[:, None] * (law.moved_turning[links] * v[:, None, :, None])).sum(2)
+    return moved.rotation[:, links], jacobian, moved.spin[:, links], rate
+
+
 def mass_matrix_and_bias(
     law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, root_velocity: torch.Tensor | None = None
 ) -> tuple[torch.Tensor, torch.Tensor]:

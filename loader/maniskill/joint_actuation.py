@@ -28,7 +28,7 @@ from mani_skill.utils.structs.pose import Pose
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
-from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, constraint_force
+from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, Welds, constraint_force
 from .free_root import RootRows, free_velocity, physx_velocity
 from .inertia import Inertia, mass_matrix_and_bias
 
@@ -84,7 +84,9 @@ class Law:
         self.row_steps = tensor(ROW_STEPS)
         self.couplings = Couplings(plan.couplings, tensor)
         self.connects = Connects(plan.connects, tensor, device)
-        self.any_rows = bool(self.row_sets) or self.couplings.any or self.connects.any  # read on the host
+        self.welds = Welds(plan.welds, tensor, device)
+        loops = self.connects.any or self.welds.any
+        self.any_rows = bool(self.row_sets) or self.couplings.any or loops  # read on the host
 
 
 def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:

@@ -176,6 +176,38 @@ class Connects:
 
 
 @dataclass
+class Welds:
+    """MuJoCo's weld rows the law carries (`carried_equalities`; given by body): per weld, each end's robot link and
+    its point in that link's frame (body1's at relpose's position, body2's at the anchor, as MuJoCo places them), the
+    relpose rotation (w, x, y, z) and torquescale; six soft two-sided rows (three on the points' separation, three on
+    torquescale times the vector part of conj(q2) q1 relpose), solref's stiffness and damping, solimp taken at the six
+    rows' length, and the rows' diagApprox."""
+
+    links: np.ndarray  # (n, 2) robot links
+    points: np.ndarray  # (n, 2, 3)
+    relative: np.ndarray  # (n, 4)
+    torquescale: np.ndarray  # (n,)
+    stiffness: np.ndarray
+    damping: np.ndarray
+    solimp: np.ndarray  # (5, n)
+    diag_approx: np.ndarray  # (n, 6)
+    equalities: list[int] = field(default_factory=list)
+
+    @classmethod
+    def none(cls) -> Welds:
+        return cls(
+            np.zeros((0, 2), int),
+            np.zeros((0, 2, 3)),
+            np.zeros((0, 4)),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros((5, 0)),
+            np.zeros((0, 6)),
+        )
+
+
+@dataclass
 class JointActuation:
     """The law's arrays: per actuator, its moment over the robot's active DoFs (`ndof` of them), per DoF, and what
     the law leaves out (`not_carried`)."""
@@ -205,6 +237,7 @@ class JointActuation:
     couplings: JointCouplings = field(default_factory=lambda: JointCouplings.none(0))
     tendon_rows: TendonRows = field(default_factory=lambda: TendonRows.none(0))
     connects: Connects = field(default_factory=Connects.none)
+    welds: Welds = field(default_factory=Welds.none)
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -268,6 +301,7 @@ def plan_joint_actuation(
         _joint_couplings(model, dof_of_joint, ndof),
         _tendon_rows(model, dof_of_joint, ndof),
         _connects(model, dof_of_joint, link_of_body or {}),
+        _welds(model, dof_of_joint, link_of_body or {}),
         _weightless(model, link_of_body or {}),
         _not_carried(model, link_of_body or {}, dof_of_joint),
     )
@@ -394,13 +428,13 @@ def _tendon_rows(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int)
 
 def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The active equalities the law carries: joint equalities whose joints (both, or the one) are among the robot's
-    hinges and slides, tendon equalities whose tendons are fixed over them, and connects whose ends (bodies, or the
-    bodies of sites) are each moved only by those joints or fixed to the world (a loop on a fixed-base robot, a
-    gripper's linkage)."""
+    hinges and slides, tendon equalities whose tendons are fixed over them, connects (given by body or site) whose
+    ends are each moved only by those joints or fixed to the world, and welds (given by body) whose two ends those
+    joints move (a loop on a fixed-base robot, a gripper's linkage)."""
     if mj.disabled(model, "equality", "constraint"):
         return []
     joint, tendon = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
-    connect = int(mujoco.mjtEq.mjEQ_CONNECT)
+    connect, weld = int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)
 
     def carried(e: int) -> bool:
         kind, ends = int(model.eq_type[e]), (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
@@ -408,13 +442,15 @@ def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> l
             return all(end < 0 or end in dof_of_joint for end in ends)
         if kind == tendon:
             return all(end < 0 or _fixed_over(model, end, dof_of_joint) for end in ends)
-        if kind == connect:
+        if kind == connect or (kind == weld and int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_BODY)):
             ends = _connect_bodies(model, e)
             moved = [mj.body_dofs(model, end) for end in ends]
             held = all(int(model.dof_jntid[d]) in dof_of_joint for dofs in moved for d in dofs)
             # an end fixed to the world is placed on the other end's root, which must be fixed too
             roots = [mj.body_dofs(model, int(model.body_rootid[end])) for end in ends]
             placed = all(dofs or not root for dofs, root in zip(moved, reversed(roots)))
+            if kind == weld:  # both ends on the robot's links
+                return held and all(moved)
             return held and placed and bool(moved[0] | moved[1])  # none between two fixed bodies: no rows
         return False
 
@@ -495,6 +531,41 @@ def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body:
     return Connects(
         np.array(links, int),
         np.array(points, float),
+        np.array(stiffness),
+        np.array(damping),
+        np.array(solimp, float).T,
+        np.array(diag, float),
+        rows,
+    )
+
+
+def _welds(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> Welds:
+    """The carried welds' rows (`carried_equalities`), each end on its robot link."""
+    weld = int(mujoco.mjtEq.mjEQ_WELD)
+    rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) == weld]
+    if not rows or not link_of_body:
+        return Welds.none()
+    data = mj.forward_at(model, all_equalities=True)
+    links, points, relative, scale, stiffness, damping, solimp, diag = [], [], [], [], [], [], [], []
+    for e in rows:
+        bodies, ends = _connect_bodies(model, e), []
+        turn = np.asarray(model.eq_data[e][6:10], float)  # body2's rotation in body1's frame
+        for end, point in zip(bodies, (model.eq_data[e][3:6], model.eq_data[e][0:3])):
+            ends.append((link_of_body[end], point))
+        row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
+        links.append([link for link, _ in ends])
+        points.append([point for _, point in ends])
+        relative.append(turn)
+        scale.append(float(model.eq_data[e][10]))
+        stiffness.append(row.stiffness)
+        damping.append(row.damping)
+        solimp.append(row.solimp)
+        diag.append(diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e))
+    return Welds(
+        np.array(links, int),
+        np.array(points, float),
+        np.array(relative, float),
+        np.array(scale),
         np.array(stiffness),
         np.array(damping),
         np.array(solimp, float).T,
@@ -616,14 +687,14 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
 # the law takes a floating root's step from MuJoCo's rows where every force on the tree is its own
 FLOATING_ROOT = "a floating root's step where a contact pushed the tree: PhysX's, which conserves its momentum"
 FREE_JOINT_TERMS = "a free joint's damping, armature or frictionloss"  # the root rows hold none of them
-OTHER_EQUALITIES = "equality constraints other than couplings of joints and fixed tendons and connects on a fixed base"
+OTHER_EQUALITIES = "equality constraints other than couplings, and connects and welds on a fixed base"
 
 
 def _planned_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> list:
     """The equalities the plan holds: the carried ones, but a connect where no robot link is known (`_connects`)."""
-    connect = int(mujoco.mjtEq.mjEQ_CONNECT)
+    loops = (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD))
     carried = carried_equalities(model, dof_of_joint)
-    return carried if link_of_body else [e for e in carried if int(model.eq_type[e]) != connect]
+    return carried if link_of_body else [e for e in carried if int(model.eq_type[e]) not in loops]
 
 
 def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int]) -> list[str]:
