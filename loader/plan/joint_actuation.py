@@ -508,7 +508,7 @@ def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body:
     if not rows or not link_of_body:
         return Connects.none()
     data = mj.forward_at(model, all_equalities=True)  # qpos0's poses, and every equality's rows for diagApprox
-    links, points, stiffness, damping, solimp, diag = [], [], [], [], [], []
+    links, points = [], []
     for e in rows:
         bodies, ends = _connect_bodies(model, e), []
         if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):  # each anchor the site, in its body's frame
@@ -521,22 +521,9 @@ def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body:
                 world = data.xpos[end] + data.xmat[end].reshape(3, 3) @ anchor
                 anchor, end = data.xmat[root].reshape(3, 3).T @ (world - data.xpos[root]), root
             ends.append((link_of_body[end], anchor))
-        row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
         links.append([link for link, _ in ends])
         points.append([anchor for _, anchor in ends])
-        stiffness.append(row.stiffness)
-        damping.append(row.damping)
-        solimp.append(row.solimp)
-        diag.append(diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e))
-    return Connects(
-        np.array(links, int),
-        np.array(points, float),
-        np.array(stiffness),
-        np.array(damping),
-        np.array(solimp, float).T,
-        np.array(diag, float),
-        rows,
-    )
+    return Connects(np.array(links, int), np.array(points, float), *_soft_rows(model, data, rows), rows)
 
 
 def _welds(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> Welds:
@@ -545,32 +532,28 @@ def _welds(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: di
     rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) == weld]
     if not rows or not link_of_body:
         return Welds.none()
-    data = mj.forward_at(model, all_equalities=True)
-    links, points, relative, scale, stiffness, damping, solimp, diag = [], [], [], [], [], [], [], []
-    for e in rows:
-        bodies, ends = _connect_bodies(model, e), []
-        turn = np.asarray(model.eq_data[e][6:10], float)  # body2's rotation in body1's frame
-        for end, point in zip(bodies, (model.eq_data[e][3:6], model.eq_data[e][0:3])):
-            ends.append((link_of_body[end], point))
-        row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
-        links.append([link for link, _ in ends])
-        points.append([point for _, point in ends])
-        relative.append(turn)
-        scale.append(float(model.eq_data[e][10]))
-        stiffness.append(row.stiffness)
-        damping.append(row.damping)
-        solimp.append(row.solimp)
-        diag.append(diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e))
+    data = mj.forward_at(model, all_equalities=True)  # every equality's rows, for diagApprox
+    body1, body2 = (int(model.eq_obj1id[e]) for e in rows), (int(model.eq_obj2id[e]) for e in rows)
     return Welds(
-        np.array(links, int),
-        np.array(points, float),
-        np.array(relative, float),
-        np.array(scale),
-        np.array(stiffness),
-        np.array(damping),
-        np.array(solimp, float).T,
-        np.array(diag, float),
+        np.array([[link_of_body[a], link_of_body[b]] for a, b in zip(body1, body2)], int),
+        np.array([[model.eq_data[e][3:6], model.eq_data[e][0:3]] for e in rows], float),  # relpose's, the anchor
+        np.array([model.eq_data[e][6:10] for e in rows], float),  # body2's rotation in body1's frame
+        np.array([model.eq_data[e][10] for e in rows], float),
+        *_soft_rows(model, data, rows),
         rows,
+    )
+
+
+def _soft_rows(model: mujoco.MjModel, data: mujoco.MjData, rows: list[int]) -> tuple[np.ndarray, ...]:
+    """Per equality of `rows`: solref's stiffness and damping (refsafe applied), solimp (5, n) and its rows' diagApprox
+    from `data`'s forward pass (n, rows each)."""
+    laws = [SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e]) for e in rows]
+    diag = [diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e) for e in rows]
+    return (
+        np.array([law.stiffness for law in laws]),
+        np.array([law.damping for law in laws]),
+        np.array([law.solimp for law in laws], float).T,
+        np.array(diag, float),
     )
 
 
