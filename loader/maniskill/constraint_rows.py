@@ -7,6 +7,7 @@ position, a fixed tendon's length: its coefficients times q), so each row's Jaco
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import torch
 
@@ -140,12 +141,13 @@ class Connects:
         self.diag = tensor(connects.diag_approx)
         self.imp = Solimp(connects.solimp, tensor)
 
-    def at(self, inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The rows at the state: their Jacobians (env, 3n, DoF), reference accelerations
+    def at(self, inertia, moved, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The rows at the state (the tree's `motion`, joint velocities v): their Jacobians (env, 3n, DoF), reference
+        accelerations
         aref = -B J v - K imp r - dJ/dt v and weights D (env, 3n), r = p1 - p2 the anchors' separation, imp taken at
         |r|, dJ/dt v what the velocities alone accelerate r by (MuJoCo's correction of a connect's reference)."""
-        points, jacobians, rates = points_and_jacobians(inertia, q, v, root_pose, self.links, self.points)
-        env, count = q.shape[0], self.stiffness.shape[0]
+        points, jacobians, rates = points_and_jacobians(inertia, moved, v, self.links, self.points)
+        env, count = v.shape[0], self.stiffness.shape[0]
         points, rates = points.reshape(env, count, 2, 3), rates.reshape(env, count, 2, 3)
         jacobians = jacobians.reshape(env, count, 2, -1, 3)
         separation = points[:, :, 0] - points[:, :, 1]  # (env, n, 3)
@@ -193,31 +195,25 @@ class Welds:
         self.any = bool(welds.links.shape[0])  # read on the host
         self.links = torch.as_tensor(welds.links.reshape(-1), dtype=torch.long, device=device)  # (2n,)
         self.points = tensor(welds.points.reshape(-1, 3))
-        relative = np.asarray(welds.relative, np.float64).reshape(-1, 4)
-        turned = np.zeros((relative.shape[0], 9))
-        for k, quaternion in enumerate(relative):
-            w, x, y, z = quaternion / np.linalg.norm(quaternion)
-            turned[k] = [
-                1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-            ]  # fmt: skip
-        self.relative = tensor(turned.reshape(-1, 3, 3))  # relpose's rotation
-        self.relative_quaternion = tensor(relative / np.linalg.norm(relative, axis=-1, keepdims=True))
+        relative = np.zeros((welds.relative.shape[0], 9))
+        for turn, quaternion in zip(relative, np.asarray(welds.relative, np.float64)):
+            mujoco.mju_quat2Mat(turn, quaternion / np.linalg.norm(quaternion))
+        self.relative = tensor(relative.reshape(-1, 3, 3))  # relpose's rotation
         self.scale = tensor(welds.torquescale)
         self.stiffness, self.damping = tensor(welds.stiffness), tensor(welds.damping)
         self.diag = tensor(welds.diag_approx)
         self.imp = Solimp(welds.solimp, tensor)
 
-    def at(self, inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The rows at the state: their Jacobians (env, 6n, DoF), reference accelerations aref = -B J v - K imp r -
-        dJ/dt v and weights D (env, 6n): three on the points' separation (as a connect's), three on torquescale times
-        the vector part of e = conj(q2) q1 relpose, with MuJoCo's Jacobian 0.5 (0, R2^T dw) e and its rate."""
-        env, count = q.shape[0], self.stiffness.shape[0]
-        points, jacobians, rates = points_and_jacobians(inertia, q, v, root_pose, self.links, self.points)
+    def at(self, inertia, moved, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """The rows at the state (the tree's `motion`, joint velocities v): their Jacobians (env, 6n, DoF), reference
+        accelerations aref = -B J v - K imp r - dJ/dt v and weights D (env, 6n): three on the points' separation (as
+        a connect's), three on torquescale times the vector part of e = conj(q2) q1 relpose, with MuJoCo's Jacobian
+        0.5 (0, R2^T dw) e and its rate."""
+        env, count = v.shape[0], self.stiffness.shape[0]
+        points, jacobians, rates = points_and_jacobians(inertia, moved, v, self.links, self.points)
         points, rates = points.reshape(env, count, 2, 3), rates.reshape(env, count, 2, 3)
         jacobians = jacobians.reshape(env, count, 2, -1, 3)
-        rotation, spin_jacobian, spin, spin_rate = turning(inertia, q, v, root_pose, self.links)
+        rotation, spin_jacobian, spin, spin_rate = turning(inertia, moved, v, self.links)
         rotation, spin = rotation.reshape(env, count, 2, 3, 3), spin.reshape(env, count, 2, 3)
         spin_jacobian, spin_rate = spin_jacobian.reshape(env, count, 2, -1, 3), spin_rate.reshape(env, count, 2, 3)
         back = rotation[:, :, 1].transpose(-1, -2)  # R2^T
@@ -247,20 +243,20 @@ class Welds:
 
 
 def constraint_force(
-    law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor, inertia=None, root_pose=None
+    law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor, inertia=None, moved=None
 ) -> torch.Tensor:
     """MuJoCo's constraint force (env, n) of the law's rows at the state (`law.couplings`, `law.connects`,
     `law.row_sets`), from the smooth force `smooth` (env, n: f - c, a floating root's six coordinates first): M a -
-    smooth at the acceleration a MuJoCo's solver finds. The equality rows (couplings; connects, on the tree's frames
-    from `inertia` at the root's pose), two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth force,
-    and the limit and frictionloss rows are solved on those (`_row_solve`)."""
+    smooth at the acceleration a MuJoCo's solver finds. The equality rows (couplings; connects and welds, on the
+    tree's `motion` at the state, `moved`), two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth
+    force, and the limit and frictionloss rows are solved on those (`_row_solve`)."""
     rows = []
     if law.couplings.any:
         rows.append(law.couplings.at(q, v))
     if law.connects.any:
-        rows.append(law.connects.at(inertia, q, v, root_pose))
+        rows.append(law.connects.at(inertia, moved, v))
     if law.welds.any:
-        rows.append(law.welds.at(inertia, q, v, root_pose))
+        rows.append(law.welds.at(inertia, moved, v))
     coupled, pulled = matrix, smooth
     if rows:
         root = matrix.shape[-1] - q.shape[-1]

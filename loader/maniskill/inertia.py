@@ -198,13 +198,13 @@ def _rate(law: Inertia, moved: Motion, v: torch.Tensor, lever: torch.Tensor, vel
 
 
 def points_and_jacobians(
-    law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, links: torch.Tensor, local: torch.Tensor
+    law: Inertia, moved: Motion, v: torch.Tensor, links: torch.Tensor, local: torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Points fixed on links `links` (k,) at `local` (k, 3) in each link's frame, on a tree whose root is fixed:
     their world positions (env, k, 3), their linear Jacobians over the joints (env, k, ndof, 3; row j what DoF j adds
-    to the point's velocity) and the acceleration the velocities alone give them, dJ/dt v (env, k, 3)
+    to the point's velocity) and the acceleration the velocities alone give them, dJ/dt v (env, k, 3), from the
+    tree's `motion` at joint velocities v
     (tests/test_maniskill_joint_actuation.py::test_the_laws_connects_are_mujocos)."""
-    moved = motion(law, q, v, root_pose)
     point = moved.origin[:, links] + (moved.rotation[:, links] @ local[..., None])[..., 0]
     lever = point[:, :, None, :] - moved.joint_origin[:, None]  # (env, k, ndof, 3): p - p_j
     axis = moved.axis[:, :1].expand_as(lever)
@@ -213,28 +213,31 @@ def points_and_jacobians(
     return point, jacobian, _rate(law, moved, v, lever, velocity, links)
 
 
-def turning(
-    law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, links: torch.Tensor
-) -> tuple[torch.Tensor, ...]:
+def turning(law: Inertia, moved: Motion, v: torch.Tensor, links: torch.Tensor) -> tuple[torch.Tensor, ...]:
     """Links `links` (k,) of a tree whose root is fixed: their rotations (env, k, 3, 3), the Jacobians of their spins
     over the joints (env, k, ndof, 3), their spins (env, k, 3) and what the velocities alone add to them per unit time,
-    dJw/dt v (env, k, 3) (tests/test_maniskill_joint_actuation.py::test_the_laws_welds_are_mujocos)."""
-    moved = motion(law, q, v, root_pose)
+    dJw/dt v (env, k, 3), from the tree's `motion` at joint velocities v
+    (tests/test_maniskill_joint_actuation.py::test_the_laws_welds_are_mujocos)."""
     jacobian = moved.axis[:, :1].expand(-1, links.shape[0], -1, -1) * law.moved_turning[links]
     rate = (moved.axis_rate[:, None] * (law.moved_turning[links] * v[:, None, :, None])).sum(2)
     return moved.rotation[:, links], jacobian, moved.spin[:, links], rate
 
 
 def mass_matrix_and_bias(
-    law: Inertia, q: torch.Tensor, v: torch.Tensor, root_pose: torch.Tensor, root_velocity: torch.Tensor | None = None
+    law: Inertia,
+    q: torch.Tensor,
+    v: torch.Tensor,
+    root_pose: torch.Tensor,
+    root_velocity: torch.Tensor | None = None,
+    moved: Motion | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """M (env, n, n) and c (env, n) at joint positions q and velocities v (env, ndof) and the root's pose (env, 7);
     with a floating root, n = 6 + ndof, its coordinates first, as MuJoCo's free joint has them: `root_velocity`
     (env, 6), the root frame's origin's velocity in the world frame and its angular velocity in its own frame
     (`free_root.free_velocity` converts PhysX's). The Jacobians are laid out (env, nlink, n, 3): row k is what
-    coordinate k adds to the link's velocity."""
+    coordinate k adds to the link's velocity. `moved`: the tree's `motion` at that state, where the caller has it."""
     env = q.shape[0]
-    moved = motion(law, q, v, root_pose, root_velocity)
+    moved = motion(law, q, v, root_pose, root_velocity) if moved is None else moved
     rotation, centre, linear, angular = moved.rotation, moved.centre, moved.linear, moved.angular
     velocity, spin, speed = moved.velocity, moved.spin, moved.speed
     inertia = rotation @ law.inertia @ rotation.transpose(-1, -2)  # about it, in the world frame

@@ -30,7 +30,7 @@ from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
 from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, Welds, constraint_force
 from .free_root import RootRows, free_velocity, physx_velocity
-from .inertia import Inertia, mass_matrix_and_bias
+from .inertia import Inertia, mass_matrix_and_bias, motion
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
@@ -171,14 +171,15 @@ def implicit_step(
     with them."""
     actuated, clamped = _actuation(law, ctrl, q, v, act)
     force = actuated + _passive(law, q, v)
-    matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity)
+    moved = motion(inertia, q, v, root_pose, root_velocity)  # one kinematic pass for M, c and the loops' rows
+    matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity, moved)
     root = matrix.shape[-1] - q.shape[-1]  # 6 for a floating root, else 0
     damping = law.timestep * implicit_damping(law, clamped)
     if root:  # no force and no damping on the root's coordinates
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
     if law.any_rows:
-        force = force + constraint_force(law, matrix, q, v, force - bias, inertia, root_pose)
+        force = force + constraint_force(law, matrix, q, v, force - bias, inertia, moved)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
     return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)
