@@ -87,23 +87,13 @@ def gpu_steps_per_second(uid: str, sim_freq: int, control_steps: int, num_envs: 
 
     if not torch.cuda.is_available():
         return {"skipped": "no CUDA device: physx_cuda needs one"}
-    import gymnasium as gym
-    import mani_skill.envs  # noqa: F401  registers Empty-v1
+    from .tiers.maniskill import empty_env
 
     row: dict = {"num_envs": num_envs}
     for mode in GPU_MODES:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            env = gym.make(
-                "Empty-v1",
-                robot_uids=uid,
-                num_envs=num_envs,
-                sim_backend="physx_cuda",
-                render_backend="none",
-                obs_mode="state",
-                control_mode=mode,
-                sim_config={"sim_freq": sim_freq, "control_freq": sim_freq // SUBSTEPS},
-            )
+            env = empty_env(uid, mode, sim_freq, sim_freq // SUBSTEPS, backend="physx_cuda", num_envs=num_envs)
         try:
             row[mode] = _gpu_walk(env, control_steps) * num_envs
         finally:

@@ -439,20 +439,6 @@ def test_the_gpu_build_holds_a_closed_loop_with_locked_d6_joints(monkeypatch, mi
     assert (gpu_built == cpu_built) == (gpu_built < PIN_TOLERANCE) == (mistake is None), (gpu_built, cpu_built)
 
 
-def _gpu_env(uid: str, mode: str, num_envs: int, sim_config: dict | None = None):
-    """`Empty-v1` with the robot in `num_envs` sub-scenes on `physx_cuda` under `mode`, without rendering."""
-    return gym.make(
-        "Empty-v1",
-        robot_uids=uid,
-        sim_backend="physx_cuda",
-        render_backend="none",
-        obs_mode="state",
-        num_envs=num_envs,
-        control_mode=mode,
-        sim_config=sim_config or {},
-    )
-
-
 def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agents):
     if not torch.cuda.is_available():
         pytest.skip("needs CUDA (ManiSkill's physx_cuda backend)")
@@ -460,7 +446,7 @@ def test_on_the_gpu_physx_holds_the_build_time_settings_in_every_sub_scene(agent
     model = mujoco.MjModel.from_xml_path(agent_class.mjcf_path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        env = _gpu_env(agent_class.uid, "pd_joint_delta_pos", 2)
+        env = empty_env(agent_class.uid, "pd_joint_delta_pos", 100, 20, backend="physx_cuda", num_envs=2)
     try:
         env.reset(seed=0)
         assert "mujoco_ctrl" not in env.unwrapped.agent.supported_control_modes
@@ -491,7 +477,7 @@ def test_on_the_gpu_a_closed_loop_holds_in_every_sub_scene():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         agent = register_agent(CLOSED_CHAIN, "gpu_chain", override=True)
-        env = _gpu_env(agent.uid, "pd_joint_pos", 4, {"sim_freq": 500, "control_freq": 50})
+        env = empty_env(agent.uid, "pd_joint_pos", 500, 50, backend="physx_cuda", num_envs=4)
     try:
         env.reset(seed=0)
         links, worst = env.unwrapped.agent.robot.links_map, 0.0

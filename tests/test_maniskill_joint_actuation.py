@@ -258,21 +258,12 @@ def test_a_robot_whose_tree_the_law_cannot_read_keeps_the_reason(monkeypatch):
     assert "prismatic" in agent.joint_actuation and agent.rigid_tree is None
 
 
-def _gpu_env(uid: str, sim_config: dict):
+def _gpu_env(uid: str, sim_freq: int, control_freq: int, scene_config: dict | None = None):
     """`Empty-v1` with 4 sub-scenes on `physx_cuda` under `mujoco_ctrl_tensor`, without rendering."""
-    import gymnasium as gym
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return gym.make(
-            "Empty-v1",
-            robot_uids=uid,
-            num_envs=4,
-            sim_backend="physx_cuda",
-            render_backend="none",
-            obs_mode="state",
-            control_mode="mujoco_ctrl_tensor",
-            sim_config=sim_config,
+        return empty_env(
+            uid, "mujoco_ctrl_tensor", sim_freq, control_freq, scene_config, backend="physx_cuda", num_envs=4
         )
 
 
@@ -286,7 +277,7 @@ def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         agent = register_agent(path, "tensor_arm_gpu", override=True)
-    env = _gpu_env(agent.uid, {"sim_freq": 500, "control_freq": 50, "scene_config": {"enable_tgs": False}})
+    env = _gpu_env(agent.uid, 500, 50, {"enable_tgs": False})
     try:
         env.reset(seed=0)
         unwrapped = env.unwrapped
@@ -647,7 +638,7 @@ def test_every_sub_scenes_floating_root_keeps_mujocos_on_the_gpu(tmp_path):
     from loader.maniskill.free_root import free_velocity
 
     model, agent = _swinging_legs(tmp_path, "tensor_legs_gpu")
-    env = _gpu_env(agent.uid, {"sim_freq": 100, "control_freq": 100})
+    env = _gpu_env(agent.uid, 100, 100)
     datas = [mujoco.MjData(model) for _ in range(4)]
     try:
         env.reset(seed=0)

@@ -107,9 +107,17 @@ class ThroughTensorEnv(ThroughEnv):
         self.law.set_drive_property()
 
 
-def empty_env(uid: str, mode: str, sim_freq: int, control_freq: int, scene_config: dict | None = None):
-    """ManiSkill's `Empty-v1` with the registered agent `uid` under `mode`, on the CPU backend without rendering
-    (`scene_config`: PhysX settings over ManiSkill's default, TGS)."""
+def empty_env(
+    uid: str,
+    mode: str,
+    sim_freq: int,
+    control_freq: int,
+    scene_config: dict | None = None,
+    backend: str = "physx_cpu",
+    num_envs: int = 1,
+):
+    """ManiSkill's `Empty-v1` with the registered agent `uid` under `mode`, on `backend` (the CPU's, or `physx_cuda`
+    with `num_envs` sub-scenes) without rendering (`scene_config`: PhysX settings over ManiSkill's default, TGS)."""
     import gymnasium as gym
     import mani_skill.envs  # noqa: F401  registers Empty-v1
 
@@ -119,7 +127,8 @@ def empty_env(uid: str, mode: str, sim_freq: int, control_freq: int, scene_confi
     return gym.make(
         "Empty-v1",
         robot_uids=uid,
-        sim_backend="physx_cpu",
+        num_envs=num_envs,
+        sim_backend=backend,
         render_backend="none",
         obs_mode="state",
         control_mode=mode,
