@@ -213,7 +213,7 @@ def test_a_fixed_tendons_spring_is_carried_and_any_other_is_named(tendon):
         model = spec.compile()
         plan = plan_joint_actuation(model, {0: 0}, 1)
         assert isinstance(plan, str)  # its actuator pulls the spatial tendon: outside the law, named
-        assert SPRUNG in joint_actuation._not_carried(model, {}, {0: 0})
+        assert SPRUNG in joint_actuation._not_carried(model, {}, {0: 0}, [])
         return
     spec = mujoco.MjSpec.from_string(ACTUATED.format(integrator="implicitfast"))
     if tendon == "fixed_with_armature":

@@ -277,6 +277,7 @@ def plan_joint_actuation(
     filtered = (dynamics == FILTER) | (dynamics == FILTEREXACT)
     time_constant = np.where(filtered, np.maximum(model.actuator_dynprm[:, 0], mj.MJMINVAL), 1.0)
     act_range = np.where(model.actuator_actlimited.astype(bool), model.actuator_actrange.T, [[-np.inf], [np.inf]])
+    carried = carried_equalities(model, dof_of_joint)
     return JointActuation(
         ndof,
         moment,
@@ -298,12 +299,12 @@ def plan_joint_actuation(
         _tendon_springs(model, dof_of_joint, ndof, implicit),
         _joint_limits(model, dof_of_joint, ndof),
         _joint_friction(model, dof_of_joint, ndof),
-        _joint_couplings(model, dof_of_joint, ndof),
+        _joint_couplings(model, dof_of_joint, ndof, carried),
         _tendon_rows(model, dof_of_joint, ndof),
-        _connects(model, dof_of_joint, link_of_body or {}),
-        _welds(model, dof_of_joint, link_of_body or {}),
+        _connects(model, carried, link_of_body or {}),
+        _welds(model, carried, link_of_body or {}),
         _weightless(model, link_of_body or {}),
-        _not_carried(model, link_of_body or {}, dof_of_joint),
+        _not_carried(model, link_of_body or {}, dof_of_joint, carried),
     )
 
 
@@ -435,6 +436,7 @@ def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> l
         return []
     joint, tendon = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
     connect, weld = int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)
+    held = {d for d in range(model.nv) if int(model.dof_jntid[d]) in dof_of_joint}
 
     def carried(e: int) -> bool:
         kind, ends = int(model.eq_type[e]), (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
@@ -443,23 +445,25 @@ def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> l
         if kind == tendon:
             return all(end < 0 or _fixed_over(model, end, dof_of_joint) for end in ends)
         if kind == connect or (kind == weld and int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_BODY)):
-            ends = _connect_bodies(model, e)
-            moved = [mj.body_dofs(model, end) for end in ends]
-            held = all(int(model.dof_jntid[d]) in dof_of_joint for dofs in moved for d in dofs)
-            # an end fixed to the world is placed on the other end's root, which must be fixed too
-            roots = [mj.body_dofs(model, int(model.body_rootid[end])) for end in ends]
-            placed = all(dofs or not root for dofs, root in zip(moved, reversed(roots)))
+            bodies = _connect_bodies(model, e)
+            moved = [mj.body_dofs(model, end) for end in bodies]
+            if not all(dofs <= held for dofs in moved):
+                return False
             if kind == weld:  # both ends on the robot's links
-                return held and all(moved)
-            return held and placed and bool(moved[0] | moved[1])  # none between two fixed bodies: no rows
+                return all(moved)
+            # an end fixed to the world is placed on the other end's root, which must be fixed too
+            roots = [mj.body_dofs(model, int(model.body_rootid[end])) for end in bodies]
+            placed = all(dofs or not root for dofs, root in zip(moved, reversed(roots)))
+            return placed and bool(moved[0] | moved[1])  # none between two fixed bodies: no rows
         return False
 
     return [e for e in range(model.neq) if model.eq_active0[e] and carried(e)]
 
 
-def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> JointCouplings:
+def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, carried: list[int]):
+    """The carried couplings' rows (`carried_equalities`), each end as coefficients over the robot's DoFs."""
     kinds = (int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON))
-    rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) in kinds]
+    rows = [e for e in carried if int(model.eq_type[e]) in kinds]
     if not rows:
         return JointCouplings.none(ndof)
     joint = int(mujoco.mjtEq.mjEQ_JOINT)
@@ -467,7 +471,7 @@ def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: 
     tendons = sorted({end for e, end in zip(rows * 2, ends) if end >= 0 and int(model.eq_type[e]) != joint})
     tendon_moment = dict(zip(tendons, _tendon_moments(model, dof_of_joint, ndof, tendons)))
     first, second = np.zeros((len(rows), ndof)), np.zeros((len(rows), ndof))
-    origin, poly, stiffness, damping, solimp, diag = [], [], [], [], [], []
+    origin, diag = [], []
     for k, e in enumerate(rows):
         ends, weights, zero = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e])), [], []
         for coefficients, end in zip((first, second), ends):
@@ -481,30 +485,17 @@ def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: 
                 coefficients[k] = tendon_moment[end]
                 zero.append(model.tendon_length0[end])
                 weights.append(model.tendon_invweight0[end])
-        row = SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e])
         origin.append(zero)
-        poly.append(model.eq_data[e][:5])
-        stiffness.append(row.stiffness)
-        damping.append(row.damping)
-        solimp.append(row.solimp)
         diag.append(sum(weights))
-    return JointCouplings(
-        first,
-        second,
-        np.array(origin, float).T,
-        np.array(poly, float).T,
-        np.array(stiffness),
-        np.array(damping),
-        np.array(solimp, float).T,
-        np.array(diag),
-    )
+    poly = np.array([model.eq_data[e][:5] for e in rows], float).T
+    return JointCouplings(first, second, np.array(origin, float).T, poly, *_soft_laws(model, rows), np.array(diag))
 
 
-def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> Connects:
+def _connects(model: mujoco.MjModel, carried: list[int], link_of_body: dict[int, int]) -> Connects:
     """The carried connects' rows (`carried_equalities`), each end on its robot link; an end fixed to the world is
     placed on the robot's root link, fixed too, from MuJoCo's poses at qpos0 (the env may place the robot anywhere)."""
     connect = int(mujoco.mjtEq.mjEQ_CONNECT)
-    rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) == connect]
+    rows = [e for e in carried if int(model.eq_type[e]) == connect]
     if not rows or not link_of_body:
         return Connects.none()
     data = mj.forward_at(model, all_equalities=True)  # qpos0's poses, and every equality's rows for diagApprox
@@ -526,10 +517,10 @@ def _connects(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body:
     return Connects(np.array(links, int), np.array(points, float), *_soft_rows(model, data, rows), rows)
 
 
-def _welds(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> Welds:
+def _welds(model: mujoco.MjModel, carried: list[int], link_of_body: dict[int, int]) -> Welds:
     """The carried welds' rows (`carried_equalities`), each end on its robot link."""
     weld = int(mujoco.mjtEq.mjEQ_WELD)
-    rows = [e for e in carried_equalities(model, dof_of_joint) if int(model.eq_type[e]) == weld]
+    rows = [e for e in carried if int(model.eq_type[e]) == weld]
     if not rows or not link_of_body:
         return Welds.none()
     data = mj.forward_at(model, all_equalities=True)  # every equality's rows, for diagApprox
@@ -544,17 +535,21 @@ def _welds(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: di
     )
 
 
-def _soft_rows(model: mujoco.MjModel, data: mujoco.MjData, rows: list[int]) -> tuple[np.ndarray, ...]:
-    """Per equality of `rows`: solref's stiffness and damping (refsafe applied), solimp (5, n) and its rows' diagApprox
-    from `data`'s forward pass (n, rows each)."""
+def _soft_laws(model: mujoco.MjModel, rows: list[int]) -> tuple[np.ndarray, ...]:
+    """Per equality of `rows`: solref's stiffness and damping (refsafe applied) and solimp (5, n)."""
     laws = [SoftRow.of(model, model.eq_solref[e], model.eq_solimp[e]) for e in rows]
-    diag = [diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e) for e in rows]
     return (
         np.array([law.stiffness for law in laws]),
         np.array([law.damping for law in laws]),
         np.array([law.solimp for law in laws], float).T,
-        np.array(diag, float),
     )
+
+
+def _soft_rows(model: mujoco.MjModel, data: mujoco.MjData, rows: list[int]) -> tuple[np.ndarray, ...]:
+    """Per equality of `rows`: its soft law (`_soft_laws`) and its rows' diagApprox from `data`'s forward pass (n,
+    rows each)."""
+    diag = [diag_approx(model, data, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY), e) for e in rows]
+    return (*_soft_laws(model, rows), np.array(diag, float))
 
 
 def _connect_bodies(model: mujoco.MjModel, e: int) -> tuple[int, int]:
@@ -673,14 +668,15 @@ FREE_JOINT_TERMS = "a free joint's damping, armature or frictionloss"  # the roo
 OTHER_EQUALITIES = "equality constraints other than couplings, and connects and welds on a fixed base"
 
 
-def _planned_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> list:
-    """The equalities the plan holds: the carried ones, but a connect where no robot link is known (`_connects`)."""
+def _planned_equalities(model: mujoco.MjModel, carried: list[int], link_of_body: dict[int, int]) -> list:
+    """The equalities the plan holds: the carried ones, but a loop where no robot link is known (`_connects`)."""
     loops = (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD))
-    carried = carried_equalities(model, dof_of_joint)
     return carried if link_of_body else [e for e in carried if int(model.eq_type[e]) not in loops]
 
 
-def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int]) -> list[str]:
+def _not_carried(
+    model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int], carried: list[int]
+) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
     sprung = int(np.count_nonzero((model.tendon_stiffness != 0) | (model.tendon_damping != 0)))
     free = int(mujoco.mjtJoint.mjJNT_FREE)
@@ -706,7 +702,7 @@ def _not_carried(model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joi
         (
             bool(model.neq)
             and not mj.disabled(model, "equality", "constraint")
-            and len(_planned_equalities(model, dof_of_joint, link_of_body)) < int(np.count_nonzero(model.eq_active0)),
+            and len(_planned_equalities(model, carried, link_of_body)) < int(np.count_nonzero(model.eq_active0)),
             OTHER_EQUALITIES,
         ),
         (np.any((model.body_gravcomp != 0) & (model.body_gravcomp != 1)), "partial gravity compensation"),
