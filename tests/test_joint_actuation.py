@@ -99,12 +99,12 @@ FLOATING = """<mujoco><worldbody><body name="root"><freejoint/><geom size=".1"/>
 
 @pytest.mark.parametrize("flags", [(), ("limit", "equality"), ("constraint",)])
 def test_what_the_law_leaves_out_is_named_and_a_disabled_row_is_not(flags):
-    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); a connect equality
-    is named unless the model disables equalities. Its joint limit and its joint coupling are carried (the law's
-    rows) unless the model disables them."""
+    """A robot on a free joint names its floating root (PhysX's step where a contact pushed it); a connect from it to
+    the world is named unless the model disables equalities (the law places a world end on a fixed root alone). Its
+    joint limit and its joint coupling are carried (the law's rows) unless the model disables them."""
     disabled = " ".join(f'{flag}="disable"' for flag in flags)
     xml = FLOATING.replace("<worldbody>", f"<option><flag {disabled}/></option><worldbody>", 1)
-    xml = xml.replace("</equality>", '<connect body1="arm" body2="root" anchor="0 0 0"/></equality>')
+    xml = xml.replace("</equality>", '<connect body1="arm" anchor="0 0 0"/></equality>')
     model = mujoco.MjModel.from_xml_string(xml)
     plan = plan_joint_actuation(model, {1: 0}, 1, {1: 0, 2: 1})
     assert FLOATING_ROOT in plan.not_carried

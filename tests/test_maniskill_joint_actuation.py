@@ -22,6 +22,8 @@ from test_joint_actuation import ACTUATED, DOF_OF_JOINT, SIBLINGS, SPATIAL
 from conformance.tiers.maniskill import empty_env
 from loader import MJCFLoader
 from loader.maniskill import constraint_rows, joint_actuation, register_agent
+from loader.maniskill import inertia as inertia_module
+from loader.maniskill.free_root import RootRows
 from loader.maniskill.inertia import Inertia
 from loader.maniskill.joint_actuation import Law, implicit_step, next_activation, start_force
 from loader.plan.joint_actuation import OTHER_EQUALITIES, plan_joint_actuation, robot_indices
@@ -144,7 +146,8 @@ SATURATED_TOLERANCE = 2e-4
 # relative, the law's end velocity against MuJoCo's step (no constraint rows) at 32 random states: measured 2.0e-6
 # (PhysX's float32 masses and frames in M and c); with joint limit rows 3.5e-7, with frictionloss rows too 4.0e-7,
 # with joint couplings 8.8e-7, with tendon couplings 1.1e-7, with tendon limits and frictionloss 1.4e-6, with a connect
-# 9.6e-7, with a weld 5.5e-7; each mistake misses by 5e-4 or more
+# 9.6e-7, with a weld 5.5e-7, with either on a floating base 9.4e-7 (joints and root); each mistake misses by 5e-4 or
+# more
 STEP_TOLERANCE = 1e-4
 
 
@@ -692,13 +695,15 @@ LIMITED = """
 def _worst_rows_step(result, dofs, plan, inertia, slow: float) -> float:
     """The largest relative |law - MuJoCo| end velocity over 32 random states about and past the ranges' ends and
     ctrls (a share `slow` of them nearly still and barely pushed, where frictionloss holds a joint), MuJoCo's rows
-    on."""
+    on; on a floating robot (its free joint MuJoCo's first) at random root poses and velocities, the root's end
+    velocity too (`RootRows` on the step's M, c and f)."""
     model = result.model
     law = Law(plan, model.opt.timestep, "cpu", torch.float64)
     joints = sorted(dofs, key=dofs.get)
     qpos, qvel = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
     root = result.articulations[0].get_root_pose()
-    pose = torch.tensor(np.r_[root.p, root.q], dtype=torch.float64)[None]
+    pose, root_velocity = torch.tensor(np.r_[root.p, root.q], dtype=torch.float64)[None], None
+    compared = list(qvel) + list(range(6)) * inertia.floating
     data, rng, worst = mujoco.MjData(model), np.random.default_rng(0), 0.0
     for sample in range(32):
         mujoco.mj_resetData(model, data)
@@ -706,10 +711,23 @@ def _worst_rows_step(result, dofs, plan, inertia, slow: float) -> float:
         data.qpos[qpos] = rng.uniform(model.jnt_range[joints, 0] - 0.06, model.jnt_range[joints, 1] + 0.06)
         data.qvel[qvel] = rng.uniform(-2.0 * push, 2.0 * push, len(joints))
         data.ctrl[:] = rng.uniform(-push, push, model.nu)
+        if inertia.floating:
+            assert model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+            turn = rng.normal(size=4)
+            data.qpos[:7], data.qvel[:6] = (
+                np.r_[rng.uniform(-1, 1, 3), turn / np.linalg.norm(turn)],
+                rng.uniform(-1, 1, 6),
+            )
+            pose, root_velocity = torch.tensor(data.qpos[None, :7]), torch.tensor(data.qvel[None, :6])
         q, v = torch.tensor(data.qpos[qpos])[None], torch.tensor(data.qvel[qvel])[None]
-        end = implicit_step(law, inertia, torch.tensor(data.ctrl)[None], q, v, pose).end[0].numpy()
+        step = implicit_step(law, inertia, torch.tensor(data.ctrl)[None], q, v, pose, root_velocity)
+        end = step.end[0].numpy()
+        if inertia.floating:
+            rows = step.root_rows(q, v, pose, root_velocity, law.timestep)
+            end = np.r_[end, rows.end(step.end)[1][0].numpy()]
         mujoco.mj_step(model, data)
-        worst = max(worst, float(np.abs(end - data.qvel[qvel]).max() / max(1.0, np.abs(data.qvel[qvel]).max())))
+        expected = data.qvel[compared]
+        worst = max(worst, float(np.abs(end - expected).max() / max(1.0, np.abs(expected).max())))
     return worst
 
 
@@ -918,6 +936,17 @@ def test_the_laws_connects_are_mujocos(monkeypatch, mistake):
 LOOP_TOLERANCE = 5e-4
 
 
+def _tensor_env(path: Path, uid: str):
+    """MuJoCo's model and data of `path`, and `Empty-v1` at 500 Hz with it registered as `uid` under
+    `mujoco_ctrl_tensor`."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, uid, override=True)
+        env = empty_env(agent.uid, "mujoco_ctrl_tensor", 500, 50)
+    return model, mujoco.MjData(model), env
+
+
 @pytest.mark.parametrize("case", [None, "gpu_build", "d6_locked", "connect_left_out"])
 def test_a_closed_chain_follows_mujoco_with_its_connect_in_the_law(monkeypatch, case):
     """The closed chain's five-bar swung by its hip in `Empty-v1` under `mujoco_ctrl_tensor`: the law carries its
@@ -941,12 +970,7 @@ def test_a_closed_chain_follows_mujoco_with_its_connect_in_the_law(monkeypatch, 
             return law
 
         monkeypatch.setattr(agent_module, "plan_joint_actuation", without_connects)
-    model = mujoco.MjModel.from_xml_path(str(CLOSED_CHAIN))
-    data = mujoco.MjData(model)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        agent = register_agent(CLOSED_CHAIN, f"tensor_chain_{case}", override=True)
-        env = empty_env(agent.uid, "mujoco_ctrl_tensor", 500, 50)
+    model, data, env = _tensor_env(CLOSED_CHAIN, f"tensor_chain_{case}")
     try:
         env.reset(seed=0)
         robot, worst = env.unwrapped.agent.robot, 0.0
@@ -1013,3 +1037,93 @@ def test_the_laws_welds_are_mujocos(monkeypatch, mistake):
         plan.welds = type(welds).none()
     worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
     assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+def _floating(fixture: Path) -> str:
+    """A corpus fixture whose base, fixed to the world there, floats on a free joint."""
+    xml = fixture.read_text()
+    assert xml.count('<body name="base" pos="0 0 1">') == 1
+    return xml.replace('<body name="base" pos="0 0 1">', '<body name="base" pos="0 0 1"><freejoint/>')
+
+
+@pytest.mark.parametrize("mistake", [None, "no_loops", "root_force_left_out", "no_root_columns", "no_root_rate"])
+@pytest.mark.parametrize("fixture", [CLOSED_CHAIN, WELDED_LEGS], ids=["connect", "weld"])
+def test_loops_on_a_floating_chain_are_mujocos(monkeypatch, fixture, mistake):
+    """The closed chain and the welded legs on a floating base: at 32 random states and root motions, the law's end
+    velocity of the joints and of the root is MuJoCo's step's with the loop's rows, measured 9.4e-7 (connect) and
+    5.3e-7 (weld) relative (`STEP_TOLERANCE`). The rows' Jacobians take the free joint's six columns and their
+    reference its share of dJ/dt v, and the root's step takes the rows' force on it. Each mistake misses (connect,
+    weld): the loop left out (1.0, 1.2), the rows' force left off the root's step (1.0e-2, 1.3e-2), the root's columns
+    left out of the rows' Jacobians (6.6e-2, 0.23), the root's share of dJ/dt v left out (7.9e-3, 8.6e-3)."""
+    result, dofs, plan, inertia = _loaded_law(_floating(fixture))
+    assert inertia.floating and len(plan.connects.links) + len(plan.welds.links) == 1
+    assert OTHER_EQUALITIES not in plan.not_carried
+    if mistake == "no_loops":
+        plan.connects, plan.welds = type(plan.connects).none(), type(plan.welds).none()
+    elif mistake == "root_force_left_out":
+        monkeypatch.setattr(
+            joint_actuation.ImplicitStep, "root_rows", lambda step, *a: RootRows.solve(step.matrix, step.bias, *a)
+        )
+    elif mistake == "no_root_columns":
+        for name in ("points_and_jacobians", "turning"):
+            placed = getattr(constraint_rows, name)
+
+            def rootless(*args, placed=placed):  # the Jacobian, second of either's outputs, zero in the root's rows
+                out = list(placed(*args))
+                out[1] = torch.nn.functional.pad(out[1][:, :, 6:], (0, 0, 6, 0))
+                return tuple(out)
+
+            monkeypatch.setattr(constraint_rows, name, rootless)
+    elif mistake == "no_root_rate":
+        placed = constraint_rows.points_and_jacobians
+
+        def unturned(law, moved, v, links, local):
+            point, jacobian, rate = placed(law, moved, v, links, local)
+            velocity = (jacobian * moved.speed[:, None, :, None]).sum(2)
+            return point, jacobian, rate - inertia_module._root_rate(moved, velocity)
+
+        monkeypatch.setattr(constraint_rows, "points_and_jacobians", unturned)
+    worst = _worst_rows_step(result, dofs, plan, inertia, slow=0.0)
+    assert (worst < STEP_TOLERANCE) == (mistake is None), worst
+
+
+# m or rad: the largest |ManiSkill - MuJoCo| of the floating closed chain's and welded legs' qpos (the free joint's
+# among them) over 0.5 s of a 0.2 N m sine under mujoco_ctrl_tensor and TGS (mani-skill 3.0.1, sapien 3.0.3, mujoco
+# 3.17.0, torch 2.13.0): measured 1.8e-5 (connect) and 1.2e-5 (weld); with the loop's D6 joint left locked 7.8e-3 and
+# 5.1e-2, with qf not taking off what the loop's force on the root moves the joints by 5.5e-4 and 1.2e-4
+FLOATING_LOOP_TOLERANCE = 5e-5
+
+
+@pytest.mark.parametrize("case", [None, "d6_locked", "qf_unpushed"])
+@pytest.mark.parametrize("fixture", [CLOSED_CHAIN, WELDED_LEGS], ids=["connect", "weld"])
+def test_a_floating_loop_follows_mujoco_in_empty_v1(tmp_path, monkeypatch, fixture, case):
+    """The closed chain and the welded legs falling on a free joint in `Empty-v1` under `mujoco_ctrl_tensor`, the hip
+    swung by a sine: root and joints follow MuJoCo stepping the same ctrl. PhysX's root takes no force, so `qf` takes
+    off what the loop's force on the root would move the joints by, and the root's settle gives the root its share.
+    With the loop's D6 joint left locked PhysX holds the loop rigidly against the soft rows; without that share
+    taken off, the joints miss MuJoCo's end velocity every step."""
+    from loader.maniskill import agent as agent_module
+
+    if case == "d6_locked":
+        monkeypatch.setattr(agent_module.MJCFAgent, "_loops_for", lambda agent, mode, gpu: None)
+    path = tmp_path / f"floating_{fixture.name}"
+    path.write_text(_floating(fixture))
+    model, data, env = _tensor_env(path, f"tensor_floating_{fixture.stem}_{case}")
+    try:
+        env.reset(seed=0)
+        (result,) = env.unwrapped.agent.results
+        controller = env.unwrapped.agent.controller.controllers["ctrl"]
+        if case == "qf_unpushed":
+            controller.law.any_loops = False
+        result.set_state(data.qpos, data.qvel)
+        worst = 0.0
+        for step in range(25):
+            data.ctrl[:] = np.float32(0.2 * np.sin(2 * np.pi * step / 25))
+            env.step(data.ctrl.astype(np.float32))
+            for _ in range(10):
+                mujoco.mj_step(model, data)
+            controller.settle()
+            worst = max(worst, float(np.abs(result.get_state()[0] - data.qpos).max()))
+    finally:
+        env.close()
+    assert (worst < FLOATING_LOOP_TOLERANCE) == (case is None), worst

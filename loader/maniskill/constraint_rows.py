@@ -142,7 +142,7 @@ class Connects:
         self.imp = Solimp(connects.solimp, tensor)
 
     def at(self, inertia, moved, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The rows at the state (the tree's `motion`, joint velocities v): their Jacobians (env, 3n, DoF), reference
+        """The rows at the state (the tree's `motion`, joint velocities v): their Jacobians (env, 3n, n), reference
         accelerations
         aref = -B J v - K imp r - dJ/dt v and weights D (env, 3n), r = p1 - p2 the anchors' separation, imp taken at
         |r|, dJ/dt v what the velocities alone accelerate r by (MuJoCo's correction of a connect's reference)."""
@@ -153,7 +153,7 @@ class Connects:
         separation = points[:, :, 0] - points[:, :, 1]  # (env, n, 3)
         jacobian = (jacobians[:, :, 0] - jacobians[:, :, 1]).transpose(-1, -2)  # (env, n, 3, DoF)
         imp = self.imp(torch.linalg.vector_norm(separation, dim=-1))[..., None]  # (env, n, 1)
-        speed = (jacobian @ v[:, None, :, None])[..., 0]  # (env, n, 3)
+        speed = (jacobian @ moved.speed[:, None, :, None])[..., 0]  # (env, n, 3)
         aref = -self.damping[:, None] * speed - self.stiffness[:, None] * imp * separation
         aref = aref - (rates[:, :, 0] - rates[:, :, 1])
         weight = imp / torch.clamp((1.0 - imp) * self.diag, min=MJMINVAL)
@@ -205,7 +205,7 @@ class Welds:
         self.imp = Solimp(welds.solimp, tensor)
 
     def at(self, inertia, moved, v: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The rows at the state (the tree's `motion`, joint velocities v): their Jacobians (env, 6n, DoF), reference
+        """The rows at the state (the tree's `motion`, joint velocities v): their Jacobians (env, 6n, n), reference
         accelerations aref = -B J v - K imp r - dJ/dt v and weights D (env, 6n): three on the points' separation (as
         a connect's), three on torquescale times the vector part of e = conj(q2) q1 relpose, with MuJoCo's Jacobian
         0.5 (0, R2^T dw) e and its rate."""
@@ -235,7 +235,7 @@ class Welds:
         residual = torch.cat((separation, scale * error[..., 1:]), -1)  # (env, n, 6)
         jacobian = torch.cat(((jacobians[:, :, 0] - jacobians[:, :, 1]), rotational), -1).transpose(-1, -2)
         imp = self.imp(torch.linalg.vector_norm(residual, dim=-1))[..., None]
-        speed = (jacobian @ v[:, None, :, None])[..., 0]  # (env, n, 6)
+        speed = (jacobian @ moved.speed[:, None, :, None])[..., 0]  # (env, n, 6)
         rate = torch.cat((rates[:, :, 0] - rates[:, :, 1], 0.5 * scale * terms[..., 1:]), -1)
         aref = -self.damping[:, None] * speed - self.stiffness[:, None] * imp * residual - rate
         weight = imp / torch.clamp((1.0 - imp) * self.diag, min=MJMINVAL)
@@ -250,17 +250,17 @@ def constraint_force(
     smooth at the acceleration a MuJoCo's solver finds. The equality rows (couplings; connects and welds, on the
     tree's `motion` at the state, `moved`), two-sided and unbounded, add J^T D J to M and J^T D aref to the smooth
     force, and the limit and frictionloss rows are solved on those (`_row_solve`)."""
-    rows = []
-    if law.couplings.any:
-        rows.append(law.couplings.at(q, v))
+    rows, root = [], matrix.shape[-1] - q.shape[-1]
+    if law.couplings.any:  # over the joints alone: no force on a floating root's coordinates
+        jacobian, aref, weight = law.couplings.at(q, v)
+        rows.append((torch.nn.functional.pad(jacobian, (root, 0)), aref, weight))
     if law.connects.any:
         rows.append(law.connects.at(inertia, moved, v))
     if law.welds.any:
         rows.append(law.welds.at(inertia, moved, v))
     coupled, pulled = matrix, smooth
     if rows:
-        root = matrix.shape[-1] - q.shape[-1]
-        jacobian = torch.nn.functional.pad(torch.cat([j for j, _, _ in rows], 1), (root, 0))
+        jacobian = torch.cat([j for j, _, _ in rows], 1)
         aref, weight = torch.cat([a for _, a, _ in rows], 1), torch.cat([w for _, _, w in rows], 1)
         weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
         coupled, pulled = matrix + weighted @ jacobian, smooth + (weighted @ aref[..., None])[..., 0]

@@ -11,10 +11,11 @@ roots part wherever the links turn against each other within a step, though the 
 on the free joint's rows gives the root's end velocity from the joints' end velocities, whatever PhysX's solver did
 to them (a joint limit's force has no share in those rows):
 
-    M_rr (v1_r - v0_r) = -dt c_r - M_rj (v1_j - v0_j),
+    M_rr (v1_r - v0_r) = dt (f_r - c_r) - M_rj (v1_j - v0_j),
 
-M and c at the step's start. `RootRows` keeps that solve, taken at the start, and `settle` writes the root's end
-velocity and the pose MuJoCo's position update gives into PhysX after the step
+M, c and f_r (the force of a loop's rows on the root, the only one the law puts there) at the step's start.
+`RootRows` keeps that solve, taken at the start, and `settle` writes the root's end velocity and the pose MuJoCo's
+position update gives into PhysX after the step
 (tests/test_maniskill_joint_actuation.py::test_a_floating_robot_keeps_mujocos_root).
 """
 
@@ -89,8 +90,8 @@ class RootRows:
 
     @staticmethod
     def solve(matrix, bias, q0, v0, pose0, root_velocity, timestep: float) -> RootRows:
-        """From M (env, n, n) and c (env, n) at the start (the root's six coordinates first), the joints' positions
-        and velocities `q0`, `v0` (env, ndof), the root's pose and free joint velocity."""
+        """From M (env, n, n) and c - f (env, n) at the start (the root's six coordinates first), the joints'
+        positions and velocities `q0`, `v0` (env, ndof), the root's pose and free joint velocity."""
         rows = matrix[:, :6]
         right = torch.cat(((rows[:, :, 6:] @ v0[..., None]) - timestep * bias[:, :6, None], -rows[:, :, 6:]), -1)
         solved = torch.linalg.solve_ex(rows[:, :, :6], right)[0]

@@ -169,12 +169,9 @@ def motion(
     linear = torch.linalg.cross(axis, lever) * law.moved_turning + axis * law.moved_sliding
     angular = axis * law.moved_turning
     speed = v
-    if law.floating:  # MuJoCo's free joint: the origin's velocity in the world frame, the spin in the root's frame
-        eye = law.eye.expand(env, nlink, 3, 3)
-        axes = rotation[:, :1].transpose(-1, -2).expand(env, nlink, 3, 3)  # row k: the root's axis k in the world
-        arm = (centre - origin[:, :1])[:, :, None, :].expand(env, nlink, 3, 3)  # c_i - o
-        linear = torch.cat((eye, torch.linalg.cross(axes, arm), linear), 2)
-        angular = torch.cat((torch.zeros_like(eye), axes, angular), 2)
+    if law.floating:
+        root_linear, root_angular = _root_columns(law, rotation, origin, centre)
+        linear, angular = torch.cat((root_linear, linear), 2), torch.cat((root_angular, angular), 2)
         speed = torch.cat((root_velocity, v), 1)
     weights = speed[:, None, :, None]
     velocity, spin = (linear * weights).sum(2), (angular * weights).sum(2)  # each centre's, each link's spin
@@ -185,6 +182,25 @@ def motion(
     return Motion(
         rotation, origin, joint_origin, centre, axis, linear, angular, speed, velocity, spin, axis_rate, anchor
     )
+
+
+def _root_columns(law: Inertia, rotation: torch.Tensor, origin: torch.Tensor, point: torch.Tensor):
+    """A floating root's six columns of the Jacobians of points (env, k, 3) on its tree, of their velocities and of
+    their links' spins, (env, k, 6, 3) each, as MuJoCo's free joint has its coordinates: the origin's velocity in
+    the world frame (the identity; no spin) and the spin in the root's frame (its three axes b_k turning with it,
+    through its origin: b_k x (p - o), and b_k)."""
+    env, count = point.shape[:2]
+    eye = law.eye.expand(env, count, 3, 3)
+    axes = rotation[:, :1].transpose(-1, -2).expand(env, count, 3, 3)  # row k: the root's axis k in the world
+    arm = (point - origin[:, :1])[:, :, None, :].expand(env, count, 3, 3)  # p - o
+    return torch.cat((eye, torch.linalg.cross(axes, arm)), 2), torch.cat((torch.zeros_like(eye), axes), 2)
+
+
+def _root_rate(moved: Motion, velocity: torch.Tensor) -> torch.Tensor:
+    """What a floating root's columns add to dJ/dt v of points moving at `velocity` (env, k, 3): its axes turn with
+    it, sum_k w_k d/dt (b_k x (p - o)) = w x (V_p - v_o), w its spin (in the world frame) and v_o its origin's
+    velocity; its spin columns add nothing (sum_k w_k w x b_k = 0)."""
+    return torch.linalg.cross(moved.spin[:, :1], velocity - moved.speed[:, None, :3])
 
 
 def _rate(law: Inertia, moved: Motion, v: torch.Tensor, lever: torch.Tensor, velocity: torch.Tensor, links):
@@ -200,25 +216,30 @@ def _rate(law: Inertia, moved: Motion, v: torch.Tensor, lever: torch.Tensor, vel
 def points_and_jacobians(
     law: Inertia, moved: Motion, v: torch.Tensor, links: torch.Tensor, local: torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Points fixed on links `links` (k,) at `local` (k, 3) in each link's frame, on a tree whose root is fixed:
-    their world positions (env, k, 3), their linear Jacobians over the joints (env, k, ndof, 3; row j what DoF j adds
-    to the point's velocity) and the acceleration the velocities alone give them, dJ/dt v (env, k, 3), from the
+    """Points fixed on links `links` (k,) at `local` (k, 3) in each link's frame: their world positions (env, k, 3),
+    their linear Jacobians over the coordinates (env, k, n, 3; row j what coordinate j adds to the point's velocity;
+    a floating root's six first) and the acceleration the velocities alone give them, dJ/dt v (env, k, 3), from the
     tree's `motion` at joint velocities v
-    (tests/test_maniskill_joint_actuation.py::test_the_laws_connects_are_mujocos)."""
+    (tests/test_maniskill_joint_actuation.py::test_the_laws_connects_are_mujocos, and the floating loops' test)."""
     point = moved.origin[:, links] + (moved.rotation[:, links] @ local[..., None])[..., 0]
     lever = point[:, :, None, :] - moved.joint_origin[:, None]  # (env, k, ndof, 3): p - p_j
     axis = moved.axis[:, :1].expand_as(lever)
     jacobian = torch.linalg.cross(axis, lever) * law.moved_turning[links] + axis * law.moved_sliding[links]
-    velocity = (jacobian * v[:, None, :, None]).sum(2)
-    return point, jacobian, _rate(law, moved, v, lever, velocity, links)
+    if law.floating:
+        jacobian = torch.cat((_root_columns(law, moved.rotation, moved.origin, point)[0], jacobian), 2)
+    velocity = (jacobian * moved.speed[:, None, :, None]).sum(2)
+    rate = _rate(law, moved, v, lever, velocity, links)
+    return point, jacobian, rate + _root_rate(moved, velocity) if law.floating else rate
 
 
 def turning(law: Inertia, moved: Motion, v: torch.Tensor, links: torch.Tensor) -> tuple[torch.Tensor, ...]:
-    """Links `links` (k,) of a tree whose root is fixed: their rotations (env, k, 3, 3), the Jacobians of their spins
-    over the joints (env, k, ndof, 3), their spins (env, k, 3) and what the velocities alone add to them per unit time,
-    dJw/dt v (env, k, 3), from the tree's `motion` at joint velocities v
-    (tests/test_maniskill_joint_actuation.py::test_the_laws_welds_are_mujocos)."""
+    """Links `links` (k,): their rotations (env, k, 3, 3), the Jacobians of their spins over the coordinates (env, k,
+    n, 3; a floating root's six first), their spins (env, k, 3) and what the velocities alone add to them per unit
+    time, dJw/dt v (env, k, 3; nothing from the root's columns), from the tree's `motion` at joint velocities v
+    (tests/test_maniskill_joint_actuation.py::test_the_laws_welds_are_mujocos, and the floating loops' test)."""
     jacobian = moved.axis[:, :1].expand(-1, links.shape[0], -1, -1) * law.moved_turning[links]
+    if law.floating:
+        jacobian = torch.cat((_root_columns(law, moved.rotation, moved.origin, moved.origin[:, links])[1], jacobian), 2)
     rate = (moved.axis_rate[:, None] * (law.moved_turning[links] * v[:, None, :, None])).sum(2)
     return moved.rotation[:, links], jacobian, moved.spin[:, links], rate
 
@@ -245,9 +266,8 @@ def mass_matrix_and_bias(
     acceleration = _rate(law, moved, v, lever, velocity, slice(None))
     weights = v[:, None, :, None]
     spin_rate = (moved.axis_rate[:, None].expand_as(lever) * (law.moved_turning * weights)).sum(2)
-    if law.floating:  # the root's axes turn with it: sum_k w_k d/dt (b_k x (c_i - o)) = w x (V_i - v_o)
-        spun = torch.linalg.cross(spin[:, :1], velocity - root_velocity[:, None, :3])
-        acceleration = acceleration + spun
+    if law.floating:
+        acceleration = acceleration + _root_rate(moved, velocity)
     force = law.mass[:, None] * (acceleration - law.weight)  # (env, nlink, 3)
     torque = inertia @ torch.stack((spin_rate, spin), -1)  # I dw and I w, as two columns
     torque = torque[..., 0] + torch.linalg.cross(spin, torque[..., 1])

@@ -85,8 +85,8 @@ class Law:
         self.couplings = Couplings(plan.couplings, tensor)
         self.connects = Connects(plan.connects, tensor, device)
         self.welds = Welds(plan.welds, tensor, device)
-        loops = self.connects.any or self.welds.any
-        self.any_rows = bool(self.row_sets) or self.couplings.any or loops  # read on the host
+        self.any_loops = self.connects.any or self.welds.any  # read on the host
+        self.any_rows = bool(self.row_sets) or self.couplings.any or self.any_loops
 
 
 def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
@@ -149,6 +149,12 @@ class ImplicitStep(NamedTuple):
     end: torch.Tensor  # (env, DoF): v1
     matrix: torch.Tensor  # (env, n, n): M at the start, a floating root's six coordinates first
     bias: torch.Tensor  # (env, n): c
+    force: torch.Tensor  # (env, n): f, the rows' force included (on a floating root's coordinates, the loops')
+
+    def root_rows(self, q, v, pose, root_velocity, timestep: float) -> RootRows:
+        """The free joint's rows of this step (`free_root.RootRows`), from the start's joint positions and velocities
+        (env, ndof), root pose and free joint velocity: M, and c less f (the loops' rows' force on the root)."""
+        return RootRows.solve(self.matrix, self.bias - self.force, q, v, pose, root_velocity, timestep)
 
 
 def implicit_step(
@@ -167,8 +173,8 @@ def implicit_step(
 
     f the actuator and passive force at the start, D its implicit derivative, M and c PhysX's inertia and bias at
     the state (`inertia.py`; a floating root's six coordinates first, no force on them), and the joint force
-    `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver; M and c
-    with them."""
+    `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver; M, c and
+    f (the constraint rows' force in it) with them."""
     actuated, clamped = _actuation(law, ctrl, q, v, act)
     force = actuated + _passive(law, q, v)
     moved = motion(inertia, q, v, root_pose, root_velocity)  # one kinematic pass for M, c and the loops' rows
@@ -181,8 +187,11 @@ def implicit_step(
     if law.any_rows:
         force = force + constraint_force(law, matrix, q, v, force - bias, inertia, moved)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
-    qf = (matrix @ change[..., None])[..., 0] / law.timestep + bias
-    return ImplicitStep(qf[:, root:], v + change[:, root:], matrix, bias)
+    qf = ((matrix @ change[..., None])[..., 0] / law.timestep + bias)[:, root:]
+    if root and law.any_loops:  # PhysX's root takes no force: qf less what the loops' force on it, f_r, moves
+        pushed = torch.linalg.solve_ex(matrix[:, :root, :root], force[:, :root])[0]  # the joints by, M_jr M_rr^-1 f_r
+        qf = qf - (matrix[:, root:, :root] @ pushed[..., None])[..., 0]
+    return ImplicitStep(qf, v + change[:, root:], matrix, bias, force)
 
 
 class JointActuationController(BaseController):
@@ -322,7 +331,7 @@ class JointActuationController(BaseController):
             velocity = free_velocity(self.inertia, pose, velocity)
         step = implicit_step(self.law, self.inertia, self.ctrl, q, v, pose, velocity, self.act)
         if velocity is not None:
-            self.rows = RootRows.solve(step.matrix, step.bias, q, v, pose, velocity, self.law.timestep)
+            self.rows = step.root_rows(q, v, pose, velocity, self.law.timestep)
         self.aim(step.end)
         self.articulation.set_qf(step.qf.float())
         self.act = next_activation(self.law, self.ctrl, self.act)

@@ -429,14 +429,15 @@ def _tendon_rows(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int)
 
 def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The active equalities the law carries: joint equalities whose joints (both, or the one) are among the robot's
-    hinges and slides, tendon equalities whose tendons are fixed over them, connects (given by body or site) whose
-    ends are each moved only by those joints or fixed to the world, and welds (given by body) whose two ends those
-    joints move (a loop on a fixed-base robot, a gripper's linkage)."""
+    hinges and slides, tendon equalities whose tendons are fixed over them, and connects (given by body or site) and
+    welds (given by body) within the robot's tree: each end moved only by those joints and the free joint of the
+    robot's root, if it has one (a gripper's linkage, a leg's rods on a floating body). A connect's end may instead be
+    fixed to the world where the robot's root is fixed too."""
     if mj.disabled(model, "equality", "constraint"):
         return []
     joint, tendon = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
     connect, weld = int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)
-    held = {d for d in range(model.nv) if int(model.dof_jntid[d]) in dof_of_joint}
+    held = _loop_dofs(model, dof_of_joint)
 
     def carried(e: int) -> bool:
         kind, ends = int(model.eq_type[e]), (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
@@ -458,6 +459,19 @@ def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> l
         return False
 
     return [e for e in range(model.neq) if model.eq_active0[e] and carried(e)]
+
+
+def _loop_dofs(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> set[int]:
+    """MuJoCo's DoFs that may move a carried loop's ends: the robot's hinges and slides, and the free joint of the
+    robot's root body where it has one (the law moves that root as MuJoCo's free joint moves it, or holds it fixed
+    where the robot's root link is)."""
+    dofs = {d for d in range(model.nv) if int(model.dof_jntid[d]) in dof_of_joint}
+    roots = {int(model.body_rootid[int(model.jnt_bodyid[j])]) for j in dof_of_joint}
+    free = int(mujoco.mjtJoint.mjJNT_FREE)
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) == free and int(model.jnt_bodyid[j]) in roots:
+            dofs.update(range(int(model.jnt_dofadr[j]), int(model.jnt_dofadr[j]) + 6))
+    return dofs
 
 
 def _joint_couplings(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, carried: list[int]):
@@ -665,7 +679,7 @@ def _transmission_joints(model: mujoco.MjModel, actuator: int) -> list[int] | No
 # the law takes a floating root's step from MuJoCo's rows where every force on the tree is its own
 FLOATING_ROOT = "a floating root's step where a contact pushed the tree: PhysX's, which conserves its momentum"
 FREE_JOINT_TERMS = "a free joint's damping, armature or frictionloss"  # the root rows hold none of them
-OTHER_EQUALITIES = "equality constraints other than couplings, and connects and welds on a fixed base"
+OTHER_EQUALITIES = "equality constraints other than couplings, and connects and welds within the robot's tree"
 
 
 def _planned_equalities(model: mujoco.MjModel, carried: list[int], link_of_body: dict[int, int]) -> list:
