@@ -1127,3 +1127,27 @@ def test_a_floating_loop_follows_mujoco_in_empty_v1(tmp_path, monkeypatch, fixtu
     finally:
         env.close()
     assert (worst < FLOATING_LOOP_TOLERANCE) == (case is None), worst
+
+
+def test_the_robot_is_the_tree_the_actuators_drive(tmp_path):
+    """A scene file whose table, a tree of its own, comes before the stiff servo arm: the agent's robot is the arm,
+    the tree its actuators drive, with its PD modes and `mujoco_ctrl_tensor`, whose law follows MuJoCo on it (PGS,
+    `TENSOR_FOLLOW_TOLERANCE`); `mujoco_ctrl` is not offered (its per-step terms need the model to be one tree).
+    Taking the first tree, as ManiSkill's own agent does, makes the table the robot: no mode drives the arm."""
+    xml = (FIXTURES / "folding_servo_arm.xml").read_text()
+    table = '<body name="table" pos="0 0 -1"><geom type="box" size=".5 .5 .05" contype="0" conaffinity="0"/></body>'
+    path = tmp_path / "arm_beside_a_table.xml"
+    path.write_text(xml.replace("<worldbody>", f"<worldbody>{table}", 1))
+    model = mujoco.MjModel.from_xml_path(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        agent = register_agent(path, "arm_beside_a_table", override=True)
+        env = empty_env(agent.uid, "pd_joint_pos", 500, 50)
+    try:
+        env.reset(seed=0)
+        assert env.unwrapped.agent.robot.dof[0] == model.nv == 3
+        modes = env.unwrapped.agent.supported_control_modes
+        assert "mujoco_ctrl_tensor" in modes and "pd_joint_delta_pos" in modes and "mujoco_ctrl" not in modes
+    finally:
+        env.close()
+    assert _follow(agent.uid, model) < TENSOR_FOLLOW_TOLERANCE["pgs"]

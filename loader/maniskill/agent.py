@@ -23,7 +23,7 @@ from mani_skill.utils.structs.pose import Pose
 
 from ..errors import UnsupportedFeatureWarning
 from ..mjcf_loader import MJCFLoader as CoreLoader
-from ..plan.joint_actuation import JointActuation, plan_joint_actuation, robot_indices
+from ..plan.joint_actuation import JointActuation, plan_joint_actuation, robot_articulation, robot_indices
 from ..plan.rigid_tree import RigidTree, rigid_tree
 from ..servos import Motor, Servo, derive, motors
 from .joint_actuation import JointActuationConfig, JointActuationController
@@ -53,6 +53,7 @@ class MJCFAgent(BaseAgent):
     # the connects and welds (MuJoCo's ids) the law carries as MuJoCo's soft rows: their D6 joints free in
     # `mujoco_ctrl_tensor`
     law_loops: ClassVar[list[int]] = []
+    robot_index: ClassVar[int] = 0  # the model's articulation that is the robot (`robot_articulation`)
 
     def __init__(self, scene, control_freq: int, control_mode: str | None = None, *args, **kwargs):
         self.built_mode = control_mode  # the env's control mode, which decides the build (`_load_articulation`)
@@ -69,7 +70,7 @@ class MJCFAgent(BaseAgent):
         loader.fix_root_link = self.fix_root_link
         loader.disable_self_collisions = self.disable_self_collisions
         loader.standing_by = set(self.law_loops) if self.built_mode == TENSOR else set()
-        builder = loader.parse(self.mjcf_path)["articulation_builders"][0]
+        builder = loader.parse(self.mjcf_path)["articulation_builders"][self.robot_index]
         # the law's soft limit rows, not PhysX's hard limits (a band no joint reaches: PhysX keeps a joint built
         # limited so, while the loader's own reset holds its limits wide of MuJoCo's range)
         if self.built_mode == TENSOR:
@@ -189,7 +190,7 @@ class MJCFAgent(BaseAgent):
                     for s in velocities
                 },
             }
-        if not self.scene.gpu_sim_enabled and self.ctrl_low:  # a model with actuators, on the CPU
+        if self.results and self.ctrl_low:  # a model with actuators, on the CPU, of one tree (its `LoadResult`)
             configs["mujoco_ctrl"] = {
                 "balance_passive_force": False,
                 "ctrl": MujocoCtrlConfig(joints, list(self.ctrl_low), list(self.ctrl_high), self.results),
@@ -259,7 +260,8 @@ def register_agent(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the env's load warns its notes
         reference = CoreLoader().load(path)
-    model, articulation = reference.model, reference.articulations[0]
+    model, robot = reference.model, robot_articulation(reference.model, reference.mapping)
+    articulation = reference.articulations[robot]
     keyframes = {}
     for k in range(model.nkey):
         reference.reset(k)
@@ -269,15 +271,17 @@ def register_agent(
             qvel=np.asarray(articulation.get_qvel()),
         )
     limited = model.actuator_ctrllimited.astype(bool)
-    dof_of_joint, link_of_body = robot_indices(reference.mapping)
+    dof_of_joint, link_of_body = robot_indices(reference.mapping, robot)
+    joints = {joint.name for joint in articulation.get_active_joints()}  # the other trees' actuators drive no drive
     attributes = {
         "uid": uid,
         "mjcf_path": path,
         "fix_root_link": fix_root_link,
         "disable_self_collisions": disable_self_collisions,
         "keyframes": keyframes,
-        "servos": derive(reference),
-        "motors": motors(reference),
+        "robot_index": robot,
+        "servos": [servo for servo in derive(reference) if set(servo.joints) <= joints],
+        "motors": [motor for motor in motors(reference) if motor.joint in joints],
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
     }

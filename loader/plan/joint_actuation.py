@@ -320,6 +320,22 @@ def robot_indices(mapping: Mapping, articulation: int = 0) -> tuple[dict[int, in
     return dofs, links
 
 
+def robot_articulation(model: mujoco.MjModel, mapping: Mapping) -> int:
+    """The articulation a ManiSkill agent takes for its robot: the one whose hinges and slides the most actuators
+    drive (through a joint or a fixed tendon); in a model without such actuators, the one with the most DoFs; the
+    first of a tie. A scene file's floor or table is a tree of its own, which can come before the robot's
+    (tests/test_maniskill_joint_actuation.py::test_the_robot_is_the_tree_the_actuators_drive)."""
+    driven = np.zeros(len(mapping.articulation_dofs))
+    for a in range(model.nu):
+        if int(model.actuator_trntype[a]) not in TRANSMISSIONS:
+            continue
+        joints = _transmission_joints(model, a) or []
+        for owner in {mapping.joints[j].articulation for j in joints if mapping.joints[j].drive_key is not None}:
+            driven[owner] += 1
+    score = driven if driven.any() else np.asarray(mapping.articulation_dofs, float)
+    return int(np.argmax(score)) if score.size else 0
+
+
 def _moment(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> np.ndarray:
     """MuJoCo's actuator moments (nu, ndof) in the robot's DoF order, from its transmission pass at qpos0: constant
     for a hinge or slide and for a fixed tendon over them."""
