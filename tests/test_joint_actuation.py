@@ -197,14 +197,14 @@ def test_the_planned_implicit_derivative_is_mujocos_step(fixture, integrator, mi
     assert (worst > 1e-9) == wrong, worst
 
 
-SPRUNG = "the springs and dampers of a spatial or nonlinear tendon, or of one with armature"
+SPRUNG = "the springs and dampers of a nonlinear tendon, of one with armature or of a spatial one outside the law"
 
 
 @pytest.mark.parametrize("tendon", ["fixed", "fixed_with_armature", "spatial"])
 def test_a_fixed_tendons_spring_is_carried_and_any_other_is_named(tendon):
     """The chain's fixed tendon, sprung and damped, is in the law (its coefficients as its moment, its deadband) and
-    not named; given armature, which M would have to hold, it leaves the law and is named; so is a spatial tendon's
-    spring (SPATIAL's, sprung here)."""
+    not named; given armature, which M would have to hold, it leaves the law and is named; so is the spring of a
+    spatial tendon the law cannot carry (SPATIAL's, sprung here, ends on the world body)."""
     if tendon == "spatial":
         spec = mujoco.MjSpec.from_string(SPATIAL)
         stiffness = np.array(spec.tendons[0].stiffness)

@@ -222,14 +222,26 @@ def points_and_jacobians(
     tree's `motion` at joint velocities v
     (tests/test_maniskill_joint_actuation.py::test_the_laws_connects_are_mujocos, and the floating loops' test)."""
     point = moved.origin[:, links] + (moved.rotation[:, links] @ local[..., None])[..., 0]
+    lever, jacobian = _levers_and_jacobians(law, moved, links, point)
+    velocity = (jacobian * moved.speed[:, None, :, None]).sum(2)
+    rate = _rate(law, moved, v, lever, velocity, links)
+    return point, jacobian, rate + _root_rate(moved, velocity) if law.floating else rate
+
+
+def point_jacobians(law: Inertia, moved: Motion, links: torch.Tensor, point: torch.Tensor) -> torch.Tensor:
+    """The linear Jacobians (env, k, n, 3) of points (env, k, 3, in the world frame) moving with links `links` (k,),
+    from the tree's `motion`."""
+    return _levers_and_jacobians(law, moved, links, point)[1]
+
+
+def _levers_and_jacobians(law: Inertia, moved: Motion, links: torch.Tensor, point: torch.Tensor):
+    """p - p_j (env, k, ndof, 3) and the points' linear Jacobians over the coordinates (env, k, n, 3)."""
     lever = point[:, :, None, :] - moved.joint_origin[:, None]  # (env, k, ndof, 3): p - p_j
     axis = moved.axis[:, :1].expand_as(lever)
     jacobian = torch.linalg.cross(axis, lever) * law.moved_turning[links] + axis * law.moved_sliding[links]
     if law.floating:
         jacobian = torch.cat((_root_columns(law, moved.rotation, moved.origin, point)[0], jacobian), 2)
-    velocity = (jacobian * moved.speed[:, None, :, None]).sum(2)
-    rate = _rate(law, moved, v, lever, velocity, links)
-    return point, jacobian, rate + _root_rate(moved, velocity) if law.floating else rate
+    return lever, jacobian
 
 
 def turning(law: Inertia, moved: Motion, v: torch.Tensor, links: torch.Tensor) -> tuple[torch.Tensor, ...]:

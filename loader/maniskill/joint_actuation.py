@@ -31,6 +31,7 @@ from ..servos import UNLIMITED
 from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, Welds, constraint_force
 from .free_root import RootRows, free_velocity, physx_velocity
 from .inertia import Inertia, mass_matrix_and_bias, motion
+from .spatial_tendons import SpatialTendonTensors, spatial_tendons
 
 # the law's arithmetic: its terms (kp q, kp ctrl, the drives' kv v) are large and their sum small, which float32
 # would round a thousand times coarser than PhysX's float32 qf rounds the sum
@@ -60,6 +61,7 @@ class Law:
         implicit = (springs.moment.T * springs.implicit_damping) @ springs.moment
         self.tendon_implicit = tensor(implicit * plan.chained)
         self.any_tendon = bool(springs.stiffness.size)  # read on the host
+        self._spatial(plan, tensor, device)
         self._rows(plan, tensor, device)
         dynamics = plan.dynamics
         self.activated = torch.as_tensor(dynamics != NO_DYNAMICS, device=device)
@@ -74,6 +76,19 @@ class Law:
             plan.time_constant * -np.expm1(-self.timestep / plan.time_constant)
         )  # tau (1 - e^-dt/tau)
 
+    def _spatial(self, plan: JointActuation, tensor, device) -> None:
+        """The spatial tendons' arrays: their segments, the actuators pulling them, their springs and dampers."""
+        spatial = plan.spatial
+        self.spatial = SpatialTendonTensors(spatial.tendons, tensor, device)
+        self.any_spatial = self.spatial.any  # read on the host
+        self.spatial_actuated = torch.as_tensor(spatial.actuator >= 0, device=device)
+        self.actuator_tendon = torch.as_tensor(np.maximum(spatial.actuator, 0), dtype=torch.long, device=device)
+        self.spatial_gear = tensor(np.where(spatial.actuator >= 0, spatial.gear, 0.0))
+        self.sprung = torch.as_tensor(spatial.sprung, dtype=torch.long, device=device)
+        self.sprung_stiffness, self.sprung_damping = tensor(spatial.stiffness), tensor(spatial.damping)
+        self.sprung_low, self.sprung_high = tensor(spatial.rest[0]), tensor(spatial.rest[1])
+        self.sprung_implicit = tensor(spatial.implicit_damping)
+
     def _rows(self, plan: JointActuation, tensor, device) -> None:
         """The constraint rows' arrays: the limit and frictionloss rows of the DoFs and of the fixed tendons, the
         couplings and the connects."""
@@ -86,6 +101,7 @@ class Law:
         self.connects = Connects(plan.connects, tensor, device)
         self.welds = Welds(plan.welds, tensor, device)
         self.any_loops = self.connects.any or self.welds.any  # read on the host
+        self.reaches_root = self.any_loops or self.any_spatial  # a force on a floating root's coordinates
         self.any_rows = bool(self.row_sets) or self.couplings.any or self.any_loops
 
 
@@ -99,20 +115,58 @@ def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Te
     return torch.where(law.activated, torch.clamp(stepped, law.act_low, law.act_high), act)
 
 
-def _actuation(law: Law, ctrl: torch.Tensor, q: torch.Tensor, v: torch.Tensor, act: torch.Tensor | None):
-    """The actuators' joint forces (env, DoF) at the state, each joint's sum within its actuatorfrcrange, and the
-    actuators held to their forcerange (env, nu). An actuator with dynamics multiplies its activation (`act`,
-    env x nu; None: zeros), or its next one where it acts early."""
+class Spatial(NamedTuple):
+    """The spatial tendons at the state: their lengths (env, tendon) and Jacobians (env, tendon, n), every actuator's
+    moment (env, nu, n: the plan's constant one, or its gear times its tendon's Jacobian) and the coordinates'
+    speeds (env, n; a floating root's six first)."""
+
+    length: torch.Tensor
+    jacobian: torch.Tensor
+    moment: torch.Tensor
+    speed: torch.Tensor
+
+
+def spatial_at(law: Law, inertia: Inertia, moved) -> Spatial:
+    """The law's spatial tendons at the tree's `motion`."""
+    length, jacobian = spatial_tendons(law.spatial, inertia, moved)
+    root = moved.speed.shape[1] - law.moment.shape[1]
+    pulled = jacobian[:, law.actuator_tendon] * law.spatial_gear[:, None]
+    moment = torch.where(law.spatial_actuated[:, None], pulled, torch.nn.functional.pad(law.moment, (root, 0)))
+    return Spatial(length, jacobian, moment, moved.speed)
+
+
+def _actuation(
+    law: Law,
+    ctrl: torch.Tensor,
+    q: torch.Tensor,
+    v: torch.Tensor,
+    act: torch.Tensor | None,
+    spatial: Spatial | None = None,
+):
+    """The actuators' joint forces (env, DoF) at the state, each joint's sum within its actuatorfrcrange, the
+    actuators held to their forcerange (env, nu), and their force on a floating root's coordinates (env, 6; None
+    without spatial tendons, whose moment alone reaches it). An actuator with dynamics multiplies its activation
+    (`act`, env x nu; None: zeros), or its next one where it acts early."""
     inputs = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
     if law.any_activated:
         act = torch.zeros_like(inputs) if act is None else act
         act = torch.where(law.early, next_activation(law, ctrl, act), act)
         inputs = torch.where(law.activated, act, inputs)
-    length, rate = q @ law.moment.T, v @ law.moment.T
+    if spatial is None:
+        length, rate = q @ law.moment.T, v @ law.moment.T
+    else:
+        pulled = spatial.length[:, law.actuator_tendon] * law.spatial_gear
+        length = torch.where(law.spatial_actuated, pulled, q @ law.moment.T)
+        rate = (spatial.moment @ spatial.speed[..., None])[..., 0]
     raw = law.gain * inputs + law.bias0 + law.bias1 * length + law.bias2 * rate
     force = torch.clamp(raw, law.force_low, law.force_high)
-    summed = force @ law.moment
-    return torch.clamp(summed, law.joint_low, law.joint_high), force != raw
+    if spatial is None:
+        summed, root_force = force @ law.moment, None
+    else:
+        total = (force[:, None, :] @ spatial.moment)[:, 0]
+        root = total.shape[1] - q.shape[1]
+        summed, root_force = total[:, root:], total[:, :root]
+    return torch.clamp(summed, law.joint_low, law.joint_high), force != raw, root_force
 
 
 def start_force(
@@ -121,6 +175,24 @@ def start_force(
     """MuJoCo's actuator and passive force (env, DoF) at the state (q, v) (env, DoF) under `ctrl` (env, nu): the
     actuators' joint forces, each DoF's spring and its damper at v."""
     return _passive(law, q, v) + _actuation(law, ctrl, q, v, act)[0]
+
+
+def _spatial_terms(law: Law, spatial: Spatial, clamped: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The spatial tendons' springs and dampers as a force on the coordinates (env, n), and what MuJoCo's step takes
+    implicitly of them and of the actuators pulling them (env, n, n), a DoF pair's only where the two share a chain
+    of the tree (a floating root's coordinates share every chain)."""
+    jacobian = spatial.jacobian[:, law.sprung]  # (env, k, n)
+    length = spatial.length[:, law.sprung]
+    rate = (jacobian @ spatial.speed[..., None])[..., 0]
+    stretched = torch.clamp(length, law.sprung_low, law.sprung_high) - length
+    tension = law.sprung_stiffness * stretched - law.sprung_damping * rate
+    force = (tension[:, None, :] @ jacobian)[:, 0]
+    root = spatial.speed.shape[1] - law.moment.shape[1]
+    chained = torch.nn.functional.pad(law.chained, (root, 0, root, 0), value=1.0)
+    gains = law.velocity_gain * (~clamped).to(law.velocity_gain.dtype) * law.spatial_actuated
+    pulled = (spatial.moment.transpose(-1, -2) * gains[:, None, :]) @ spatial.moment
+    dampers = (jacobian.transpose(-1, -2) * law.sprung_implicit) @ jacobian
+    return force, (pulled + dampers) * chained
 
 
 def _passive(law: Law, q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
@@ -175,21 +247,29 @@ def implicit_step(
     the state (`inertia.py`; a floating root's six coordinates first, no force on them), and the joint force
     `qf = M (v1 - v0) / dt + c` (env, DoF) that takes PhysX's joints there in one step, whatever its solver; M, c and
     f (the constraint rows' force in it) with them."""
-    actuated, clamped = _actuation(law, ctrl, q, v, act)
+    moved = motion(inertia, q, v, root_pose, root_velocity)  # one kinematic pass for M, c, tendons and loops
+    spatial = spatial_at(law, inertia, moved) if law.any_spatial else None
+    actuated, clamped, root_force = _actuation(law, ctrl, q, v, act, spatial)
     force = actuated + _passive(law, q, v)
-    moved = motion(inertia, q, v, root_pose, root_velocity)  # one kinematic pass for M, c and the loops' rows
     matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity, moved)
     root = matrix.shape[-1] - q.shape[-1]  # 6 for a floating root, else 0
     damping = law.timestep * implicit_damping(law, clamped)
-    if root:  # no force and no damping on the root's coordinates
+    if root:  # no force and no damping on the root's coordinates but the spatial tendons'
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
+    if spatial is not None:
+        tendons, implicit = _spatial_terms(law, spatial, clamped)
+        force, damping = force + tendons, damping + law.timestep * implicit
+        if root:
+            force = force + torch.nn.functional.pad(root_force, (0, q.shape[-1]))
     if law.any_rows:
         force = force + constraint_force(law, matrix, q, v, force - bias, inertia, moved)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = ((matrix @ change[..., None])[..., 0] / law.timestep + bias)[:, root:]
-    if root and law.any_loops:  # PhysX's root takes no force: qf less what the loops' force on it, f_r, moves
-        pushed = torch.linalg.solve_ex(matrix[:, :root, :root], force[:, :root])[0]  # the joints by, M_jr M_rr^-1 f_r
+    if root and law.reaches_root:
+        # PhysX's root takes no force: qf less what the force on it (the loops', the tendons'), f_r, moves the
+        # joints by, M_jr M_rr^-1 f_r
+        pushed = torch.linalg.solve_ex(matrix[:, :root, :root], force[:, :root])[0]
         qf = qf - (matrix[:, root:, :root] @ pushed[..., None])[..., 0]
     return ImplicitStep(qf, v + change[:, root:], matrix, bias, force)
 

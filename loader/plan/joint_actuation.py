@@ -33,6 +33,7 @@ from ..model import mj
 from ..model.joints import dof_damping, is_limited, joint_stiffness
 from ..model.mapping import Mapping
 from ..model.soft_row import SoftRow, diag_approx
+from .spatial_tendon import SpatialTendons, plan_spatial_tendons, why_outside
 
 TRANSMISSIONS = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_TENDON))
 JOINT_WRAP = int(mujoco.mjtWrap.mjWRAP_JOINT)
@@ -64,6 +65,30 @@ class TendonSprings:
     @classmethod
     def none(cls, ndof: int) -> TendonSprings:
         return cls(np.zeros((0, ndof)), np.zeros(0), np.zeros((2, 0)), np.zeros(0), np.zeros(0))
+
+
+@dataclass
+class SpatialLaw:
+    """The spatial tendons the law carries (`plan/spatial_tendon.py`) and what acts on them: per actuator the tendon
+    it pulls (an index into `tendons.tendons`; -1: none, its moment is the plan's constant one) and its gear; per
+    tendon with a linear spring or damper its index, stiffness, rest lengths (a deadband between them) and damper,
+    and the damper MuJoCo's step takes implicitly."""
+
+    tendons: SpatialTendons
+    actuator: np.ndarray  # (nu,)
+    gear: np.ndarray  # (nu,)
+    sprung: np.ndarray  # (k,)
+    stiffness: np.ndarray
+    rest: np.ndarray  # (2, k)
+    damping: np.ndarray
+    implicit_damping: np.ndarray
+
+    @classmethod
+    def none(cls, nu: int) -> SpatialLaw:
+        empty = np.zeros(0)
+        return cls(
+            SpatialTendons(), np.full(nu, -1), np.zeros(nu), np.zeros(0, int), empty, np.zeros((2, 0)), empty, empty
+        )
 
 
 @dataclass
@@ -238,6 +263,7 @@ class JointActuation:
     tendon_rows: TendonRows = field(default_factory=lambda: TendonRows.none(0))
     connects: Connects = field(default_factory=Connects.none)
     welds: Welds = field(default_factory=Welds.none)
+    spatial: SpatialLaw = field(default_factory=lambda: SpatialLaw.none(0))
     # the robot links of the bodies compensated fully (gravcomp 1): PhysX's gravity off on them is MuJoCo's gravity
     # and its compensation at their centres of mass together
     weightless: list[int] = field(default_factory=list)
@@ -257,7 +283,7 @@ def plan_joint_actuation(
 ) -> JointActuation | str:
     """The law for `model` whose MuJoCo joint j moves robot DoF `dof_of_joint[j]` (hinges and slides) and whose body
     b is robot link `link_of_body[b]`, or why the law cannot drive it (an actuator outside its scope)."""
-    why = _outside(model, dof_of_joint)
+    why = _outside(model, dof_of_joint, link_of_body or {})
     if why is not None:
         return why
     actuated = not mj.disabled(model, "actuation")
@@ -273,6 +299,8 @@ def plan_joint_actuation(
     stiffness, spring_ref, damping, joint_range = _joint_arrays(model, dof_of_joint, ndof)
     damped_explicitly = mj.explicit_damping(model)
     moment = _moment(model, dof_of_joint, ndof)
+    spatial = _spatial(model, link_of_body or {}, int(model.opt.integrator) not in EXPLICIT_ACTUATORS)
+    moment[spatial.actuator >= 0] = 0.0  # their moment changes with the pose: the law's per step
     dynamics = model.actuator_dyntype.astype(np.int64)
     filtered = (dynamics == FILTER) | (dynamics == FILTEREXACT)
     time_constant = np.where(filtered, np.maximum(model.actuator_dynprm[:, 0], mj.MJMINVAL), 1.0)
@@ -303,8 +331,9 @@ def plan_joint_actuation(
         _tendon_rows(model, dof_of_joint, ndof),
         _connects(model, carried, link_of_body or {}),
         _welds(model, carried, link_of_body or {}),
+        spatial,
         _weightless(model, link_of_body or {}),
-        _not_carried(model, link_of_body or {}, dof_of_joint, carried),
+        _not_carried(model, link_of_body or {}, dof_of_joint, carried, len(spatial.sprung)),
     )
 
 
@@ -637,6 +666,47 @@ def _tendon_springs(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
     return TendonSprings(moment, stiffness, rest, damping, damping * implicit)
 
 
+def _spatial(model: mujoco.MjModel, link_of_body: dict[int, int], implicit: bool) -> SpatialLaw:
+    """The spatial tendons the actuators pull, and those with a linear spring or damper and no armature, wherever
+    the law can carry them (`why_outside`)."""
+    spatial = [
+        t
+        for t in range(model.ntendon)
+        if model.tendon_num[t]
+        and int(model.wrap_type[model.tendon_adr[t]]) != JOINT_WRAP
+        and link_of_body
+        and why_outside(model, t, link_of_body) is None
+    ]
+    tendon = int(mujoco.mjtTrn.mjTRN_TENDON)
+    pulled = [
+        int(model.actuator_trnid[a, 0]) if int(model.actuator_trntype[a]) == tendon else -1 for a in range(model.nu)
+    ]
+    linear = [
+        t
+        for t in spatial
+        if (model.tendon_stiffness[t] or model.tendon_damping[t])
+        and not (np.any(model.tendon_stiffnesspoly[t]) or np.any(model.tendon_dampingpoly[t]))
+        and not model.tendon_armature[t]
+    ]
+    tendons = [t for t in spatial if t in pulled or t in linear]
+    if not tendons:
+        return SpatialLaw.none(model.nu)
+    index = {t: k for k, t in enumerate(tendons)}
+    stiffness = 0.0 if mj.disabled(model, "spring") else model.tendon_stiffness[linear]
+    damping = 0.0 if mj.disabled(model, "damper") else model.tendon_damping[linear]
+    stiffness, damping = stiffness + np.zeros(len(linear)), damping + np.zeros(len(linear))
+    return SpatialLaw(
+        plan_spatial_tendons(model, tendons, link_of_body),
+        np.array([index.get(t, -1) for t in pulled], int),
+        model.actuator_gear[:, 0].copy(),
+        np.array([index[t] for t in linear], int),
+        stiffness,
+        model.tendon_lengthspring[linear].T.copy().reshape(2, -1),
+        damping,
+        damping * implicit,
+    )
+
+
 def _chained(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int) -> np.ndarray:
     """(ndof, ndof): whether two robot DoFs lie on one chain of MuJoCo's tree (each DoF is on its own)."""
     dof_of = {int(model.jnt_dofadr[joint]): robot_dof for joint, robot_dof in dof_of_joint.items()}
@@ -658,7 +728,7 @@ def _weightless(model: mujoco.MjModel, link_of_body: dict[int, int]) -> list[int
     return sorted(link for body, link in link_of_body.items() if model.body_gravcomp[body] == 1.0)
 
 
-def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
+def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int], link_of_body: dict[int, int]) -> str | None:
     """Why an actuator is outside the law's scope, naming it; None where every one is inside."""
     for a in range(model.nu):
         name = mj.name(model, "actuator", a)
@@ -666,7 +736,11 @@ def _outside(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> str | None:
             return f"actuator {name!r} drives a site, body or slider-crank, not a joint or tendon"
         joints = _transmission_joints(model, a)
         if joints is None:
-            return f"actuator {name!r} drives a spatial tendon (its moment changes with the pose)"
+            tendon = int(model.actuator_trnid[a, 0])
+            why = why_outside(model, tendon, link_of_body) if link_of_body else "no robot links are known"
+            if why is not None:
+                return f"actuator {name!r} drives a spatial tendon the law cannot carry: {why}"
+            joints = []
         for joint in joints:
             if int(model.jnt_type[joint]) not in SCALAR_JOINTS:
                 return f"actuator {name!r} drives a ball or free joint"
@@ -705,7 +779,11 @@ def _planned_equalities(model: mujoco.MjModel, carried: list[int], link_of_body:
 
 
 def _not_carried(
-    model: mujoco.MjModel, link_of_body: dict[int, int], dof_of_joint: dict[int, int], carried: list[int]
+    model: mujoco.MjModel,
+    link_of_body: dict[int, int],
+    dof_of_joint: dict[int, int],
+    carried: list[int],
+    spatial_springs: int = 0,
 ) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
     sprung = int(np.count_nonzero((model.tendon_stiffness != 0) | (model.tendon_damping != 0)))
@@ -722,8 +800,8 @@ def _not_carried(
         ),
         (bool(model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE), "the override flag's solref and solimp"),
         (
-            sprung > len(_carried_tendons(model, dof_of_joint)),
-            "the springs and dampers of a spatial or nonlinear tendon, or of one with armature",
+            sprung > len(_carried_tendons(model, dof_of_joint)) + spatial_springs,
+            "the springs and dampers of a nonlinear tendon, of one with armature or of a spatial one outside the law",
         ),
         (
             any(not _fixed_over(model, t, dof_of_joint) for rows in _tendons_with_rows(model) for t in rows),
