@@ -101,7 +101,6 @@ class Law:
         self.connects = Connects(plan.connects, tensor, device)
         self.welds = Welds(plan.welds, tensor, device)
         self.any_loops = self.connects.any or self.welds.any  # read on the host
-        self.reaches_root = self.any_loops or self.any_spatial  # a force on a floating root's coordinates
         self.any_rows = bool(self.row_sets) or self.couplings.any or self.any_loops
 
 
@@ -143,10 +142,10 @@ def _actuation(
     act: torch.Tensor | None,
     spatial: Spatial | None = None,
 ):
-    """The actuators' joint forces (env, DoF) at the state, each joint's sum within its actuatorfrcrange, the
-    actuators held to their forcerange (env, nu), and their force on a floating root's coordinates (env, 6; None
-    without spatial tendons, whose moment alone reaches it). An actuator with dynamics multiplies its activation
-    (`act`, env x nu; None: zeros), or its next one where it acts early."""
+    """The actuators' joint forces (env, DoF) at the state, each joint's sum within its actuatorfrcrange, and the
+    actuators held to their forcerange (env, nu). An actuator with dynamics multiplies its activation (`act`, env x
+    nu; None: zeros), or its next one where it acts early. A spatial tendon's length does not change as the whole
+    tree moves: its moment has no share on a floating root's coordinates."""
     inputs = torch.clamp(ctrl, law.ctrl_low, law.ctrl_high)
     if law.any_activated:
         act = torch.zeros_like(inputs) if act is None else act
@@ -161,12 +160,10 @@ def _actuation(
     raw = law.gain * inputs + law.bias0 + law.bias1 * length + law.bias2 * rate
     force = torch.clamp(raw, law.force_low, law.force_high)
     if spatial is None:
-        summed, root_force = force @ law.moment, None
+        summed = force @ law.moment
     else:
-        total = (force[:, None, :] @ spatial.moment)[:, 0]
-        root = total.shape[1] - q.shape[1]
-        summed, root_force = total[:, root:], total[:, :root]
-    return torch.clamp(summed, law.joint_low, law.joint_high), force != raw, root_force
+        summed = (force[:, None, :] @ spatial.moment[..., -q.shape[1] :])[:, 0]
+    return torch.clamp(summed, law.joint_low, law.joint_high), force != raw
 
 
 def start_force(
@@ -249,26 +246,23 @@ def implicit_step(
     f (the constraint rows' force in it) with them."""
     moved = motion(inertia, q, v, root_pose, root_velocity)  # one kinematic pass for M, c, tendons and loops
     spatial = spatial_at(law, inertia, moved) if law.any_spatial else None
-    actuated, clamped, root_force = _actuation(law, ctrl, q, v, act, spatial)
+    actuated, clamped = _actuation(law, ctrl, q, v, act, spatial)
     force = actuated + _passive(law, q, v)
     matrix, bias = mass_matrix_and_bias(inertia, q, v, root_pose, root_velocity, moved)
     root = matrix.shape[-1] - q.shape[-1]  # 6 for a floating root, else 0
     damping = law.timestep * implicit_damping(law, clamped)
-    if root:  # no force and no damping on the root's coordinates but the spatial tendons'
+    if root:  # no force and no damping on the root's coordinates
         damping = torch.nn.functional.pad(damping, (root, 0, root, 0))
         force = torch.nn.functional.pad(force, (root, 0))
     if spatial is not None:
         tendons, implicit = _spatial_terms(law, spatial, clamped)
         force, damping = force + tendons, damping + law.timestep * implicit
-        if root:
-            force = force + torch.nn.functional.pad(root_force, (0, q.shape[-1]))
     if law.any_rows:
         force = force + constraint_force(law, matrix, q, v, force - bias, inertia, moved)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = ((matrix @ change[..., None])[..., 0] / law.timestep + bias)[:, root:]
-    if root and law.reaches_root:
-        # PhysX's root takes no force: qf less what the force on it (the loops', the tendons'), f_r, moves the
-        # joints by, M_jr M_rr^-1 f_r
+    if root and law.any_loops:
+        # PhysX's root takes no force: qf less what the loops' force on it, f_r, moves the joints by, M_jr M_rr^-1 f_r
         pushed = torch.linalg.solve_ex(matrix[:, :root, :root], force[:, :root])[0]
         qf = qf - (matrix[:, root:, :root] @ pushed[..., None])[..., 0]
     return ImplicitStep(qf, v + change[:, root:], matrix, bias, force)
