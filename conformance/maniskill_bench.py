@@ -59,11 +59,36 @@ class Walk:
         return elapsed
 
 
+def law_operations(env) -> int:
+    """The torch operations one `mujoco_ctrl_tensor` step dispatches before a physics step (the env's controller's
+    `before_simulation_step`), counted as dispatched. On the GPU each is a kernel launch whatever the number of
+    sub-scenes: the law's fixed cost per physics step there, before CUDA graphs. On the CPU backend, where this counts
+    them, the row solve stops once its zones settle; on the device it runs all `ROW_PASSES`."""
+    import torch
+    from torch.utils._python_dispatch import TorchDispatchMode
+
+    class Counted(TorchDispatchMode):
+        def __init__(self):
+            super().__init__()
+            self.count = 0
+
+        def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+            self.count += 1
+            return func(*args, **(kwargs or {}))
+
+    agent = env.unwrapped.agent
+    controller = getattr(agent.controller, "controllers", {}).get("ctrl", agent.controller)
+    with torch.inference_mode(), Counted() as counted:
+        controller.before_simulation_step()
+    return counted.count
+
+
 def steps_per_second(
     uid: str, sim_freq: int, control_steps: int, seed: int = 0, modes: tuple[str, ...] = MODES
 ) -> dict[str, float]:
     """Physics steps per second of `Empty-v1` with the agent `uid` under each of `modes`: `ROUNDS` turns of
-    `control_steps / ROUNDS` env steps each (at least one), after `WARMUP`; each mode's fastest round."""
+    `control_steps / ROUNDS` env steps each (at least one), after `WARMUP`; each mode's fastest round; and, where
+    `mujoco_ctrl_tensor` is among them, the operations its law dispatches per physics step (`law_operations`)."""
     walks = {mode: Walk(uid, mode, sim_freq, seed) for mode in modes}
     try:
         for walk in walks.values():
@@ -73,10 +98,11 @@ def steps_per_second(
         for _ in range(ROUNDS):
             for mode, walk in walks.items():
                 best[mode] = min(best[mode], walk.seconds(per_round))
+        operations = {"tensor_ops": law_operations(walks[TENSOR].env)} if TENSOR in walks else {}
     finally:
         for walk in walks.values():
             walk.env.close()
-    return {mode: per_round * SUBSTEPS / seconds for mode, seconds in best.items()}
+    return {**{mode: per_round * SUBSTEPS / seconds for mode, seconds in best.items()}, **operations}
 
 
 def gpu_steps_per_second(uid: str, sim_freq: int, control_steps: int, num_envs: int = GPU_ENVS) -> dict:

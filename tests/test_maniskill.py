@@ -810,6 +810,7 @@ def test_the_throughput_bench_times_both_modes_in_one_run(tmp_path, monkeypatch)
     assert panda["sim_freq"] == 500 and all(panda[mode] > 0 for mode in maniskill_bench.MODES)
     assert panda["ratio"] == pytest.approx(panda["mujoco_ctrl"] / panda["pd_joint_pos"])
     assert panda["tensor_ratio"] == pytest.approx(panda[TENSOR] / panda["pd_joint_pos"])  # offered the mode
+    assert isinstance(panda["tensor_ops"], int) and panda["tensor_ops"] > 100  # M, c and the rows: hundreds
     if torch.cuda.is_available():  # physx_cuda, GPU_ENVS sub-scenes, both modes on the device
         assert panda["gpu"]["tensor_ratio"] == pytest.approx(panda["gpu"][TENSOR] / panda["gpu"]["pd_joint_pos"])
     else:
