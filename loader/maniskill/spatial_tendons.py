@@ -134,22 +134,25 @@ def _plane(tendons, local0, local1) -> tuple[torch.Tensor, torch.Tensor]:
     return torch.where(sphere, axis0, x), torch.where(sphere, axis1, y)
 
 
+def _cross(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """The 2D cross product u_x v_y - u_y v_x (..., 2 -> ...)."""
+    return (u * v.flip(-1) * u.new_tensor([1.0, -1.0])).sum(-1)
+
+
 def _crossing(p1, p2, p3, p4) -> torch.Tensor:
-    """Whether the 2D segments p1-p2 and p3-p4 (..., 2) cross."""
-    det = (p4[..., 1] - p3[..., 1]) * (p2[..., 0] - p1[..., 0]) - (p4[..., 0] - p3[..., 0]) * (p2[..., 1] - p1[..., 1])
+    """Whether the 2D segments p1-p2 and p3-p4 (..., 2) cross: where p1 + a (p2 - p1) = p3 + b (p4 - p3) with a and
+    b in [0, 1] (parallel segments never cross)."""
+    first, second, between = torch.broadcast_tensors(p2 - p1, p4 - p3, p1 - p3)
+    det, a, b = _cross(torch.stack((first, second, first)), torch.stack((second, between, between))).unbind(0)
     safe = torch.where(det.abs() < MJMINVAL, torch.ones_like(det), det)
-    a = (
-        (p4[..., 0] - p3[..., 0]) * (p1[..., 1] - p3[..., 1]) - (p4[..., 1] - p3[..., 1]) * (p1[..., 0] - p3[..., 0])
-    ) / safe
-    b = (
-        (p2[..., 0] - p1[..., 0]) * (p1[..., 1] - p3[..., 1]) - (p2[..., 1] - p1[..., 1]) * (p1[..., 0] - p3[..., 0])
-    ) / safe
+    a, b = a / safe, b / safe
     return (det.abs() >= MJMINVAL) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1)
 
 
 def _circle(d0, d1, radius, side, sided):
     """MuJoCo's 2D circle wrap of the segment d0-d1 (env, w, 2) about a circle of `radius` at the origin: the two
-    tangent points, the arc's length between them and whether it wraps at all."""
+    tangent points, the arc's length between them and whether it wraps at all. The two candidate pairs of tangent
+    points are taken together on a leading axis (MuJoCo's sign +1, then -1)."""
     square = radius * radius
     length0, length1 = (d0 * d0).sum(-1), (d1 * d1).sum(-1)
     difference = d1 - d0
@@ -158,38 +161,20 @@ def _circle(d0, d1, radius, side, sided):
     closest = d0 + nearest[..., None] * difference
     misses = ((closest * closest).sum(-1) > square) & (~sided | ((side * closest).sum(-1) >= 0))
     wraps = (length0 >= square) & (length1 >= square) & (radius >= MJMINVAL) & (spread >= MJMINVAL) & ~misses
-    root0 = torch.sqrt(torch.clamp(length0 - square, min=0.0))
-    root1 = torch.sqrt(torch.clamp(length1 - square, min=0.0))
-    scale0, scale1 = torch.clamp(length0, min=MJMINVAL), torch.clamp(length1, min=MJMINVAL)
-    solutions, goodness = [], []
-    for sign in (1.0, -1.0):
-        start = (
-            torch.stack(
-                (
-                    d0[..., 0] * square + sign * radius * d0[..., 1] * root0,
-                    d0[..., 1] * square - sign * radius * d0[..., 0] * root0,
-                ),
-                -1,
-            )
-            / scale0[..., None]
-        )
-        end = (
-            torch.stack(
-                (
-                    d1[..., 0] * square - sign * radius * d1[..., 1] * root1,
-                    d1[..., 1] * square + sign * radius * d1[..., 0] * root1,
-                ),
-                -1,
-            )
-            / scale1[..., None]
-        )
-        towards, _ = _normalised(start + end)
-        good = torch.where(sided, (towards * side).sum(-1), -((start - end) ** 2).sum(-1))
-        goodness.append(torch.where(_crossing(d0, start, d1, end), torch.full_like(good, -10000.0), good))
-        solutions.append((start, end))
-    second = ~(goodness[0] > goodness[1])  # MuJoCo's index 1
-    start = torch.where(second[..., None], solutions[1][0], solutions[0][0])
-    end = torch.where(second[..., None], solutions[1][1], solutions[0][1])
+    sign = d0.new_tensor([1.0, -1.0])[:, None, None, None]  # (2, 1, 1, 1): the pair's sign
+    turned0 = d0.flip(-1) * d0.new_tensor([1.0, -1.0])  # (d_y, -d_x)
+    turned1 = d1.flip(-1) * d1.new_tensor([-1.0, 1.0])  # (-d_y, d_x)
+    root0 = torch.sqrt(torch.clamp(length0 - square, min=0.0))[..., None]
+    root1 = torch.sqrt(torch.clamp(length1 - square, min=0.0))[..., None]
+    scale0, scale1 = torch.clamp(length0, min=MJMINVAL)[..., None], torch.clamp(length1, min=MJMINVAL)[..., None]
+    starts = (d0 * square[..., None] + sign * radius[..., None] * turned0 * root0) / scale0  # (2, env, w, 2)
+    ends = (d1 * square[..., None] + sign * radius[..., None] * turned1 * root1) / scale1
+    towards, _ = _normalised(starts + ends)
+    good = torch.where(sided, (towards * side).sum(-1), -((starts - ends) ** 2).sum(-1))
+    good = torch.where(_crossing(d0, starts, d1, ends), torch.full_like(good, -10000.0), good)
+    second = ~(good[0] > good[1])  # MuJoCo's index 1
+    start = torch.where(second[..., None], starts[1], starts[0])
+    end = torch.where(second[..., None], ends[1], ends[0])
     wraps = wraps & ~_crossing(d0, start, d1, end)
     unit0, _ = _normalised(start)
     unit1, _ = _normalised(end)
