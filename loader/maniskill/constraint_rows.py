@@ -290,22 +290,28 @@ def _row_solve(
         return None
     free = torch.linalg.solve_ex(matrix, smooth)[0]
     pad = torch.nn.functional.pad
+
+    def rooted(x: torch.Tensor, square: bool) -> torch.Tensor:  # over the joints -> over every coordinate
+        return x if not root else pad(x, (root, 0, root, 0) if square else (root, 0))
+
     acceleration, taken, full = free, None, False
-    steps = steps[:, None]  # (steps, 1)
+    steps, envs = steps[:, None], torch.arange(matrix.shape[0], device=matrix.device)  # (steps, 1), (env,)
     for _ in range(ROW_PASSES):
         stiffened, pulled, zones = matrix, smooth, []
         for owners, aref, weight in rows:
             force = -weight * (owners.sign * owners.along(acceleration[:, root:])[:, None] - aref)
             within = (force > owners.bound_low) & (force < owners.bound_high)
-            zones.append(torch.where(within, 0, torch.where(force >= owners.bound_high, 1, -1)).flatten(1))
+            if host:  # the zones decide only the host's early stop
+                zones.append(torch.where(within, 0, torch.where(force >= owners.bound_high, 1, -1)).flatten(1))
             held = torch.where(within, 0.0, torch.clamp(force, owners.bound_low, owners.bound_high))
             stiffness = weight * within  # a row's J is its owner's, up to its sign: their D summed per owner
-            stiffened = stiffened + pad(owners.curvature(stiffness.sum(1)), (root, 0, root, 0))
-            pulled = pulled + pad(owners.back((owners.sign * (stiffness * aref + held)).sum(1)), (root, 0))
-        zones = torch.cat(zones, 1)
-        if host and full and torch.equal(zones, taken):
-            break  # a full step left the zones as they were: the solution stands
-        taken = zones
+            stiffened = stiffened + rooted(owners.curvature(stiffness.sum(1)), True)
+            pulled = pulled + rooted(owners.back((owners.sign * (stiffness * aref + held)).sum(1)), False)
+        if host:
+            zones = torch.cat(zones, 1)
+            if full and torch.equal(zones, taken):
+                break  # a full step left the zones as they were: the solution stands
+            taken = zones
         newton = torch.linalg.solve_ex(stiffened, pulled)[0]
         trial = acceleration[:, None] + steps * (newton - acceleration)[:, None]  # (env, steps, n)
         change = trial - free[:, None]
@@ -314,6 +320,6 @@ def _row_solve(
             miss = owners.sign * owners.along(trial[:, :, root:])[:, :, None] - aref[:, None]  # (env, steps, 3, own)
             cost = cost + _row_cost(weight[:, None], owners.bound_low, owners.bound_high, miss)
         best = cost.argmin(1)
-        acceleration = trial[torch.arange(trial.shape[0], device=trial.device), best]
+        acceleration = trial[envs, best]
         full = host and bool((best == 0).all())
     return acceleration
