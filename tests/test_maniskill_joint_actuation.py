@@ -272,15 +272,15 @@ def _gpu_env(uid: str, sim_freq: int, control_freq: int, scene_config: dict | No
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA (ManiSkill's physx_cuda backend)")
-def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu():
+@pytest.mark.parametrize("fixture", ["folding_servo_arm.xml", "wrapped_tendons.xml"])
+def test_mujoco_ctrl_tensor_steps_every_sub_scene_on_the_gpu(fixture):
     """On `physx_cuda` with 4 sub-scenes, the mode's `qf` on the device is the law's for each sub-scene's own state
     and its drives aim at the sub-scene's end velocity (the same code as on the CPU, one launch per operation for all
-    of them)."""
-
-    path = FIXTURES / "folding_servo_arm.xml"
+    of them): the servo arm, and the arm pulled by spatial tendons over a sphere and a cylinder."""
+    path = FIXTURES / fixture
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        agent = register_agent(path, "tensor_arm_gpu", override=True)
+        agent = register_agent(path, f"tensor_gpu_{path.stem}", override=True)
     env = _gpu_env(agent.uid, 500, 50, {"enable_tgs": False})
     try:
         env.reset(seed=0)
@@ -1154,7 +1154,7 @@ def test_the_robot_is_the_tree_the_actuators_drive(tmp_path):
     assert _follow(agent.uid, model) < TENSOR_FOLLOW_TOLERANCE["pgs"]
 
 
-WRAPPED_TENDONS = Path(__file__).resolve().parents[1] / "corpus" / "fixtures" / "wrapped_tendons.xml"
+WRAPPED_TENDONS = FIXTURES / "wrapped_tendons.xml"
 AERO_HAND = "tetheria_aero_hand_open/right_hand.xml"
 # m and relative: the spatial tendons' lengths and Jacobians against MuJoCo's ten_length and ten_J at 64 random
 # states (float32 link frames in both; mujoco 3.17.0, sapien 3.0.3, torch 2.13.0): measured 1.0e-7 m and 1.5e-6 on
