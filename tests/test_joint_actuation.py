@@ -229,7 +229,9 @@ def test_a_fixed_tendons_spring_is_carried_and_any_other_is_named(tendon):
         ]
 
 
-TENDON_ROWS_NAMED = "the limits and frictionloss of a spatial tendon or of one over joints outside the robot"
+TENDON_ROWS_NAMED = (
+    "the limits and frictionloss of a spatial tendon outside the law or of one over joints outside the robot"
+)
 
 
 @pytest.mark.parametrize("tendon", ["fixed", "spatial", "disabled"])

@@ -7,6 +7,8 @@ position, a fixed tendon's length: its coefficients times q), so each row's Jaco
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import torch
@@ -78,11 +80,15 @@ class RowSet:
             return torch.diag_embed(weight)
         return (self.jacobian.T * weight[:, None, :]) @ self.jacobian
 
+    def state(self, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The owners' positions and velocities (env, owners) at the joints' q and v."""
+        return self.along(q), self.along(v)
+
     def at(self, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The rows at the state, (env, 3, owners) each: their reference accelerations aref (a limit's
         -B J v - K imp (r - margin), frictionloss's -B J v) and weights D (zero where a row is absent: a limit beyond
         its margin, an owner without frictionloss)."""
-        position, velocity = self.along(q), self.along(v)
+        position, velocity = self.state(q, v)
         distance = torch.stack((position - self.low, self.high - position), 1)  # (env, 2, owners)
         present = self.limited & (distance < self.margin)
         violation = distance - self.margin
@@ -92,6 +98,33 @@ class RowSet:
         aref = torch.cat((limit_aref, (-self.friction_damping * velocity)[:, None]), 1)
         weight = torch.cat((limit_weight, self.friction_weight.expand_as(velocity)[:, None]), 1)
         return aref, weight
+
+
+class SpatialRowSet(RowSet):
+    """The limit and frictionloss rows of spatial tendons: a fixed tendon's rows, on a length and a Jacobian that
+    change with the pose, taken each step from the tendons at the state (`bound`)."""
+
+    def bound(self, length: torch.Tensor, jacobian: torch.Tensor, v: torch.Tensor) -> SpatialRowSet:
+        """These rows at the tendons' lengths (env, owners) and Jacobians over the joints (env, owners, DoF), the
+        joints moving at v."""
+        rows = copy.copy(self)
+        rows.length, rows.moment = length, jacobian
+        rows.rate = (jacobian @ v[..., None])[..., 0]
+        return rows
+
+    def state(self, q: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.length, self.rate
+
+    def along(self, x: torch.Tensor) -> torch.Tensor:
+        """(env, DoF) or (env, k, DoF) -> (env, owners) or (env, k, owners): J x, per env."""
+        across = self.moment.transpose(-1, -2)
+        return x @ across if x.dim() == 3 else (x[:, None] @ across)[:, 0]
+
+    def back(self, y: torch.Tensor) -> torch.Tensor:
+        return (y[:, None] @ self.moment)[:, 0]
+
+    def curvature(self, weight: torch.Tensor) -> torch.Tensor:
+        return (self.moment.transpose(-1, -2) * weight[:, None, :]) @ self.moment
 
 
 def _row_cost(weight, low, high, miss: torch.Tensor) -> torch.Tensor:
@@ -243,7 +276,14 @@ class Welds:
 
 
 def constraint_force(
-    law, matrix: torch.Tensor, q: torch.Tensor, v: torch.Tensor, smooth: torch.Tensor, inertia=None, moved=None
+    law,
+    matrix: torch.Tensor,
+    q: torch.Tensor,
+    v: torch.Tensor,
+    smooth: torch.Tensor,
+    inertia=None,
+    moved=None,
+    spatial=None,
 ) -> torch.Tensor:
     """MuJoCo's constraint force (env, n) of the law's rows at the state (`law.couplings`, `law.connects`,
     `law.row_sets`), from the smooth force `smooth` (env, n: f - c, a floating root's six coordinates first): M a -
@@ -264,7 +304,10 @@ def constraint_force(
         aref, weight = torch.cat([a for _, a, _ in rows], 1), torch.cat([w for _, _, w in rows], 1)
         weighted = jacobian.transpose(-1, -2) * weight[:, None, :]  # J^T D
         coupled, pulled = matrix + weighted @ jacobian, smooth + (weighted @ aref[..., None])[..., 0]
-    acceleration = _row_solve(law.row_sets, law.row_steps, coupled, q, v, pulled)
+    sets = law.row_sets
+    if law.spatial_rows.present:  # on the spatial tendons at the state (`joint_actuation.Spatial`)
+        sets = [*sets, law.spatial_rows.bound(spatial.length[:, law.rowed], spatial.jacobian[:, law.rowed, root:], v)]
+    acceleration = _row_solve(sets, law.row_steps, coupled, q, v, pulled)
     if acceleration is None:  # no limit or frictionloss row present
         if not rows:
             return torch.zeros_like(smooth)

@@ -28,7 +28,7 @@ from mani_skill.utils.structs.pose import Pose
 from ..plan.joint_actuation import FILTEREXACT, INTEGRATOR, NO_DYNAMICS, JointActuation
 from ..plan.rigid_tree import RigidTree, turning_slides
 from ..servos import UNLIMITED
-from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, Welds, constraint_force
+from .constraint_rows import ROW_STEPS, Connects, Couplings, RowSet, SpatialRowSet, Welds, constraint_force
 from .free_root import RootRows, free_velocity, physx_velocity
 from .inertia import Inertia, mass_matrix_and_bias, motion
 from .spatial_tendons import SpatialTendonTensors, spatial_tendons
@@ -88,6 +88,8 @@ class Law:
         self.sprung_stiffness, self.sprung_damping = tensor(spatial.stiffness), tensor(spatial.damping)
         self.sprung_low, self.sprung_high = tensor(spatial.rest[0]), tensor(spatial.rest[1])
         self.sprung_implicit = tensor(spatial.implicit_damping)
+        self.spatial_rows = SpatialRowSet(spatial.limits, spatial.friction, None, tensor, device)
+        self.rowed = torch.as_tensor(spatial.rowed, dtype=torch.long, device=device)
 
     def _rows(self, plan: JointActuation, tensor, device) -> None:
         """The constraint rows' arrays: the limit and frictionloss rows of the DoFs and of the fixed tendons, the
@@ -101,7 +103,7 @@ class Law:
         self.connects = Connects(plan.connects, tensor, device)
         self.welds = Welds(plan.welds, tensor, device)
         self.any_loops = self.connects.any or self.welds.any  # read on the host
-        self.any_rows = bool(self.row_sets) or self.couplings.any or self.any_loops
+        self.any_rows = bool(self.row_sets) or self.couplings.any or self.any_loops or self.spatial_rows.present
 
 
 def next_activation(law: Law, ctrl: torch.Tensor, act: torch.Tensor) -> torch.Tensor:
@@ -258,7 +260,7 @@ def implicit_step(
         tendons, implicit = _spatial_terms(law, spatial, clamped)
         force, damping = force + tendons, damping + law.timestep * implicit
     if law.any_rows:
-        force = force + constraint_force(law, matrix, q, v, force - bias, inertia, moved)
+        force = force + constraint_force(law, matrix, q, v, force - bias, inertia, moved, spatial)
     change = torch.linalg.solve_ex(matrix + damping, law.timestep * (force - bias))[0]
     qf = ((matrix @ change[..., None])[..., 0] / law.timestep + bias)[:, root:]
     if root and law.any_loops:

@@ -82,6 +82,11 @@ class SpatialLaw:
     rest: np.ndarray  # (2, k)
     damping: np.ndarray
     implicit_damping: np.ndarray
+    # the tendons with a limit or frictionloss row (indices into `tendons.tendons`) and their rows, as a fixed
+    # tendon's (`TendonRows`) but on a length and a Jacobian that change with the pose
+    rowed: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    limits: JointLimits = field(default_factory=lambda: JointLimits.none(0))
+    friction: JointFriction = field(default_factory=lambda: JointFriction.none(0))
 
     @classmethod
     def none(cls, nu: int) -> SpatialLaw:
@@ -333,7 +338,7 @@ def plan_joint_actuation(
         _welds(model, carried, link_of_body or {}),
         spatial,
         _weightless(model, link_of_body or {}),
-        _not_carried(model, link_of_body or {}, dof_of_joint, carried, len(spatial.sprung)),
+        _not_carried(model, link_of_body or {}, dof_of_joint, carried, spatial),
     )
 
 
@@ -456,20 +461,22 @@ def _tendon_rows(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int)
     tendons = [t for t in sorted(set(limited) | set(rubbing)) if _fixed_over(model, t, dof_of_joint)]
     if not tendons:
         return TendonRows.none(ndof)
-    rows = TendonRows(
-        _tendon_moments(model, dof_of_joint, ndof, tendons),
-        JointLimits.none(len(tendons)),
-        JointFriction.none(len(tendons)),
-    )
+    return TendonRows(_tendon_moments(model, dof_of_joint, ndof, tendons), *_tendon_row_laws(model, tendons))
+
+
+def _tendon_row_laws(model: mujoco.MjModel, tendons: list[int]) -> tuple[JointLimits, JointFriction]:
+    """The limit and frictionloss rows of `tendons` where they have them (diagApprox the tendon's invweight0)."""
+    limited, rubbing = _tendons_with_rows(model)
+    limits, friction = JointLimits.none(len(tendons)), JointFriction.none(len(tendons))
     for owner, tendon in enumerate(tendons):
         diag = model.tendon_invweight0[tendon]
         if tendon in limited:
             row = SoftRow.of(model, model.tendon_solref_lim[tendon], model.tendon_solimp_lim[tendon])
-            _limit_row(rows.limits, owner, row, model.tendon_range[tendon], model.tendon_margin[tendon], diag)
+            _limit_row(limits, owner, row, model.tendon_range[tendon], model.tendon_margin[tendon], diag)
         if tendon in rubbing:
             row = SoftRow.of(model, model.tendon_solref_fri[tendon], model.tendon_solimp_fri[tendon])
-            _friction_row(rows.friction, owner, row, model.tendon_frictionloss[tendon], diag)
-    return rows
+            _friction_row(friction, owner, row, model.tendon_frictionloss[tendon], diag)
+    return limits, friction
 
 
 def carried_equalities(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
@@ -688,7 +695,9 @@ def _spatial(model: mujoco.MjModel, link_of_body: dict[int, int], implicit: bool
         and not (np.any(model.tendon_stiffnesspoly[t]) or np.any(model.tendon_dampingpoly[t]))
         and not model.tendon_armature[t]
     ]
-    tendons = [t for t in spatial if t in pulled or t in linear]
+    limited, rubbing = _tendons_with_rows(model)
+    rowed = [t for t in spatial if t in limited or t in rubbing]
+    tendons = [t for t in spatial if t in pulled or t in linear or t in rowed]
     if not tendons:
         return SpatialLaw.none(model.nu)
     index = {t: k for k, t in enumerate(tendons)}
@@ -704,6 +713,8 @@ def _spatial(model: mujoco.MjModel, link_of_body: dict[int, int], implicit: bool
         model.tendon_lengthspring[linear].T.copy().reshape(2, -1),
         damping,
         damping * implicit,
+        np.array([index[t] for t in rowed], int),
+        *_tendon_row_laws(model, rowed),
     )
 
 
@@ -783,7 +794,7 @@ def _not_carried(
     link_of_body: dict[int, int],
     dof_of_joint: dict[int, int],
     carried: list[int],
-    spatial_springs: int = 0,
+    spatial: SpatialLaw | None = None,
 ) -> list[str]:
     """What MuJoCo's model holds beyond the law and the build: each is PhysX's own or absent on this path."""
     sprung = int(np.count_nonzero((model.tendon_stiffness != 0) | (model.tendon_damping != 0)))
@@ -800,12 +811,16 @@ def _not_carried(
         ),
         (bool(model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE), "the override flag's solref and solimp"),
         (
-            sprung > len(_carried_tendons(model, dof_of_joint)) + spatial_springs,
+            sprung > len(_carried_tendons(model, dof_of_joint)) + len(spatial.sprung if spatial else ()),
             "the springs and dampers of a nonlinear tendon, of one with armature or of a spatial one outside the law",
         ),
         (
-            any(not _fixed_over(model, t, dof_of_joint) for rows in _tendons_with_rows(model) for t in rows),
-            "the limits and frictionloss of a spatial tendon or of one over joints outside the robot",
+            any(
+                not _fixed_over(model, t, dof_of_joint) and t not in (spatial.tendons.tendons if spatial else ())
+                for rows in _tendons_with_rows(model)
+                for t in rows
+            ),
+            "the limits and frictionloss of a spatial tendon outside the law or of one over joints outside the robot",
         ),
         (
             bool(model.neq)
