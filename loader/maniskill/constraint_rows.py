@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import copy
 
-import mujoco
 import numpy as np
 import torch
 
+from ..model.frames import quat_to_mat
 from ..model.mj import MJMINVAL
 from ..model.soft_row import MAXIMP, MINIMP
 from ..plan.joint_actuation import JointFriction, JointLimits
@@ -228,10 +228,7 @@ class Welds:
         self.any = bool(welds.links.shape[0])  # read on the host
         self.links = torch.as_tensor(welds.links.reshape(-1), dtype=torch.long, device=device)  # (2n,)
         self.points = tensor(welds.points.reshape(-1, 3))
-        relative = np.zeros((welds.relative.shape[0], 9))
-        for turn, quaternion in zip(relative, np.asarray(welds.relative, np.float64)):
-            mujoco.mju_quat2Mat(turn, quaternion / np.linalg.norm(quaternion))
-        self.relative = tensor(relative.reshape(-1, 3, 3))  # relpose's rotation
+        self.relative = tensor(np.array([quat_to_mat(q) for q in welds.relative]).reshape(-1, 3, 3))  # relpose's
         self.scale = tensor(welds.torquescale)
         self.stiffness, self.damping = tensor(welds.stiffness), tensor(welds.damping)
         self.diag = tensor(welds.diag_approx)

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from ..model.frames import quat_to_mat
+
 SITE, PULLEY = int(mujoco.mjtWrap.mjWRAP_SITE), int(mujoco.mjtWrap.mjWRAP_PULLEY)
 SPHERE, CYLINDER = int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER)
 
@@ -42,12 +44,6 @@ class SpatialTendons:
         return len(self.tendons)
 
 
-def _rotation(quaternion: np.ndarray) -> np.ndarray:
-    out = np.zeros(9)
-    mujoco.mju_quat2Mat(out, np.asarray(quaternion, np.float64))
-    return out.reshape(3, 3)
-
-
 def why_outside(model: mujoco.MjModel, tendon: int, link_of_body: dict[int, int]) -> str | None:
     """Why the law cannot carry spatial tendon `tendon` on the robot's links, or None."""
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, tendon) or f"#{tendon}"
@@ -74,7 +70,7 @@ def why_outside(model: mujoco.MjModel, tendon: int, link_of_body: dict[int, int]
 
 def _in_geom(model: mujoco.MjModel, geom: int, point: np.ndarray) -> np.ndarray:
     """A point of the geom's body's frame in the geom's frame."""
-    return _rotation(model.geom_quat[geom]).T @ (np.asarray(point, np.float64) - model.geom_pos[geom])
+    return quat_to_mat(model.geom_quat[geom]).T @ (np.asarray(point, np.float64) - model.geom_pos[geom])
 
 
 def _segments(model: mujoco.MjModel, tendon: int):
@@ -129,7 +125,7 @@ def plan_spatial_tendons(model: mujoco.MjModel, tendons: list[int], link_of_body
             continue
         geom = int(model.wrap_objid[wrap])
         plan.wrapped[k], plan.geom_link[k] = True, link_of_body[int(model.geom_bodyid[geom])]
-        plan.geom_position[k], plan.geom_rotation[k] = model.geom_pos[geom], _rotation(model.geom_quat[geom])
+        plan.geom_position[k], plan.geom_rotation[k] = model.geom_pos[geom], quat_to_mat(model.geom_quat[geom])
         plan.radius[k], plan.sphere[k] = model.geom_size[geom][0], int(model.wrap_type[wrap]) == SPHERE
         if side >= 0:  # a cylinder's, on the geom's body and outside it: the point on the circle it selects
             flat = _in_geom(model, geom, model.site_pos[side])[:2]
