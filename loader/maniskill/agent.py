@@ -272,7 +272,7 @@ def register_agent(
         )
     limited = model.actuator_ctrllimited.astype(bool)
     dof_of_joint, link_of_body = robot_indices(reference.mapping, robot)
-    joints = {joint.name for joint in articulation.get_active_joints()}  # the other trees' actuators drive no drive
+    driven = {joint.name for joint in articulation.get_active_joints()}  # the other trees' actuators drive no drive
     attributes = {
         "uid": uid,
         "mjcf_path": path,
@@ -280,8 +280,8 @@ def register_agent(
         "disable_self_collisions": disable_self_collisions,
         "keyframes": keyframes,
         "robot_index": robot,
-        "servos": [servo for servo in derive(reference) if set(servo.joints) <= joints],
-        "motors": [motor for motor in motors(reference) if motor.joint in joints],
+        "servos": [servo for servo in derive(reference) if set(servo.joints) <= driven],
+        "motors": [motor for motor in motors(reference) if motor.joint in driven],
         "ctrl_low": np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf).tolist(),
         "ctrl_high": np.where(limited, model.actuator_ctrlrange[:, 1], np.inf).tolist(),
     }

@@ -648,15 +648,22 @@ def _tendon_moments(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
 def _carried_tendons(model: mujoco.MjModel, dof_of_joint: dict[int, int]) -> list[int]:
     """The tendons the law carries: fixed over the robot's hinges and slides, with a spring or a damper, linear (no
     polynomial term) and with no armature."""
-    carried = []
-    for tendon in range(model.ntendon):
-        if not (model.tendon_stiffness[tendon] or model.tendon_damping[tendon]):
-            continue
-        fixed = _fixed_over(model, tendon, dof_of_joint)
-        linear = not (np.any(model.tendon_stiffnesspoly[tendon]) or np.any(model.tendon_dampingpoly[tendon]))
-        if fixed and linear and not model.tendon_armature[tendon]:
-            carried.append(tendon)
-    return carried
+    return [t for t in range(model.ntendon) if _linear_spring(model, t) and _fixed_over(model, t, dof_of_joint)]
+
+
+def _linear_spring(model: mujoco.MjModel, tendon: int) -> bool:
+    """Whether a tendon has a spring or a damper the law carries: linear (no polynomial term), with no armature."""
+    sprung = model.tendon_stiffness[tendon] or model.tendon_damping[tendon]
+    linear = not (np.any(model.tendon_stiffnesspoly[tendon]) or np.any(model.tendon_dampingpoly[tendon]))
+    return bool(sprung and linear and not model.tendon_armature[tendon])
+
+
+def _spring_arrays(model: mujoco.MjModel, tendons: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tendons' stiffness, rest lengths (2, n) and damping, zero where the model disables springs or dampers."""
+    stiffness = 0.0 if mj.disabled(model, "spring") else model.tendon_stiffness[tendons]
+    damping = 0.0 if mj.disabled(model, "damper") else model.tendon_damping[tendons]
+    rest = model.tendon_lengthspring[tendons].T.copy()
+    return stiffness + np.zeros(len(tendons)), rest, damping + np.zeros(len(tendons))
 
 
 def _tendon_springs(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: int, implicit: bool) -> TendonSprings:
@@ -665,52 +672,42 @@ def _tendon_springs(model: mujoco.MjModel, dof_of_joint: dict[int, int], ndof: i
     tendons = _carried_tendons(model, dof_of_joint)
     if not tendons:
         return TendonSprings.none(ndof)
+    stiffness, rest, damping = _spring_arrays(model, tendons)
     moment = _tendon_moments(model, dof_of_joint, ndof, tendons)
-    stiffness = 0.0 if mj.disabled(model, "spring") else model.tendon_stiffness[tendons]
-    damping = 0.0 if mj.disabled(model, "damper") else model.tendon_damping[tendons]
-    stiffness, damping = stiffness + np.zeros(len(tendons)), damping + np.zeros(len(tendons))
-    rest = model.tendon_lengthspring[tendons].T.copy()
     return TendonSprings(moment, stiffness, rest, damping, damping * implicit)
 
 
 def _spatial(model: mujoco.MjModel, link_of_body: dict[int, int], implicit: bool) -> SpatialLaw:
     """The spatial tendons the actuators pull, and those with a linear spring or damper and no armature, wherever
     the law can carry them (`why_outside`)."""
+    if not link_of_body:
+        return SpatialLaw.none(model.nu)
     spatial = [
         t
         for t in range(model.ntendon)
         if model.tendon_num[t]
         and int(model.wrap_type[model.tendon_adr[t]]) != JOINT_WRAP
-        and link_of_body
         and why_outside(model, t, link_of_body) is None
     ]
     tendon = int(mujoco.mjtTrn.mjTRN_TENDON)
     pulled = [
         int(model.actuator_trnid[a, 0]) if int(model.actuator_trntype[a]) == tendon else -1 for a in range(model.nu)
     ]
-    linear = [
-        t
-        for t in spatial
-        if (model.tendon_stiffness[t] or model.tendon_damping[t])
-        and not (np.any(model.tendon_stiffnesspoly[t]) or np.any(model.tendon_dampingpoly[t]))
-        and not model.tendon_armature[t]
-    ]
+    linear = [t for t in spatial if _linear_spring(model, t)]
     limited, rubbing = _tendons_with_rows(model)
     rowed = [t for t in spatial if t in limited or t in rubbing]
     tendons = [t for t in spatial if t in pulled or t in linear or t in rowed]
     if not tendons:
         return SpatialLaw.none(model.nu)
     index = {t: k for k, t in enumerate(tendons)}
-    stiffness = 0.0 if mj.disabled(model, "spring") else model.tendon_stiffness[linear]
-    damping = 0.0 if mj.disabled(model, "damper") else model.tendon_damping[linear]
-    stiffness, damping = stiffness + np.zeros(len(linear)), damping + np.zeros(len(linear))
+    stiffness, rest, damping = _spring_arrays(model, linear)
     return SpatialLaw(
         plan_spatial_tendons(model, tendons, link_of_body),
         np.array([index.get(t, -1) for t in pulled], int),
         model.actuator_gear[:, 0].copy(),
         np.array([index[t] for t in linear], int),
         stiffness,
-        model.tendon_lengthspring[linear].T.copy().reshape(2, -1),
+        rest,
         damping,
         damping * implicit,
         np.array([index[t] for t in rowed], int),
